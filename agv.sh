@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# One entry point for a fresh machine: creates .venv, installs what is missing, then runs
+#   ./agv.sh demo [args]   the closed-loop demonstration (see README)
+#   ./agv.sh test [args]   the whole test suite (what CI runs)
+#   ./agv.sh env           only the set-up; prints the venv's python
+set -euo pipefail
+cd "$(dirname "$0")"
+VENV=${AGV_VENV:-.venv}
+
+pick_python() {
+  for py in python3.11 python3; do
+    if command -v "$py" >/dev/null 2>&1 &&
+       "$py" -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))'; then
+      echo "$py"; return
+    fi
+  done
+  echo "agv.sh: Python 3.11 is required (the ROS 2 Jazzy wheels on PyPI are cp311)" >&2
+  exit 2
+}
+
+ensure_venv() {
+  if [[ ! -x "$VENV/bin/python" ]]; then
+    "$(pick_python)" -m venv "$VENV"
+  fi
+  local stamp="$VENV/.agv_nodes-installed" want
+  want=$(cat requirements.txt setup.py setup.cfg package.xml | sha256sum | cut -d' ' -f1)
+  if [[ ! -f "$stamp" || "$(cat "$stamp")" != "$want" ]]; then
+    echo "agv.sh: installing requirements into $VENV ..." >&2
+    "$VENV/bin/python" -m pip install -q --upgrade pip
+    "$VENV/bin/python" -m pip install -q -r requirements.txt
+    "$VENV/bin/python" -m pip install -q --no-deps -e .
+    echo "$want" > "$stamp"
+  fi
+}
+
+cmd=${1:-help}
+[[ $# -gt 0 ]] && shift
+case "$cmd" in
+  test)
+    ensure_venv
+    exec "$VENV/bin/python" -m pytest "$@"
+    ;;
+  demo)
+    ensure_venv
+    exec "$VENV/bin/python" -m agv_nodes.demo "$@"
+    ;;
+  env)
+    ensure_venv
+    echo "$VENV/bin/python"
+    ;;
+  *)
+    sed -n '2,6p' "$0" | sed 's/^# \{0,1\}//'
+    exit 2
+    ;;
+esac

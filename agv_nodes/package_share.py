@@ -1,0 +1,51 @@
+"""Where the package's shared files (msg_schemas/, config/, launch/) live.
+
+Three installs must work: a colcon workspace or a ROS install (found through ament_index, i.e.
+`share/agv_nodes` under an AMENT_PREFIX_PATH entry), a source checkout or `pip install -e`
+(the files sit next to the `agv_nodes` package), and a plain `pip install` (setup.py's
+data_files land in `<prefix>/share/agv_nodes`).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from pathlib import Path
+import sys
+
+PACKAGE = 'agv_nodes'
+_MARKER = 'msg_schemas'
+
+
+@functools.cache
+def share_dir() -> Path:
+    """Return the directory holding msg_schemas/, config/ and launch/ for this install."""
+    override = os.environ.get('AGV_NODES_SHARE')
+    if override:
+        return Path(override)
+    candidates: list[Path] = []
+    # A source checkout / editable install first: the files next to this very module belong to
+    # the code that is running, whatever else is on AMENT_PREFIX_PATH.
+    candidates.append(Path(__file__).resolve().parent.parent)
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        candidates.append(Path(get_package_share_directory(PACKAGE)))
+    except Exception:  # noqa: BLE001 - ament_index absent or the package not registered
+        pass
+    candidates.append(Path(sys.prefix) / 'share' / PACKAGE)
+    for candidate in candidates:
+        if (candidate / _MARKER).is_dir():
+            return candidate
+    searched = ', '.join(str(c) for c in candidates)
+    raise FileNotFoundError(f'{PACKAGE}: no {_MARKER}/ directory found (searched {searched})')
+
+
+def schema_dir() -> Path:
+    """Directory of the record schemas (one YAML file per 16-byte record)."""
+    return share_dir() / 'msg_schemas'
+
+
+def config_dir() -> Path:
+    """Directory of the ROS-format parameter files and world layouts."""
+    return share_dir() / 'config'

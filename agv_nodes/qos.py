@@ -1,0 +1,52 @@
+"""The one place for QoS profiles (DESIGN.md "QoS").
+
+A record topic is a pigeon-hole (thesis 8.2.2, spec F1): the writer offers reliable +
+transient-local keep-last 1 and republishes at a steady rate, so a late joiner gets the current
+record at once and a silent writer is noticed by age. Readers ask for the weakest QoS that does
+the job (reliable + volatile for records; best-effort for the 340 Hz ADC stream and camera
+frames), because a best-effort writer never matches a reliable reader and a volatile writer
+never matches a transient-local reader. Readers keep a short queue so that two records arriving
+between two executor turns are both seen.
+"""
+
+from __future__ import annotations
+
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+)
+
+from agv_nodes.records.codec import RecordSchema
+
+RECORD_WRITER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                           reliability=ReliabilityPolicy.RELIABLE,
+                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
+RECORD_READER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                           reliability=ReliabilityPolicy.RELIABLE,
+                           durability=DurabilityPolicy.VOLATILE)
+STREAM_WRITER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                           reliability=ReliabilityPolicy.RELIABLE,
+                           durability=DurabilityPolicy.VOLATILE)
+STREAM_READER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                           reliability=ReliabilityPolicy.BEST_EFFORT,
+                           durability=DurabilityPolicy.VOLATILE)
+# Ground truth drawn once (world/route, world/markers) and late-joining viewers or recorders.
+LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                     reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# /diagnostics, reports, ground-truth streams: reliable, volatile.
+EVENTS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
+                    reliability=ReliabilityPolicy.RELIABLE,
+                    durability=DurabilityPolicy.VOLATILE)
+
+
+def writer_qos(schema: RecordSchema) -> QoSProfile:
+    """QoS a writer of `schema`'s topic offers."""
+    return RECORD_WRITER if schema.qos == 'record' else STREAM_WRITER
+
+
+def reader_qos(schema: RecordSchema) -> QoSProfile:
+    """QoS a reader of `schema`'s topic requests."""
+    return RECORD_READER if schema.qos == 'record' else STREAM_READER

@@ -1,0 +1,104 @@
+"""Record ports: the ROS-free ends of a record topic, shared by the nodes and the harness.
+
+A `RecordWriter` packs a core's field dict into 16 bytes (advancing the E2E counter); a
+`RecordReader` validates what arrives and keeps the last good record, its age, and a count of
+every rejection by reason, so `/diagnostics` can show "the 32 bytes" (thesis 8.2.2) and rejects.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Mapping
+from typing import Any
+
+from agv_nodes.records.codec import RecordError, RecordSchema, e2e_counter
+from agv_nodes.records.e2e import Sequence, SequenceCheck
+
+
+class RecordWriter:
+    """Packs records of one schema for one writer."""
+
+    def __init__(self, schema: RecordSchema, integrity: str = 'e2e') -> None:
+        self.schema = schema
+        self.integrity = integrity
+        self.counter = 0
+        self.last_raw: bytes | None = None
+        self.last_fields: dict[str, Any] | None = None
+        self.sent = 0
+
+    def pack(self, fields: Mapping[str, Any]) -> bytes:
+        """16 bytes for `fields`; each call is one publish (the counter advances)."""
+        raw = self.schema.encode(fields, integrity=self.integrity, counter=self.counter)
+        self.counter = (self.counter + 1) & 0xFF
+        self.last_raw = raw
+        self.last_fields = dict(fields)
+        self.sent += 1
+        return raw
+
+
+class RecordReader:
+    """Validates received records of one schema; never lets a bad one through."""
+
+    def __init__(self, schema: RecordSchema, integrity: str = 'e2e',
+                 max_delta: int = 15) -> None:
+        self.schema = schema
+        self.integrity = integrity
+        self.sequence = SequenceCheck(max_delta)
+        self.fields: dict[str, Any] | None = None  # last accepted record
+        self.raw: bytes | None = None  # its 16 bytes
+        self.stamp_ns: int | None = None  # when it was accepted
+        self.accepted = 0
+        self.rejects: Counter[str] = Counter()
+        self.last_error: str = ''
+
+    @property
+    def rejected(self) -> int:
+        """Total records rejected."""
+        return sum(self.rejects.values())
+
+    def accept(self, data: bytes | bytearray, now_ns: int) -> dict[str, Any] | None:
+        """Decode `data`; return its fields, or None (and count why) when it is rejected."""
+        try:
+            fields = self.schema.decode(data, integrity=self.integrity)
+        except RecordError as exc:
+            self._reject(_reason(exc), str(exc))
+            return None
+        if self.schema.protected and self.integrity == 'e2e':
+            verdict = self.sequence.check(e2e_counter(data))
+            if verdict is Sequence.REPEATED:
+                self._reject('repeated_counter', f'{self.schema.name}: repeated counter '
+                             f'{e2e_counter(data)} (not new data)')
+                return None
+            if verdict is Sequence.WRONG_SEQUENCE:
+                self._reject('wrong_sequence', f'{self.schema.name}: counter jumped to '
+                             f'{e2e_counter(data)}')
+                return None
+        self.fields = fields
+        self.raw = bytes(data)
+        self.stamp_ns = now_ns
+        self.accepted += 1
+        return fields
+
+    def age_s(self, now_ns: int) -> float:
+        """Seconds since the last accepted record (inf if none yet)."""
+        return float('inf') if self.stamp_ns is None else (now_ns - self.stamp_ns) * 1e-9
+
+    @property
+    def lost(self) -> int:
+        """Records missed in accepted counter gaps."""
+        return self.sequence.lost
+
+    def _reject(self, reason: str, text: str) -> None:
+        self.rejects[reason] += 1
+        self.last_error = text
+
+
+def _reason(exc: RecordError) -> str:
+    """A short counter key for a rejection."""
+    if exc.field == 'e2e_crc':
+        return 'bad_crc'
+    if exc.reason.startswith('length'):
+        return 'wrong_length'
+    if 'spare' in exc.reason:
+        return 'spare_set'
+    return 'bad_value'

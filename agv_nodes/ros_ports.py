@@ -1,0 +1,60 @@
+"""rclpy bindings of the record ports: a record topic carries std_msgs/UInt8MultiArray (16 bytes).
+
+Nodes use these; the lock-step harness uses the ROS-free RecordWriter/RecordReader underneath
+directly, so both share the codec, the schemas' port declarations and the E2E rules.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from rclpy.node import Node
+from std_msgs.msg import UInt8MultiArray
+
+from agv_nodes import qos
+from agv_nodes.records.codec import RecordSchema
+from agv_nodes.records.ports import RecordReader, RecordWriter
+
+
+class RecordPublisher(RecordWriter):
+    """Publishes one record topic; `publish(fields)` packs and sends 16 bytes."""
+
+    def __init__(self, node: Node, schema: RecordSchema, integrity: str = 'e2e') -> None:
+        super().__init__(schema, integrity if schema.protected else 'none')
+        self._pub = node.create_publisher(UInt8MultiArray, schema.topic, qos.writer_qos(schema))
+        self._msg = UInt8MultiArray()
+
+    def publish(self, fields: Mapping[str, Any]) -> bytes:
+        """Pack `fields` and publish them; returns the 16 bytes sent."""
+        raw = self.pack(fields)
+        self._msg.data = raw
+        self._pub.publish(self._msg)
+        return raw
+
+    def publish_raw(self, raw: bytes) -> None:
+        """Send bytes as they are (fault injection and foreign-writer tests only)."""
+        self._msg.data = bytes(raw)
+        self._pub.publish(self._msg)
+
+    @property
+    def subscription_count(self) -> int:
+        """Matched readers."""
+        return self._pub.get_subscription_count()
+
+
+class RecordSubscription(RecordReader):
+    """Subscribes one record topic; calls `callback(fields)` for each record accepted."""
+
+    def __init__(self, node: Node, schema: RecordSchema, integrity: str = 'e2e',
+                 callback: Callable[[dict[str, Any]], None] | None = None) -> None:
+        super().__init__(schema, integrity if schema.protected else 'none')
+        self._node = node
+        self._callback = callback
+        self._sub = node.create_subscription(UInt8MultiArray, schema.topic, self._on_msg,
+                                             qos.reader_qos(schema))
+
+    def _on_msg(self, msg: UInt8MultiArray) -> None:
+        fields = self.accept(bytes(msg.data), self._node.get_clock().now().nanoseconds)
+        if fields is not None and self._callback is not None:
+            self._callback(fields)

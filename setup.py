@@ -1,0 +1,46 @@
+"""ament_python build description for agv_nodes (colcon, pip and pip -e all use this file)."""
+
+from glob import glob
+import os
+
+from setuptools import find_packages, setup
+
+package_name = 'agv_nodes'
+
+
+def tree(top: str) -> list[tuple[str, list[str]]]:
+    """Data-file entries installing every file below `top` into share/agv_nodes/`top`."""
+    entries = []
+    for folder, _dirs, files in sorted(os.walk(top)):
+        files = sorted(os.path.join(folder, f) for f in files if not f.endswith('.pyc'))
+        if files:
+            entries.append((os.path.join('share', package_name, folder), files))
+    return entries
+
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*', 'bench', 'examples']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
+        *tree('msg_schemas'),
+        *tree('config'),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=False,
+    maintainer='agv_nodes developers',
+    maintainer_email='agv-nodes@example.org',
+    description='ROS 2 reproduction of the 1983 Cableform AGV (Baker 1983, Rajagopalan 1991).',
+    license='Apache-2.0',
+    tests_require=['pytest'],
+    entry_points={
+        'console_scripts': [
+            # nodes (ros2 run agv_nodes <node>)
+            # tools
+            'agv-records = agv_nodes.records.cli:main',
+        ],
+    },
+)

@@ -1,0 +1,203 @@
+"""Record codec: every thesis value of spec 1.7-1.9 encodes and decodes to the documented bytes."""
+
+from __future__ import annotations
+
+import pytest
+
+from agv_nodes.records import RecordError, codec
+from agv_nodes.records.e2e import crc8_sae_j1850, record_crc
+
+C = codec()
+
+
+def plain(record: str, **fields) -> bytes:
+    """A plain thesis record (integrity none): bytes 15-16 are 00H."""
+    return C.encode(record, fields, integrity='none')
+
+
+def test_crc8_sae_j1850_check_value():
+    assert crc8_sae_j1850(b'123456789') == 0x4B
+    assert crc8_sae_j1850(b'') == 0x00  # init FF, xorout FF, no data
+
+
+# -- navigation_status: fig 6.2, the values PC6/1 writes (spec 1.7 table) -------------------
+@pytest.mark.parametrize('byte1, fields', [
+    (0x0A, dict(at_location=0, slow=1, reverse=0, lost=1)),  # power-up
+    (0x00, dict(at_location=0, slow=0, reverse=0, lost=0)),  # OPLOP: navigating
+    (0x03, dict(at_location=1, slow=1, reverse=0, lost=0)),  # CLOP: positioning
+    (0x0B, dict(at_location=1, slow=1, reverse=0, lost=1)),  # centre stop view
+])
+def test_navigation_status_thesis_byte1(byte1, fields):
+    raw = plain('navigation_status', last_marker=0x02, **fields)
+    assert raw[0] == byte1
+    assert raw[1:3] == b'\x02\x00'
+    decoded = C.decode('navigation_status', raw, integrity='none')
+    assert {k: decoded[k] for k in fields} == fields
+
+
+def test_navigation_status_power_up_is_0A_FF():
+    raw = plain('navigation_status')  # schema defaults = the power-up record
+    assert raw[:3] == bytes([0x0A, 0xFF, 0x00])
+    assert raw[3:] == bytes(13)
+    fields = C.decode('navigation_status', raw, integrity='none')
+    assert fields['last_marker'] == 0xFF
+    assert C['navigation_status'].describe(fields)['last_marker'] == 'none seen yet'
+
+
+def test_navigation_status_step_table_of_spec_4():
+    """The task 'stop at location 2, first stop marker' record sequence (spec 4 table)."""
+    steps = [
+        (dict(), 0x0A, 0xFF),
+        (dict(slow=0, lost=0, last_marker=0), 0x00, 0x00),
+        (dict(slow=0, lost=0, last_marker=1), 0x00, 0x01),
+        (dict(at_location=1, slow=1, lost=0, last_marker=2), 0x03, 0x02),
+        (dict(at_location=1, slow=1, lost=1, last_marker=2), 0x0B, 0x02),
+    ]
+    for fields, b1, b2 in steps:
+        raw = plain('navigation_status', **fields)
+        assert (raw[0], raw[1]) == (b1, b2)
+
+
+# -- traction_link: spec 1.9 ----------------------------------------------------------------
+@pytest.mark.parametrize('value, fields', [
+    (0x40, dict(executive_priority=1, reverse=0, speed=0)),  # OPLOP
+    (0x14, dict(executive_priority=0, reverse=0, speed=20)),  # SLOW1
+    (0x00, dict(executive_priority=0, reverse=0, speed=0)),  # SETPT / centre view
+    (0x34, dict(executive_priority=0, reverse=1, speed=20)),  # F5 reverse creep (spec 8)
+])
+def test_traction_link_values(value, fields):
+    raw = plain('traction_link', **fields)
+    assert raw[0] == value and raw[1:] == bytes(15)
+    assert C.decode('traction_link', raw, integrity='none') == fields
+
+
+def test_traction_link_bit7_is_spare():
+    with pytest.raises(RecordError) as info:
+        C.decode('traction_link', bytes([0x80]) + bytes(15), integrity='none')
+    assert info.value.byte == 1 and 'spare' in str(info.value)
+
+
+# -- traction_command: spec 1.8 -------------------------------------------------------------
+def test_traction_command_byte2_zero_is_emergency_stop():
+    raw = bytes(16)
+    fields = C.decode('traction_command', raw, integrity='none')
+    assert fields['demand'] == 0 and fields['manual'] == 0
+    assert C['traction_command'].describe(fields)['demand'].startswith('EMERGENCY STOP')
+
+
+@pytest.mark.parametrize('demand, byte2', [(20, 0x14), (-5, 0xFB), (80, 0x50), (-80, 0xB0)])
+def test_traction_command_demand_twos_complement(demand, byte2):
+    raw = plain('traction_command', demand=demand)
+    assert raw[1] == byte2
+    assert C.decode('traction_command', raw, integrity='none')['demand'] == demand
+
+
+def test_traction_command_manual_byte1_whole():
+    """Manual: byte 1 bit 0 = 1, bits 1-6 speed, bit 7 reverse (REF = byte 1 as signed)."""
+    raw = plain('traction_command', manual=1, manual_speed=10, reverse=1)
+    assert raw[0] == 0x80 | (10 << 1) | 1
+    assert C.decode('traction_command', raw, integrity='none') == dict(
+        manual=1, manual_speed=10, reverse=1, demand=0, executive_priority=0)
+
+
+def test_traction_command_demand_beyond_80_rejected():
+    raw = bytearray(16)
+    raw[1] = 0x51  # +81 % is no armature duty the board can give
+    with pytest.raises(RecordError) as info:
+        C.decode('traction_command', raw, integrity='none')
+    assert (info.value.byte, info.value.field, info.value.value) == (2, 'demand', 81)
+
+
+# -- navigation_command: spec 1.7 -----------------------------------------------------------
+def test_navigation_command_location_and_edge():
+    assert plain('navigation_command', task_location=2, stop_marker=0)[:2] == b'\x02\x00'
+    assert plain('navigation_command', task_location=2, stop_marker=1)[:2] == b'\x02\x01'
+    assert plain('navigation_command')[:2] == b'\xff\x00'  # no task
+    with pytest.raises(RecordError):
+        C.decode('navigation_command', b'\x02\x02' + bytes(14), integrity='none')  # byte 2 bit 1
+
+
+# -- E2E bytes 15-16 ------------------------------------------------------------------------
+def test_e2e_counter_and_crc_bytes():
+    s = C['navigation_status']
+    raw = s.encode({}, counter=7)
+    assert raw[14] == 7
+    assert raw[15] == record_crc(s.data_id, raw[:15])
+    assert raw[15] == crc8_sae_j1850(bytes([0x12]) + raw[:15])
+    assert s.decode(raw) == s.defaults()
+
+
+def test_e2e_crc_covers_data_id():
+    """The same bytes under another record's data_id fail: a record on the wrong topic."""
+    raw = C.encode('navigation_command', {'task_location': 1}, counter=3)
+    with pytest.raises(RecordError) as info:
+        C.decode('load_command', raw)
+    assert info.value.byte == 16
+
+
+def test_integrity_none_requires_bytes_15_16_zero():
+    raw = C.encode('navigation_status', {}, counter=1)
+    with pytest.raises(RecordError) as info:
+        C.decode('navigation_status', raw, integrity='none')
+    assert info.value.byte == 15
+
+
+def test_hardware_records_use_all_16_bytes_unprotected():
+    fields = {f'lit_{d}': 100 + d for d in range(1, 9)}
+    fields.update({f'dark_{d}': 200 + d for d in range(1, 9)})
+    raw = C.encode('adc_snapshot', fields)
+    assert raw == bytes([101, 102, 103, 104, 105, 106, 107, 108,
+                         201, 202, 203, 204, 205, 206, 207, 208])
+    assert C.decode('adc_snapshot', raw) == fields
+    assert not C['adc_snapshot'].protected
+
+
+# -- error messages name record, byte, field and value --------------------------------------
+@pytest.mark.parametrize('record, data, integrity, byte, field, words', [
+    ('navigation_status', bytes(15), 'none', None, None, 'length 15'),
+    ('navigation_status', bytes(17), 'none', None, None, 'length 17'),
+    ('navigation_status', bytes([0x0A, 0xFF, 0, 0, 0, 0, 0, 0x01]) + bytes(8), 'none', 8, None,
+     'spare'),
+    ('navigation_status', bytes([0x1A, 0xFF]) + bytes(14), 'none', 1, None, 'spare'),
+    ('navigation_status', bytes([0x0A, 0x40]) + bytes(14), 'none', 2, 'last_marker',
+     'out of range'),
+    ('position_sensor_command', bytes([0x02]) + bytes(15), 'none', 1, 'table', 'unknown enum'),
+    ('traction_drive', bytes([81]) + bytes(15), 'none', 1, 'armature_duty', 'out of range'),
+])
+def test_decode_errors_name_the_place(record, data, integrity, byte, field, words):
+    with pytest.raises(RecordError) as info:
+        C.decode(record, data, integrity=integrity)
+    err = info.value
+    assert err.record == record and err.byte == byte and err.field == field
+    assert words in str(err) and record in str(err)
+    if byte is not None:
+        assert f'byte {byte}' in str(err)
+
+
+def test_encode_errors_name_the_place():
+    with pytest.raises(RecordError, match="route_command byte 1 field 'mode': unknown enum"):
+        C.encode('route_command', {'mode': 'reverse_wire'})
+    with pytest.raises(RecordError, match="field 'speed': value out of range"):
+        C.encode('traction_link', {'speed': 32})
+    with pytest.raises(RecordError, match="field 'sped'"):
+        C.encode('traction_link', {'sped': 3})
+    with pytest.raises(RecordError, match='no such record'):
+        C.encode('traction_links', {})
+
+
+def test_every_schema_names_topic_writer_readers_and_thesis():
+    names = C.names()
+    assert len(names) == 20
+    for s in C:
+        assert s.topic and not s.topic.startswith('/')
+        assert s.writer and s.readers and s.thesis
+        for f in s.fields:
+            assert f.thesis, f'{s.name}.{f.name} has no thesis reference'
+    assert sorted({s.data_id for s in C}) == sorted(s.data_id for s in C)
+
+
+def test_port_declarations_from_schemas():
+    reads, writes = C.for_node('navigation')
+    assert {s.name for s in reads} == {'navigation_command', 'position_sensor_status'}
+    assert {s.name for s in writes} == {'navigation_status', 'traction_link',
+                                        'position_sensor_command'}
