@@ -39,6 +39,7 @@ setup(
     entry_points={
         'console_scripts': [
             # nodes (ros2 run agv_nodes <node>)
+            'world = agv_nodes.world_node:main',
             # tools
             'agv-records = agv_nodes.records.cli:main',
         ],

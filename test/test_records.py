@@ -187,7 +187,7 @@ def test_encode_errors_name_the_place():
 
 def test_every_schema_names_topic_writer_readers_and_thesis():
     names = C.names()
-    assert len(names) == 20
+    assert len(names) == 21
     for s in C:
         assert s.topic and not s.topic.startswith('/')
         assert s.writer and s.readers and s.thesis

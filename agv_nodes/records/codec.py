@@ -22,7 +22,7 @@ RECORD_LENGTH = 16
 COUNTER_BYTE = 15
 CRC_BYTE = 16
 INTEGRITY_MODES = ('e2e', 'none')
-KINDS = ('inter_processor', 'hardware')
+KINDS = ('inter_processor', 'hardware', 'ground_truth')
 ENCODINGS = ('flag', 'unsigned', 'twos_complement', 'enum', 'u16le', 's16le')
 QOS_CLASSES = ('record', 'stream')
 

@@ -16,7 +16,7 @@ a CRC-8/SAE-J1850 (poly 1DH, init FFH, no reflection, xorout FFH; check("1234567
 over the record's `data_id` followed by bytes 1-15. A receiver rejects a bad CRC and a repeated
 counter, counts skipped counters, and rejects then resynchronises on a jump of more than 15.
 With `none` (a legacy peer sending plain thesis records) bytes 15-16 are spare (00H).
-Hardware-side records use all 16 bytes and carry no protection.
+Hardware-side and ground-truth records use all 16 bytes and carry no protection.
 
 Every record travels as `std_msgs/msg/UInt8MultiArray` with exactly 16 data bytes and an empty
 layout, on the relative topic named below.
@@ -86,9 +86,11 @@ def render_markdown(codec: Codec) -> str:
         parts.append(f'| [`{s.name}`](#{s.name}) | `{s.topic}` | {s.writer} | '
                      f'{", ".join(s.readers)} | {s.data_id:02X}H |')
     parts.append('')
-    for kind in ('inter_processor', 'hardware'):
-        parts.append('# Inter-processor records' if kind == 'inter_processor'
-                     else '# Hardware-side records')
+    titles = {'inter_processor': '# Inter-processor records',
+              'hardware': '# Hardware-side records',
+              'ground_truth': '# Ground truth (simulation only)'}
+    for kind, title in titles.items():
+        parts.append(title)
         parts.append('')
         parts += [record_table(s) for s in codec if s.kind == kind]
     return '\n'.join(parts).rstrip() + '\n'

@@ -1,0 +1,82 @@
+"""Binary camera (Rajagopalan 1991 ch 4, 6.3.4): a 64 x 128 window of the floor, 50 mm along
+travel by 250 mm across, thresholded by the optic-RAM itself (dark tape = 1, floor = 0).
+
+Row 0 is the leading edge of the window, column 0 its left edge (digest 1.2). A pixel is dark
+when its floor point lies within half the tape width of a tape centreline; random specks (short
+dark runs below the noise-filter length) model dirt and pixel differences. The rear camera is the
+same window at -L_c, mounted facing backwards (its image is rotated 180 degrees).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from agv_nodes.world.layout import Path2D
+
+ROWS, COLS = 64, 128
+
+
+@dataclass
+class CameraParams:
+    """Window geometry and noise ([T] Table 6.1, [D] digest 4.4)."""
+
+    depth: float = 0.050  # m along travel (64 rows)
+    width: float = 0.250  # m across (128 columns)
+    specks: int = 6  # random dark runs per frame
+    speck_max: int = 6  # px, longest speck (below the 16 px noise filter)
+
+
+class BinaryCamera:
+    """Renders binary frames of the tape for a window pose."""
+
+    def __init__(self, params: CameraParams, tapes: list[Path2D], rng: np.random.Generator):
+        self.p = params
+        self.tapes = tapes
+        self.rng = rng
+        # Pixel centres in window coordinates: along (+ ahead) and lateral (+ left).
+        self.along = (0.5 - (np.arange(ROWS) + 0.5) / ROWS) * params.depth  # row 0 ahead
+        self.lateral = (0.5 - (np.arange(COLS) + 0.5) / COLS) * params.width  # col 0 left
+
+    def render(self, cx: float, cy: float, heading: float, noise: bool = True) -> np.ndarray:
+        """A (64, 128) uint8 frame (1 = dark) for a window centred at (cx, cy)."""
+        fx, fy = math.cos(heading), math.sin(heading)
+        lx, ly = -fy, fx
+        gx = cx + self.along[:, None] * fx + self.lateral[None, :] * lx
+        gy = cy + self.along[:, None] * fy + self.lateral[None, :] * ly
+        pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+        dark = np.zeros(len(pts), dtype=bool)
+        for tape in self.tapes:
+            near = np.hypot(tape.points[:, 0] - cx, tape.points[:, 1] - cy) < 0.5
+            idx = np.flatnonzero(near[:-1] | near[1:])
+            if idx.size == 0:
+                continue
+            a = tape.points[idx]
+            d = tape.points[idx + 1] - a
+            dd = np.einsum('ij,ij->i', d, d)
+            rel = pts[:, None, :] - a[None, :, :]
+            t = np.clip(np.einsum('pij,ij->pi', rel, d) / np.where(dd > 0, dd, 1), 0, 1)
+            foot = a[None, :, :] + t[:, :, None] * d[None, :, :]
+            dist = np.min(np.linalg.norm(pts[:, None, :] - foot, axis=2), axis=1)
+            dark |= dist <= tape.width / 2.0
+        frame = dark.reshape(ROWS, COLS).astype(np.uint8)
+        if noise and self.p.specks:
+            for _ in range(self.p.specks):
+                r = int(self.rng.integers(0, ROWS))
+                c = int(self.rng.integers(0, COLS))
+                n = int(self.rng.integers(1, self.p.speck_max + 1))
+                frame[r, c:c + n] = 1
+        return frame
+
+    def truth(self, cx: float, cy: float, heading: float) -> tuple[float, float] | None:
+        """(eps_d, eps_theta) of the nearest tape at the window centre, digest 0 signs."""
+        best = None
+        for tape in self.tapes:
+            s, lateral, tangent = tape.project(cx, cy)
+            if best is None or abs(lateral) < abs(best[0]):
+                # Track to the left of the window centre => eps_d > 0.
+                best = (-lateral, math.atan2(math.sin(tangent - heading),
+                                             math.cos(tangent - heading)))
+        return best

@@ -1,0 +1,400 @@
+"""The world core: truck, floor, wires or tape, markers, conveyors and sensors, ROS-free.
+
+Stepped once per marker-sensor sample (340 Hz by default, thesis 5.3.5.2). Inputs are the
+hardware-side records (traction_drive, steering_command, conveyor_command) and the radio stop;
+outputs are the hardware-side records due at this step, camera frames, and ground-truth events.
+Everything is seeded: the same seed and inputs give the same samples.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+import random
+from typing import Any
+
+import numpy as np
+
+from agv_nodes.world.camera import BinaryCamera, CameraParams
+from agv_nodes.world.guide_wire import GuideWirePickup, PickupParams
+from agv_nodes.world.layout import Layout, Marker
+from agv_nodes.world.marker_sensor import MarkerSensorModel, SensorParams
+from agv_nodes.world.vehicles import Concic2, Concic2Params, Electruk, ElectrukParams
+
+
+@dataclass
+class WorldParams:
+    """World settings (the world node's parameters map onto these)."""
+
+    seed: int = 1
+    sample_rate: float = 340.0  # Hz, marker sensor snapshots [T 5.3.5.2]
+    substeps: int = 4  # physics steps per sample
+    guide_wire_rate: float = 100.0  # Hz
+    odometry_rate: float = 100.0  # Hz
+    conveyor_rate: float = 20.0  # Hz
+    camera_rate: float = 20.0  # Hz [T Table 6.1: 20-25 frames/s]
+    rear_camera: bool = False
+    drive_watchdog: float = 0.200  # s: trip relay opens if the watchdog count stalls [T B.2.1]
+    steering_timeout: float = 0.200  # s: no steering_command -> hold (tug) / motor off (concic2)
+    ride_height_per_tonne: float = 0.008  # m the card appears higher per 1000 kg payload [A]
+    align_tolerance: float = 0.060  # m: conveyor transfer works within this of the stop marker
+    conveyor_speed: float = 0.25  # m/s
+    transfer_length: float = 0.80  # m a load travels between conveyors
+    start_loaded: tuple[bool, bool] = (False, False)  # truck conveyors first, second
+    electruk: ElectrukParams = field(default_factory=ElectrukParams)
+    concic2: Concic2Params = field(default_factory=Concic2Params)
+    sensor: SensorParams = field(default_factory=SensorParams)
+    pickup: PickupParams = field(default_factory=PickupParams)
+    camera: CameraParams = field(default_factory=CameraParams)
+
+
+class _Every:
+    """Fires at a fixed rate on the sample clock (exact, no drift)."""
+
+    def __init__(self, rate: float, sample_rate: float) -> None:
+        self.period = max(1, round(sample_rate / rate))
+
+    def due(self, sample: int) -> bool:
+        return sample % self.period == 0
+
+
+class WorldCore:
+    """The simulated hardware; see the module docstring."""
+
+    def __init__(self, layout: Layout, params: WorldParams | None = None) -> None:
+        self.layout = layout
+        self.p = params or WorldParams()
+        self.rng = random.Random(self.p.seed)
+        self.np_rng = np.random.default_rng(self.p.seed)
+        self.dt = 1.0 / self.p.sample_rate
+        self.sample = 0
+        self.wires = [w for w in layout.paths.values() if w.width == 0.0]
+        self.tapes = [t for t in layout.paths.values() if t.width > 0.0]
+        if layout.vehicle == 'electruk':
+            self.vehicle: Electruk | Concic2 = Electruk(self.p.electruk)
+        else:
+            self.vehicle = Concic2(self.p.concic2)
+        self._place_vehicle()
+        self.sensor = MarkerSensorModel(self.p.sensor, self.rng)
+        self.pickup = GuideWirePickup(self.p.pickup, self.wires, self.rng) if self.wires else None
+        self.camera = BinaryCamera(self.p.camera, self.tapes, self.np_rng) if self.tapes else None
+        self._wire_every = _Every(self.p.guide_wire_rate, self.p.sample_rate)
+        self._odo_every = _Every(self.p.odometry_rate, self.p.sample_rate)
+        self._conv_every = _Every(self.p.conveyor_rate, self.p.sample_rate)
+        self._cam_every = _Every(self.p.camera_rate, self.p.sample_rate)
+        self.radio_stop = False
+        self._last_watchdog: int | None = None
+        self._watchdog_time = -1e9
+        self._steer_time = -1e9
+        self.conveyor_command: dict[str, Any] = {'first': 'off', 'second': 'off',
+                                                 'station_request': 0}
+        self.loads = list(self.p.start_loaded)
+        self.station_loads = {sid: int(st.has_load) for sid, st in layout.stations.items()}
+        self.transfer = 0.0  # fraction of the transfer in progress
+        self.counters = {'guide_wire': 0, 'wheel_odometry': 0}
+        self._odo_dist = [0.0, 0.0]  # m per driven wheel
+        self.events: list[dict[str, Any]] = []
+        self._event_count = 0
+        self._card_side: dict[int, float] = {}
+        self._moving = False
+        self._peak_speed = 0.0
+        self._on_wire = True
+        self._rig_s = layout.start_at
+
+    # -- set-up ---------------------------------------------------------------------------
+    def _place_vehicle(self) -> None:
+        lay = self.layout
+        path = lay.paths[lay.start_path]
+        x, y, h = path.pose_at(lay.start_at)
+        h += lay.start_heading
+        x += -math.sin(h) * lay.start_lateral
+        y += math.cos(h) * lay.start_lateral
+        # The layout gives the sensor point (front axle / camera); place the reference point.
+        ahead = (self.p.electruk.wheelbase if isinstance(self.vehicle, Electruk)
+                 else self.p.concic2.camera_distance)
+        st = self.vehicle.state
+        st.x, st.y, st.heading = x - ahead * math.cos(h), y - ahead * math.sin(h), h
+        if isinstance(self.vehicle, Electruk):
+            self.vehicle.flux = 0.0
+
+    @property
+    def time(self) -> float:
+        """Simulated seconds since start."""
+        return self.sample * self.dt
+
+    # -- inputs ---------------------------------------------------------------------------
+    def on_record(self, record: str, fields: dict[str, Any]) -> None:
+        """Apply a hardware-side input record."""
+        if record == 'traction_drive' and isinstance(self.vehicle, Electruk):
+            if fields['watchdog'] != self._last_watchdog:
+                self._last_watchdog = fields['watchdog']
+                self._watchdog_time = self.time
+            self.vehicle.set_drive(fields['armature_duty'] / 100.0, fields['field_duty'] / 100.0,
+                                   bool(fields['field_forward']), bool(fields['armature_enable']),
+                                   bool(fields['field_enable']), bool(fields['contactor']))
+        elif record == 'steering_command':
+            self._steer_time = self.time
+            if isinstance(self.vehicle, Electruk):
+                self.vehicle.steer_demand = fields['angle'] / 1000.0
+                self.vehicle.steer_enable = bool(fields['enable'])
+            elif fields['mode'] == 'wheel_speeds':
+                self.vehicle.set_wheels(fields['left_speed'] / 1000.0,
+                                        fields['right_speed'] / 1000.0, bool(fields['enable']))
+            else:
+                self.vehicle.set_wheels(0.0, 0.0, False)
+        elif record == 'conveyor_command':
+            self.conveyor_command = dict(fields)
+
+    def set_radio_stop(self, on: bool) -> None:
+        """The radio-control stop input (hw/radio_stop): no drive torque while set."""
+        self.radio_stop = bool(on)
+
+    # -- stepping -------------------------------------------------------------------------
+    def step(self) -> dict[str, Any]:
+        """Advance one sample; return {'records': {...}, 'frames': {...}, 'events': [...]}."""
+        self.sample += 1
+        self.events = []
+        if self.layout.kind == 'rig':
+            return self._step_rig()
+        self._apply_safety()
+        sub = self.dt / self.p.substeps
+        for _ in range(self.p.substeps):
+            self.vehicle.step(sub)
+        records: dict[str, dict[str, Any]] = {}
+        records['adc_snapshot'] = self._adc()
+        if self.pickup is not None and self._wire_every.due(self.sample):
+            records['guide_wire'] = self._guide_wire()
+        if self._odo_every.due(self.sample):
+            records['wheel_odometry'] = self._odometry()
+        self._conveyors()
+        if self._conv_every.due(self.sample):
+            records['conveyor_status'] = self._conveyor_status()
+        frames = {}
+        if self.camera is not None and self._cam_every.due(self.sample):
+            frames = self._frames()
+        self._detect_stop()
+        return {'records': records, 'frames': frames, 'events': self.events}
+
+    def _apply_safety(self) -> None:
+        v = self.vehicle
+        v.radio_stop = self.radio_stop
+        if isinstance(v, Electruk):
+            # The trip relay's monostable: no watchdog change for 200 ms opens the contactor.
+            if self.time - self._watchdog_time > self.p.drive_watchdog:
+                v.contactor = False
+            if self.time - self._steer_time > self.p.steering_timeout:
+                v.steer_enable = False
+        elif self.time - self._steer_time > self.p.steering_timeout:
+            v.enable = False  # the 60 ms computer watchdog of CONCIC-II cuts the amplifiers
+
+    # -- sensors --------------------------------------------------------------------------
+    def lens_pose(self) -> tuple[tuple[float, float], float]:
+        """Marker-sensor lens position and truck heading."""
+        sx, sy = self.vehicle.sensor_point
+        h = self.vehicle.state.heading
+        lat = self.layout.sensor_lateral
+        return (sx + math.sin(h) * lat, sy - math.cos(h) * lat), h
+
+    def _ride_height(self) -> float:
+        payload = self.p.electruk.payload if isinstance(self.vehicle, Electruk) else 0.0
+        return payload / 1000.0 * self.p.ride_height_per_tonne
+
+    def _adc(self) -> dict[str, int]:
+        lens, heading = self.lens_pose()
+        lit, dark = self.sensor.snapshot(lens, heading, self.layout.markers, self._ride_height())
+        self._marker_passages(lens, heading)
+        fields = {f'lit_{d + 1}': lit[d] for d in range(8)}
+        fields.update({f'dark_{d + 1}': dark[d] for d in range(8)})
+        return fields
+
+    def _guide_wire(self) -> dict[str, int]:
+        sx, sy = self.vehicle.sensor_point
+        left, right = self.pickup.coils(sx, sy, self.vehicle.state.heading)
+        self.counters['guide_wire'] = (self.counters['guide_wire'] + 1) & 0xFF
+        on_wire = max(left, right) > 0.25 * self.p.pickup.nominal
+        if on_wire != self._on_wire:
+            self._on_wire = on_wire
+            self._event('wire_found' if on_wire else 'wire_lost')
+        return {'left_coil': left, 'right_coil': right, 'sample': self.counters['guide_wire']}
+
+    def _odometry(self) -> dict[str, int]:
+        left, right = self.vehicle.wheel_speeds()
+        self.counters['wheel_odometry'] = (self.counters['wheel_odometry'] + 1) & 0xFF
+        period = self._odo_every.period * self.dt
+        self._odo_dist[0] += left * period
+        self._odo_dist[1] += right * period
+        clip = lambda v: int(min(max(round(v * 1000), -32768), 32767))  # noqa: E731
+        return {'left_speed': clip(left), 'right_speed': clip(right),
+                'left_distance': int(round(self._odo_dist[0] * 1000)) & 0xFFFF,
+                'right_distance': int(round(self._odo_dist[1] * 1000)) & 0xFFFF,
+                'sample': self.counters['wheel_odometry']}
+
+    def _frames(self) -> dict[str, np.ndarray]:
+        s = self.vehicle.state
+        lc = self.p.concic2.camera_distance
+        frames = {}
+        for name, sign in (('front', 1.0), ('rear', -1.0)):
+            if name == 'rear' and not self.p.rear_camera:
+                continue
+            cx = s.x + sign * lc * math.cos(s.heading)
+            cy = s.y + sign * lc * math.sin(s.heading)
+            heading = s.heading if sign > 0 else s.heading + math.pi
+            frames[name] = self.camera.render(cx, cy, heading)
+        return frames
+
+    # -- conveyors ------------------------------------------------------------------------
+    def _aligned(self) -> tuple[Marker, int] | None:
+        """The stop marker (and truck conveyor index) the truck is aligned with, if any."""
+        if abs(self.vehicle.state.speed) > 0.01:
+            return None
+        lens, heading = self.lens_pose()
+        fx, fy = math.cos(heading), math.sin(heading)
+        for m in self.layout.markers:
+            if m.kind != 'stop' or not m.station:
+                continue
+            dx, dy = lens[0] - m.centre[0], lens[1] - m.centre[1]
+            along = dx * fx + dy * fy
+            across = abs(-dx * fy + dy * fx) - m.standoff
+            if abs(along) <= self.p.align_tolerance and abs(across) < 0.1:
+                return m, m.identity
+        return None
+
+    def _conveyors(self) -> None:
+        cmd = self.conveyor_command
+        aligned = self._aligned()
+        if aligned is None or not cmd.get('station_request'):
+            return
+        marker, j = aligned
+        action = cmd['first' if j == 0 else 'second']
+        station = self.layout.stations[marker.station]
+        if action == 'load' and self.station_loads[station.id] > 0 and not self.loads[j]:
+            pass
+        elif action == 'unload' and self.loads[j] and \
+                self.station_loads[station.id] < station.capacity:
+            pass
+        else:
+            return
+        self.transfer += self.p.conveyor_speed * self.dt / self.p.transfer_length
+        if self.transfer >= 1.0:
+            self.transfer = 0.0
+            if action == 'load':
+                self.station_loads[station.id] -= 1
+                self.loads[j] = True
+            else:
+                self.station_loads[station.id] += 1
+                self.loads[j] = False
+            self._event('load_moved', marker=marker)
+
+    def _conveyor_status(self) -> dict[str, int]:
+        aligned = self._aligned()
+        fields = {'load_first': int(self.loads[0]), 'load_second': int(self.loads[1]),
+                  'station_aligned': 0, 'station_load': 0, 'station_full': 0,
+                  'transfer': int(min(self.transfer, 1.0) * 100)}
+        if aligned is not None:
+            station = self.layout.stations[aligned[0].station]
+            fields['station_aligned'] = 1
+            fields['station_load'] = int(self.station_loads[station.id] > 0)
+            fields['station_full'] = int(self.station_loads[station.id] >= station.capacity)
+        return fields
+
+    # -- ground truth -----------------------------------------------------------------------
+    def _marker_passages(self, lens: tuple[float, float], heading: float) -> None:
+        ax, ay = math.sin(heading), -math.cos(heading)
+        for i, m in enumerate(self.layout.markers):
+            dx, dy = lens[0] - m.centre[0], lens[1] - m.centre[1]
+            if dx * dx + dy * dy > 0.36:
+                self._card_side.pop(i, None)
+                continue
+            # Where the optical axis meets the card, along the card (+ = downstream).
+            denom = ax * m.normal[0] + ay * m.normal[1]
+            if denom > -0.2:
+                continue
+            t = -(dx * m.normal[0] + dy * m.normal[1]) / denom
+            u = (dx + t * ax) * m.along[0] + (dy + t * ay) * m.along[1]
+            before = self._card_side.get(i)
+            self._card_side[i] = u
+            if before is not None and (before < 0.0) != (u < 0.0):
+                self._event('marker_passed', marker=m, error=(t - self.p.sensor.focus) * 1000)
+
+    def _detect_stop(self) -> None:
+        v = abs(self.vehicle.state.speed)
+        self._peak_speed = max(self._peak_speed, v)
+        if v > 0.01:
+            self._moving = True
+        elif self._moving and v == 0.0:
+            self._moving = False
+            nearest, err = self._nearest_stop_marker()
+            self._event('stopped', marker=nearest, error=err * 1000 if nearest else 0.0,
+                        speed=self._peak_speed)
+            self._peak_speed = 0.0
+
+    def _nearest_stop_marker(self) -> tuple[Marker | None, float]:
+        lens, heading = self.lens_pose()
+        fx, fy = math.cos(heading), math.sin(heading)
+        best, best_err = None, 0.0
+        for m in self.layout.markers:
+            if m.kind != 'stop':
+                continue
+            dx, dy = lens[0] - m.centre[0], lens[1] - m.centre[1]
+            along = dx * fx + dy * fy  # + = the lens is past the card centre
+            if abs(along) < 0.5 and (best is None or abs(along) < abs(best_err)):
+                best, best_err = m, along
+        return best, best_err
+
+    def _event(self, kind: str, marker: Marker | None = None, error: float = 0.0,
+               speed: float | None = None) -> None:
+        self._event_count = (self._event_count + 1) & 0xFF
+        sx, sy = self.vehicle.sensor_point
+        lateral = self.nearest_path_offset(sx, sy)
+        stations = list(self.layout.stations)
+        self.events.append({
+            'event': kind,
+            'marker_kind': marker.kind if marker else 'none',
+            'identity': (marker.identity + (1 if marker.kind == 'stop' else 0)) if marker
+            else 0xFF,
+            'error': int(max(-32768, min(32767, round(error)))),
+            'speed': int(round(1000 * (abs(self.vehicle.state.speed) if speed is None
+                                       else speed))),
+            'lateral': int(max(-32768, min(32767, round(lateral * 1000)))),
+            'count': self._event_count,
+            'station': stations.index(marker.station) if marker and marker.station else 0xFF,
+            'time': self.time,
+            'marker': marker.name if marker else '',
+        })
+
+    def nearest_path_offset(self, x: float, y: float) -> float:
+        """Signed lateral offset (m, + = left) of (x, y) from the nearest wire or tape."""
+        best = None
+        for path in self.layout.paths.values():
+            _s, lateral, _h = path.project(x, y)
+            if best is None or abs(lateral) < abs(best):
+                best = lateral
+        return 0.0 if best is None else best
+
+    # -- the belt rig (thesis 7.1.1) --------------------------------------------------------
+    def _step_rig(self) -> dict[str, Any]:
+        rig = self.layout.rig
+        path = self.layout.paths[self.layout.start_path]
+        self._rig_s += float(rig.get('speed', 1.0)) * self.dt
+        x, y, h = path.pose_at(self._rig_s)
+        # The lens runs along the belt line; cards sit at their own standoff beside it.
+        lens = (x, y)
+        st = self.vehicle.state
+        st.x, st.y, st.heading, st.speed = x, y, h, float(rig.get('speed', 1.0))
+        lit, dark = self.sensor.snapshot(lens, h, self.layout.markers,
+                                         float(rig.get('height', 0.0)))
+        self._marker_passages(lens, h)
+        fields = {f'lit_{d + 1}': lit[d] for d in range(8)}
+        fields.update({f'dark_{d + 1}': dark[d] for d in range(8)})
+        return {'records': {'adc_snapshot': fields}, 'frames': {}, 'events': self.events}
+
+    # -- ground-truth views for the node ----------------------------------------------------
+    def pose(self) -> tuple[float, float, float, float]:
+        """(x, y, heading, speed) of the vehicle reference point."""
+        s = self.vehicle.state
+        return s.x, s.y, s.heading, s.speed
+
+    def done_rig(self) -> bool:
+        """True when the rig's belt has run out."""
+        path = self.layout.paths[self.layout.start_path]
+        return self.layout.kind == 'rig' and self._rig_s >= path.length

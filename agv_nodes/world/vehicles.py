@@ -1,0 +1,255 @@
+"""Vehicle dynamics: the A.W.D. Electruk tug (Baker 1983) and CONCIC-II (Rajagopalan 1991).
+
+Electruk (spec 6.1): rear drive by two 0.4 kW separately excited d.c. motors in parallel from
+24 V through a one-quadrant PWM chopper (armature duty 0-80 %), a PWM field supply whose
+direction the traction board flips, reduction gearing and chains to the rear wheels, Ackermann
+front steering by an actuator with rate and angle limits. Per motor:
+
+    L di/dt = duty * V_batt - R i - k_phi(field) * w_m ,  i >= 0 (chopper + freewheel diode)
+    torque = k_phi(field) * i
+
+so reversing the field while the truck still rolls forward makes the back-EMF add to the supply
+and the torque oppose the motion: plug braking (thesis 6.3, 8.5), limited by the controller's
+current limit. With the armature off only friction acts (the "friction only" braking of the
+1983 stop). Parameters marked [A] are assumptions chosen so that 80 % duty gives about 1 m/s
+unloaded, 20 % about 0.2 m/s and nothing moves below about 5 % (spec 6.1).
+
+CONCIC-II (Rajagopalan 3.1-3.3, 4.1, 4.6): differential drive, wheel radius 0.075 m, casters;
+each wheel's commanded speed is approached at a fixed acceleration (the LM628 trapezoid) and
+followed with a first-order lag; "motor off" coasts down (5 mm from 0.16 m/s).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+import math
+from typing import Any
+
+G = 9.81
+
+
+@dataclass
+class ElectrukParams:
+    """Electruk parameters (all [A] unless noted)."""
+
+    wheelbase: float = 1.20  # m
+    track: float = 0.80  # m, rear wheels
+    wheel_radius: float = 0.20  # m
+    mass: float = 800.0  # kg, truck with batteries
+    payload: float = 0.0  # kg (thesis: up to 1000 kg)
+    inertia_factor: float = 1.08  # rotating masses as extra equivalent mass
+    battery_voltage: float = 24.0  # V [T 6.1]
+    motors: int = 2  # [T 6.1] in parallel
+    armature_resistance: float = 0.12  # ohm per motor
+    armature_inductance: float = 0.0012  # H per motor
+    k_phi: float = 0.0562  # V s/rad (= N m/A) at full field
+    field_time_constant: float = 0.060  # s (the 100 ms waits of FLIP cover ~1.7 time constants)
+    gear_ratio: float = 63.0  # motor rev per wheel rev (gearbox + chain)
+    drivetrain_friction: float = 0.50  # N m per motor at the motor shaft (Coulomb)
+    viscous_friction: float = 0.0004  # N m s/rad per motor
+    rolling_resistance: float = 0.015  # of the weight on the wheels
+    current_limit: float = 60.0  # A per motor, controller limit
+    max_steer: float = math.radians(40.0)  # rad
+    steer_rate: float = math.radians(45.0)  # rad/s, actuator slew
+
+
+@dataclass
+class Concic2Params:
+    """CONCIC-II parameters (Rajagopalan 3.1-3.3; [D] values of the digest)."""
+
+    wheel_radius: float = 0.075  # m [T Table B.3]
+    wheel_span: float = 0.52  # m [D]
+    caster_distance: float = 0.31  # m, L_a [D]
+    caster_trail: float = 0.05  # m, s [D]
+    camera_distance: float = 0.64  # m, L_c [D]
+    acceleration: float = 0.30  # m/s^2, LM628 trapezoid (shared, fixed during motion)
+    lag: float = 0.05  # s, wheel speed loop time constant
+    coast_deceleration: float = 2.6  # m/s^2 in motor-off (5 mm from 0.16 m/s, digest 4.6)
+    max_wheel_speed: float = 1.14  # m/s (145 rpm)
+
+
+def params_from(cls: type, overrides: dict[str, Any], where: str) -> Any:
+    """Build a params dataclass, refusing unknown keys and non-numbers (naming `where`)."""
+    known = {f.name for f in fields(cls)}
+    for key, value in overrides.items():
+        if key not in known:
+            raise ValueError(f'{where}: unknown vehicle parameter {key!r}')
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ValueError(f'{where}: vehicle parameter {key!r}: {value!r} is not a number')
+    return cls(**overrides)
+
+
+@dataclass
+class VehicleState:
+    """Pose of the vehicle reference point (rear axle centre / drive axle centre)."""
+
+    x: float = 0.0
+    y: float = 0.0
+    heading: float = 0.0
+    speed: float = 0.0  # m/s along the heading
+    yaw_rate: float = 0.0
+    distance: float = 0.0  # odometer, m (signed travel summed)
+
+
+class Electruk:
+    """The tug: DC drive + Ackermann kinematics (bicycle model about the rear axle)."""
+
+    kind = 'electruk'
+
+    def __init__(self, params: ElectrukParams) -> None:
+        self.p = params
+        self.state = VehicleState()
+        self.steer = 0.0  # front wheel angle, rad
+        self.current = 0.0  # armature current per motor, A
+        self.flux = 1.0  # field flux as a fraction of full field, signed (+ = forward)
+        # Inputs (held between updates, as the hardware holds its PWM registers).
+        self.armature_duty = 0.0  # 0..0.8
+        self.field_duty = 0.0  # 0..1
+        self.field_forward = True
+        self.armature_enable = False
+        self.field_enable = False
+        self.contactor = False
+        self.radio_stop = False
+        self.steer_demand = 0.0
+        self.steer_enable = False
+
+    @property
+    def mass(self) -> float:
+        """Total mass, kg."""
+        return self.p.mass + self.p.payload
+
+    @property
+    def sensor_point(self) -> tuple[float, float]:
+        """The front axle centre: guide-wire coils and marker sensor are in line with it."""
+        s = self.state
+        return (s.x + self.p.wheelbase * math.cos(s.heading),
+                s.y + self.p.wheelbase * math.sin(s.heading))
+
+    def set_drive(self, armature_duty: float, field_duty: float, field_forward: bool,
+                  armature_enable: bool, field_enable: bool, contactor: bool) -> None:
+        """Latch the traction_drive outputs."""
+        self.armature_duty = armature_duty
+        self.field_duty = field_duty
+        self.field_forward = field_forward
+        self.armature_enable = armature_enable
+        self.field_enable = field_enable
+        self.contactor = contactor
+
+    def step(self, dt: float) -> None:
+        """Advance by dt seconds."""
+        p, s = self.p, self.state
+        powered = self.contactor and not self.radio_stop
+        # Field: first-order toward duty x direction; with the contactor open it decays too.
+        target = (self.field_duty * (1 if self.field_forward else -1)
+                  if powered and self.field_enable else 0.0)
+        self.flux += (target - self.flux) * (1.0 - math.exp(-dt / p.field_time_constant))
+        w_m = s.speed / p.wheel_radius * p.gear_ratio
+        back_emf = p.k_phi * self.flux * w_m
+        v_arm = (self.armature_duty * p.battery_voltage
+                 if powered and self.armature_enable else 0.0)
+        if powered and self.armature_enable:
+            i_ss = (v_arm - back_emf) / p.armature_resistance
+            decay = math.exp(-dt * p.armature_resistance / p.armature_inductance)
+            self.current = i_ss + (self.current - i_ss) * decay
+        else:  # chopper off: the current freewheels away through the diode
+            self.current *= math.exp(-dt * p.armature_resistance / p.armature_inductance)
+        self.current = min(max(self.current, 0.0), p.current_limit)
+        torque = p.motors * p.k_phi * self.flux * self.current  # at the motor shafts
+        drive_force = torque * p.gear_ratio / p.wheel_radius
+        m_eff = self.mass * p.inertia_factor
+        # Friction: Coulomb drivetrain + rolling resistance + viscous, opposing motion; at rest
+        # it holds the truck unless the drive force exceeds it (stiction = same level).
+        coulomb = (p.motors * p.drivetrain_friction * p.gear_ratio / p.wheel_radius
+                   + p.rolling_resistance * self.mass * G)
+        viscous = p.motors * p.viscous_friction * (p.gear_ratio / p.wheel_radius) ** 2 * s.speed
+        v = s.speed
+        if v == 0.0 and abs(drive_force) <= coulomb:
+            accel = 0.0
+        else:
+            direction = math.copysign(1.0, v if v != 0.0 else drive_force)
+            accel = (drive_force - direction * coulomb - viscous) / m_eff
+            new_v = v + accel * dt
+            if v != 0.0 and math.copysign(1.0, new_v) != direction and \
+                    abs(drive_force) <= coulomb:
+                accel = -v / dt  # friction brings it to rest; it does not reverse it
+        # Steering actuator: rate- and angle-limited toward the demand.
+        if self.steer_enable:
+            demand = min(max(self.steer_demand, -p.max_steer), p.max_steer)
+            delta = min(max(demand - self.steer, -p.steer_rate * dt), p.steer_rate * dt)
+            self.steer += delta
+        v_new = v + accel * dt
+        v_mid = 0.5 * (v + v_new)
+        s.yaw_rate = v_mid * math.tan(self.steer) / p.wheelbase
+        h_mid = s.heading + 0.5 * s.yaw_rate * dt
+        s.x += v_mid * math.cos(h_mid) * dt
+        s.y += v_mid * math.sin(h_mid) * dt
+        s.heading += s.yaw_rate * dt
+        s.distance += v_mid * dt
+        s.speed = v_new
+
+    def wheel_speeds(self) -> tuple[float, float]:
+        """Rear (driven) wheel rim speeds, left and right, m/s."""
+        w = self.state.yaw_rate * self.p.track / 2.0
+        return self.state.speed - w, self.state.speed + w
+
+
+class Concic2:
+    """CONCIC-II: differential drive about the drive-axle centre O, commanded wheel speeds."""
+
+    kind = 'concic2'
+
+    def __init__(self, params: Concic2Params) -> None:
+        self.p = params
+        self.state = VehicleState()
+        self.left = 0.0  # actual wheel rim speeds, m/s
+        self.right = 0.0
+        self.left_profile = 0.0  # LM628 trajectory generator outputs
+        self.right_profile = 0.0
+        self.left_demand = 0.0
+        self.right_demand = 0.0
+        self.enable = False
+        self.radio_stop = False
+
+    @property
+    def sensor_point(self) -> tuple[float, float]:
+        """The front camera window centre."""
+        s = self.state
+        return (s.x + self.p.camera_distance * math.cos(s.heading),
+                s.y + self.p.camera_distance * math.sin(s.heading))
+
+    def set_wheels(self, left: float, right: float, enable: bool) -> None:
+        """Latch the wheel speed demands (m/s)."""
+        lim = self.p.max_wheel_speed
+        self.left_demand = min(max(left, -lim), lim)
+        self.right_demand = min(max(right, -lim), lim)
+        self.enable = enable
+
+    def step(self, dt: float) -> None:
+        """Advance by dt seconds."""
+        p, s = self.p, self.state
+        if self.enable and not self.radio_stop:
+            a = p.acceleration * dt
+            self.left_profile += min(max(self.left_demand - self.left_profile, -a), a)
+            self.right_profile += min(max(self.right_demand - self.right_profile, -a), a)
+            k = 1.0 - math.exp(-dt / p.lag)
+            self.left += (self.left_profile - self.left) * k
+            self.right += (self.right_profile - self.right) * k
+        else:  # motor off: no feedback, the wheels coast down together
+            v = 0.5 * (self.left + self.right)
+            dv = p.coast_deceleration * dt
+            scale = max(abs(v) - dv, 0.0) / abs(v) if v != 0.0 else 0.0
+            self.left *= scale
+            self.right *= scale
+            self.left_profile, self.right_profile = self.left, self.right
+        v = 0.5 * (self.left + self.right)
+        s.yaw_rate = (self.right - self.left) / p.wheel_span
+        h_mid = s.heading + 0.5 * s.yaw_rate * dt
+        s.x += v * math.cos(h_mid) * dt
+        s.y += v * math.sin(h_mid) * dt
+        s.heading += s.yaw_rate * dt
+        s.distance += v * dt
+        s.speed = v
+
+    def wheel_speeds(self) -> tuple[float, float]:
+        """Wheel rim speeds, left and right, m/s."""
+        return self.left, self.right

@@ -1,0 +1,299 @@
+"""world: the simulated truck, floor, markers and sensors (ros2 run agv_nodes world).
+
+A thin rclpy wrapper around `agv_nodes.world.core.WorldCore`: it feeds the hardware-side input
+records to the core, steps it once per marker-sensor sample, and publishes the hardware-side
+records, camera frames, ground truth and (with use_sim_time) /clock. A hardware driver could
+replace it topic for topic (docs/records.md, DESIGN.md "Topics").
+
+The world is the clock: it does not run on a ROS timer (a sim-time timer cannot fire faster than
+/clock advances, and the world is what advances it). Its own loop steps the core, publishes
+/clock every sample, services its subscriptions and services, and paces itself at `time_factor`
+x real time (0 = as fast as the machine allows). It waits until the topics named in
+`wait_for_subscribers` have readers (and `wait_for_publishers` have writers) before moving.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Point, PoseStamped
+from nav_msgs.msg import Path
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Image
+from std_msgs.msg import Bool
+from std_srvs.srv import Trigger
+from visualization_msgs.msg import Marker, MarkerArray
+
+from agv_nodes import qos
+from agv_nodes.params import ParameterError, Parameters
+from agv_nodes.records import codec
+from agv_nodes.ros_ports import RecordPublisher, RecordSubscription
+from agv_nodes.world.core import WorldCore, WorldParams
+from agv_nodes.world.layout import LayoutError, layout_path, load_layout
+from agv_nodes.world.vehicles import Concic2Params, ElectrukParams
+
+NODE = 'world'
+
+
+class WorldNode(Node):
+    """See the module docstring."""
+
+    def __init__(self) -> None:
+        super().__init__(NODE)
+        p = Parameters(self)
+        layout_name = p.text('layout', 'demo_1983', 'layout name (config/layouts) or file path')
+        try:
+            self.layout = load_layout(layout_path(layout_name))
+        except (LayoutError, FileNotFoundError) as exc:
+            p.fail('layout', layout_name, str(exc))
+        wp = WorldParams(
+            seed=p.integer('seed', 1, 'random seed of all noise', 0, 2**31 - 1),
+            sample_rate=p.number('sample_rate', 340.0, 'marker sensor snapshots per second '
+                                 '(thesis 5.3.5.2: 340 Hz)', 50.0, 2000.0),
+            camera_rate=p.number('camera_rate', 20.0, 'binary camera frames per second', 1.0,
+                                 50.0),
+            rear_camera=p.flag('rear_camera', False, 'render the rear camera too'),
+        )
+        wp.electruk = ElectrukParams(
+            payload=p.number('payload', 0.0, 'payload on the Electruk, kg (thesis: <= 1000)',
+                             0.0, 2000.0))
+        wp.concic2 = Concic2Params()
+        wp.sensor.unit = p.choice('sensor_unit', 'sensor1', 'Table 7.1 sensor whose gains the '
+                                  'photodiode model reproduces', ('sensor1', 'sensor2'))
+        wp.sensor.ambient = p.number('ambient', 0.0, 'ambient IR light, ADC counts (255 '
+                                     'saturates: a blinded sensor)', 0.0, 400.0)
+        wp.sensor.noise = p.number('adc_noise', 1.0, 'ADC noise, counts rms', 0.0, 20.0)
+        loaded = p.texts('start_loaded', [], 'truck conveyors carrying a load at start '
+                         '(first, second)')
+        for name in loaded:
+            if name not in ('first', 'second'):
+                p.fail('start_loaded', loaded, f'{name!r} is not first or second')
+        wp.start_loaded = ('first' in loaded, 'second' in loaded)
+        self.time_factor = p.number('time_factor', 1.0, 'simulated seconds per real second '
+                                    '(0 = as fast as possible)', 0.0, 1000.0)
+        self.publish_clock = p.flag('publish_clock', True, 'publish /clock (the graph runs on '
+                                    'sim time with use_sim_time:=true)')
+        self.wait_subs = p.texts('wait_for_subscribers', [], 'topics that need a reader '
+                                 'before the world moves')
+        self.wait_pubs = p.texts('wait_for_publishers', [], 'topics that need a writer '
+                                 'before the world moves')
+        self.peer_timeout = p.number('peer_timeout', 60.0, 'seconds to wait for peers', 0.0,
+                                     3600.0)
+        self.duration = p.number('duration', 0.0, 'stop after this many simulated seconds '
+                                 '(0 = run until shut down)', 0.0, 1e6)
+        self.paused = p.flag('start_paused', False, 'wait for ~/resume before moving')
+        self.core = WorldCore(self.layout, wp)
+        c = codec()
+        self.out = {}
+        for schema in c:
+            if schema.writer == NODE:
+                self.out[schema.name] = RecordPublisher(self, schema)
+        self.inputs = [RecordSubscription(self, c[name], callback=self._input(name))
+                       for name in ('traction_drive', 'steering_command', 'conveyor_command')]
+        self.create_subscription(Bool, 'hw/radio_stop', self._radio_stop, qos.RECORD_READER)
+        self.clock_pub = self.create_publisher(Clock, '/clock', qos.STREAM_WRITER)
+        self.pose_pub = self.create_publisher(PoseStamped, 'world/pose', qos.STREAM_WRITER)
+        self.route_pub = self.create_publisher(Path, 'world/route', qos.LATCHED)
+        self.markers_pub = self.create_publisher(MarkerArray, 'world/markers', qos.LATCHED)
+        self.camera_pubs = {name: self.create_publisher(Image, f'hw/camera/{name}',
+                                                        qos.STREAM_WRITER)
+                            for name in ('front', 'rear')}
+        self.create_service(Trigger, '~/pause', self._pause)
+        self.create_service(Trigger, '~/resume', self._resume)
+        self.create_service(Trigger, '~/step', self._single_step)
+        self._step_requests = 0
+        self._work = 0
+        self._pose_every = max(1, round(wp.sample_rate / 50.0))
+        self._publish_static()
+
+    # -- callbacks --------------------------------------------------------------------------
+    def _input(self, name: str):
+        def on_record(fields: dict) -> None:
+            self._work += 1
+            self.core.on_record(name, fields)
+        return on_record
+
+    def _radio_stop(self, msg: Bool) -> None:
+        self._work += 1
+        self.core.set_radio_stop(msg.data)
+
+    def _pause(self, _req, res):
+        self._work += 1
+        self.paused = True
+        res.success, res.message = True, f'paused at {self.core.time:.3f} s'
+        return res
+
+    def _resume(self, _req, res):
+        self._work += 1
+        self.paused = False
+        res.success, res.message = True, f'resumed at {self.core.time:.3f} s'
+        return res
+
+    def _single_step(self, _req, res):
+        self._work += 1
+        self._step_requests += 1
+        res.success = self.paused
+        res.message = ('one sample queued' if self.paused else 'not paused: ~/pause first')
+        return res
+
+    # -- output -----------------------------------------------------------------------------
+    def stamp(self) -> Time:
+        """Sim time when publishing /clock, else the node clock."""
+        if self.publish_clock:
+            ns = round(self.core.time * 1e9)
+            return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+        return self.get_clock().now().to_msg()
+
+    def publish_step(self, out: dict) -> None:
+        """Publish what one core step produced."""
+        stamp = self.stamp()
+        if self.publish_clock:
+            self.clock_pub.publish(Clock(clock=stamp))
+        for name, fields in out['records'].items():
+            self.out[name].publish(fields)
+        for event in out['events']:
+            self.out['world_event'].publish({k: event[k] for k in (
+                'event', 'marker_kind', 'identity', 'error', 'speed', 'lateral', 'count',
+                'station')})
+        for name, frame in out['frames'].items():
+            img = Image()
+            img.header.stamp = stamp
+            img.header.frame_id = f'camera_{name}'
+            img.height, img.width = frame.shape
+            img.encoding = 'mono8'
+            img.step = img.width
+            img.data = ((1 - frame) * 255).astype('uint8').tobytes()  # tape dark = 0
+            self.camera_pubs[name].publish(img)
+        if self.core.sample % self._pose_every == 0:
+            x, y, h, _v = self.core.pose()
+            msg = PoseStamped()
+            msg.header.stamp = stamp
+            msg.header.frame_id = 'map'
+            msg.pose.position.x, msg.pose.position.y = x, y
+            msg.pose.orientation.z, msg.pose.orientation.w = math.sin(h / 2), math.cos(h / 2)
+            self.pose_pub.publish(msg)
+
+    def _publish_static(self) -> None:
+        path = Path()
+        path.header.frame_id = 'map'
+        markers = MarkerArray()
+        for k, p in enumerate(self.layout.paths.values()):
+            strip = Marker(ns='paths', id=k, type=Marker.LINE_STRIP, action=Marker.ADD)
+            strip.header.frame_id = 'map'
+            strip.scale.x = max(p.width, 0.01)
+            strip.color.a, strip.color.r, strip.color.g, strip.color.b = 1.0, 0.9, 0.6, 0.1
+            strip.pose.orientation.w = 1.0
+            for (x, y), h in zip(p.points[::5], p.headings[::5], strict=True):
+                pose = PoseStamped()
+                pose.header.frame_id = 'map'
+                pose.pose.position.x, pose.pose.position.y = float(x), float(y)
+                pose.pose.orientation.z = math.sin(h / 2)
+                pose.pose.orientation.w = math.cos(h / 2)
+                path.poses.append(pose)
+                strip.points.append(Point(x=float(x), y=float(y)))
+            markers.markers.append(strip)
+        for k, m in enumerate(self.layout.markers):
+            card = Marker(ns='cards', id=k, type=Marker.CUBE, action=Marker.ADD)
+            card.header.frame_id = 'map'
+            card.pose.position.x, card.pose.position.y = float(m.centre[0]), float(m.centre[1])
+            card.pose.position.z = 0.5
+            yaw = math.atan2(m.along[1], m.along[0])
+            card.pose.orientation.z, card.pose.orientation.w = math.sin(yaw / 2), \
+                math.cos(yaw / 2)
+            card.scale.x, card.scale.y, card.scale.z = m.columns * 0.02, 0.01, 0.08
+            card.color.a = 1.0
+            card.color.r = 1.0 if m.kind == 'stop' else 0.2
+            card.color.g = 1.0 if m.kind == 'location' else 0.2
+            markers.markers.append(card)
+            label = Marker(ns='labels', id=k, type=Marker.TEXT_VIEW_FACING, action=Marker.ADD,
+                           text=m.name)
+            label.header.frame_id = 'map'
+            label.pose = card.pose
+            label.pose.position.z = 0.8
+            label.scale.z = 0.2
+            label.color.a = label.color.r = label.color.g = label.color.b = 1.0
+            markers.markers.append(label)
+        self.route_pub.publish(path)
+        self.markers_pub.publish(markers)
+
+    # -- the loop ---------------------------------------------------------------------------
+    def drain(self, executor: SingleThreadedExecutor, limit: int = 200) -> None:
+        """Run every callback that is ready now (inputs, services)."""
+        for _ in range(limit):
+            before = self._work
+            executor.spin_once(timeout_sec=0.0)
+            if self._work == before:
+                return
+
+    def peers_ready(self) -> bool:
+        """True when every awaited topic has its reader/writer."""
+        ns = self.get_namespace().rstrip('/')
+        full = (lambda t: t if t.startswith('/') else f'{ns}/{t}')  # noqa: E731
+        subs_ok = all(self.count_subscribers(full(t)) > 0 for t in self.wait_subs)
+        pubs_ok = all(self.count_publishers(full(t)) > 0 for t in self.wait_pubs)
+        return subs_ok and pubs_ok
+
+    def run(self, executor: SingleThreadedExecutor) -> int:
+        """Wait for peers, then step the world until shut down (or `duration`)."""
+        deadline = time.monotonic() + self.peer_timeout
+        while rclpy.ok() and not self.peers_ready():
+            if self.publish_clock:
+                self.clock_pub.publish(Clock(clock=self.stamp()))
+            executor.spin_once(timeout_sec=0.05)
+            if time.monotonic() > deadline:
+                self.get_logger().error(
+                    f'peers not matched after {self.peer_timeout:.0f} s (subscribers: '
+                    f'{self.wait_subs}, publishers: {self.wait_pubs})')
+                return 1
+        self.get_logger().info(f'layout {self.layout.name}: moving at time_factor '
+                               f'{self.time_factor:g}')
+        wall0, sim0 = time.monotonic(), self.core.time
+        while rclpy.ok():
+            self.drain(executor)
+            if self.paused and self._step_requests == 0:
+                executor.spin_once(timeout_sec=0.02)
+                wall0, sim0 = time.monotonic(), self.core.time
+                continue
+            if self._step_requests:
+                self._step_requests -= 1
+            self.publish_step(self.core.step())
+            if self.duration and self.core.time >= self.duration:
+                self.get_logger().info(f'duration {self.duration:g} s reached')
+                return 0
+            if self.time_factor > 0:
+                ahead = (self.core.time - sim0) / self.time_factor - (time.monotonic() - wall0)
+                if ahead > 0:
+                    time.sleep(ahead)
+        return 0
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point: ros2 run agv_nodes world [--ros-args ...]."""
+    rclpy.init(args=args)
+    node = None
+    code = 0
+    try:
+        node = WorldNode()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        code = node.run(executor)
+    except ParameterError as exc:
+        print(exc, file=sys.stderr)
+        code = 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == '__main__':
+    sys.exit(main())
