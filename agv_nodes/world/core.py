@@ -49,13 +49,13 @@ class WorldParams:
 
 
 class _Every:
-    """Fires at a fixed rate on the sample clock (exact, no drift)."""
+    """Fires `rate` times per simulated second on the sample clock (exact on average)."""
 
     def __init__(self, rate: float, sample_rate: float) -> None:
-        self.period = max(1, round(sample_rate / rate))
+        self.ratio = rate / sample_rate
 
     def due(self, sample: int) -> bool:
-        return sample % self.period == 0
+        return math.floor(sample * self.ratio) > math.floor((sample - 1) * self.ratio)
 
 
 class WorldCore:
@@ -93,6 +93,7 @@ class WorldCore:
         self.transfer = 0.0  # fraction of the transfer in progress
         self.counters = {'guide_wire': 0, 'wheel_odometry': 0}
         self._odo_dist = [0.0, 0.0]  # m per driven wheel
+        self._odo_time = 0.0
         self.events: list[dict[str, Any]] = []
         self._event_count = 0
         self._card_side: dict[int, float] = {}
@@ -179,9 +180,9 @@ class WorldCore:
         v = self.vehicle
         v.radio_stop = self.radio_stop
         if isinstance(v, Electruk):
-            # The trip relay's monostable: no watchdog change for 200 ms opens the contactor.
-            if self.time - self._watchdog_time > self.p.drive_watchdog:
-                v.contactor = False
+            # The trip relay's monostable: no watchdog change for 200 ms releases the relay and
+            # with it the main contactor; retriggering closes it again (B.2.1).
+            v.relay_closed = self.time - self._watchdog_time <= self.p.drive_watchdog
             if self.time - self._steer_time > self.p.steering_timeout:
                 v.steer_enable = False
         elif self.time - self._steer_time > self.p.steering_timeout:
@@ -220,7 +221,8 @@ class WorldCore:
     def _odometry(self) -> dict[str, int]:
         left, right = self.vehicle.wheel_speeds()
         self.counters['wheel_odometry'] = (self.counters['wheel_odometry'] + 1) & 0xFF
-        period = self._odo_every.period * self.dt
+        period = self.time - self._odo_time
+        self._odo_time = self.time
         self._odo_dist[0] += left * period
         self._odo_dist[1] += right * period
         clip = lambda v: int(min(max(round(v * 1000), -32768), 32767))  # noqa: E731
@@ -321,7 +323,7 @@ class WorldCore:
         self._peak_speed = max(self._peak_speed, v)
         if v > 0.01:
             self._moving = True
-        elif self._moving and v == 0.0:
+        elif self._moving and v < 1e-4:
             self._moving = False
             nearest, err = self._nearest_stop_marker()
             self._event('stopped', marker=nearest, error=err * 1000 if nearest else 0.0,

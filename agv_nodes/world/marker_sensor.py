@@ -268,9 +268,10 @@ def calibrate(params: SensorParams) -> tuple[tuple[float, ...], tuple[float, ...
     With threshold = trough + {0.2, 0.8} x amplitude (spec 2.4/2.9), Table 7.1 implies each
     detector's worst-case mean trough and peak of the x4 running sum (the lowest mean peak and
     highest mean trough over 28 +- 2 cm, thesis 7.1.3). The model is linear in A = gain x black
-    and B = gain, so the simulated threshold experiment fixes both; A is kept >= 0 (a detector
-    cannot see less than no light: where the optics cannot reach the table's contrast, the black
-    level is 0 and the simulated trough lies below the table's, i.e. on the safe side).
+    and B = gain, so the simulated threshold experiment fixes both. A is kept >= 0 (a detector
+    cannot see less than no light): where the optics cannot reach the table's contrast, the
+    black level is 0 and the simulated worst trough lies above the table's, still below the
+    black threshold.
     """
     key = tuple(sorted((k, v) for k, v in vars(params).items()
                        if k not in ('gains', 'blacks', 'extra', 'unit', 'noise', 'ambient',

@@ -109,6 +109,7 @@ class Electruk:
         self.armature_enable = False
         self.field_enable = False
         self.contactor = False
+        self.relay_closed = True  # the trip relay, held closed by the watchdog monostable
         self.radio_stop = False
         self.steer_demand = 0.0
         self.steer_enable = False
@@ -138,7 +139,7 @@ class Electruk:
     def step(self, dt: float) -> None:
         """Advance by dt seconds."""
         p, s = self.p, self.state
-        powered = self.contactor and not self.radio_stop
+        powered = self.contactor and self.relay_closed and not self.radio_stop
         # Field: first-order toward duty x direction; with the contactor open it decays too.
         target = (self.field_duty * (1 if self.field_forward else -1)
                   if powered and self.field_enable else 0.0)
@@ -154,6 +155,8 @@ class Electruk:
         else:  # chopper off: the current freewheels away through the diode
             self.current *= math.exp(-dt * p.armature_resistance / p.armature_inductance)
         self.current = min(max(self.current, 0.0), p.current_limit)
+        if self.current < 1e-6:
+            self.current = 0.0
         torque = p.motors * p.k_phi * self.flux * self.current  # at the motor shafts
         drive_force = torque * p.gear_ratio / p.wheel_radius
         m_eff = self.mass * p.inertia_factor
@@ -164,20 +167,18 @@ class Electruk:
         viscous = p.motors * p.viscous_friction * (p.gear_ratio / p.wheel_radius) ** 2 * s.speed
         v = s.speed
         if v == 0.0 and abs(drive_force) <= coulomb:
-            accel = 0.0
+            v_new = 0.0  # stiction holds it
         else:
             direction = math.copysign(1.0, v if v != 0.0 else drive_force)
-            accel = (drive_force - direction * coulomb - viscous) / m_eff
-            new_v = v + accel * dt
-            if v != 0.0 and math.copysign(1.0, new_v) != direction and \
+            v_new = v + (drive_force - direction * coulomb - viscous) / m_eff * dt
+            if v != 0.0 and math.copysign(1.0, v_new) != direction and \
                     abs(drive_force) <= coulomb:
-                accel = -v / dt  # friction brings it to rest; it does not reverse it
+                v_new = 0.0  # friction brings it to rest; it does not reverse it
         # Steering actuator: rate- and angle-limited toward the demand.
         if self.steer_enable:
             demand = min(max(self.steer_demand, -p.max_steer), p.max_steer)
             delta = min(max(demand - self.steer, -p.steer_rate * dt), p.steer_rate * dt)
             self.steer += delta
-        v_new = v + accel * dt
         v_mid = 0.5 * (v + v_new)
         s.yaw_rate = v_mid * math.tan(self.steer) / p.wheelbase
         h_mid = s.heading + 0.5 * s.yaw_rate * dt
