@@ -49,18 +49,20 @@ class BinaryCamera:
         pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
         dark = np.zeros(len(pts), dtype=bool)
         for tape in self.tapes:
-            near = np.hypot(tape.points[:, 0] - cx, tape.points[:, 1] - cy) < 0.5
+            # Only segments that can reach the window (half-diagonal + tape + one segment).
+            reach = 0.5 * math.hypot(self.p.depth, self.p.width) + tape.width + 0.05
+            near = np.hypot(tape.points[:, 0] - cx, tape.points[:, 1] - cy) < reach
             idx = np.flatnonzero(near[:-1] | near[1:])
             if idx.size == 0:
                 continue
             a = tape.points[idx]
             d = tape.points[idx + 1] - a
             dd = np.einsum('ij,ij->i', d, d)
-            rel = pts[:, None, :] - a[None, :, :]
-            t = np.clip(np.einsum('pij,ij->pi', rel, d) / np.where(dd > 0, dd, 1), 0, 1)
-            foot = a[None, :, :] + t[:, :, None] * d[None, :, :]
-            dist = np.min(np.linalg.norm(pts[:, None, :] - foot, axis=2), axis=1)
-            dark |= dist <= tape.width / 2.0
+            rx = pts[:, 0:1] - a[None, :, 0]  # (pixels, segments)
+            ry = pts[:, 1:2] - a[None, :, 1]
+            t = np.clip((rx * d[:, 0] + ry * d[:, 1]) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+            ex, ey = rx - t * d[:, 0], ry - t * d[:, 1]
+            dark |= (ex * ex + ey * ey).min(axis=1) <= (tape.width / 2.0) ** 2
         frame = dark.reshape(ROWS, COLS).astype(np.uint8)
         if noise and self.p.specks:
             for _ in range(self.p.specks):
