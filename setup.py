@@ -35,11 +35,11 @@ setup(
     maintainer_email='agv-nodes@example.org',
     description='ROS 2 reproduction of the 1983 Cableform AGV (Baker 1983, Rajagopalan 1991).',
     license='Apache-2.0',
-    tests_require=['pytest'],
     entry_points={
         'console_scripts': [
             # nodes (ros2 run agv_nodes <node>)
-            'world = agv_nodes.world_node:main',
+            'traction = agv_nodes.traction.node:main',
+            'world = agv_nodes.world.node:main',
             # tools
             'agv-records = agv_nodes.records.cli:main',
         ],

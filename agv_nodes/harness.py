@@ -125,6 +125,8 @@ class Harness:
             fields = reader.accept(raw, now_ns)
             if fields is not None:
                 queue.append((m, m.core.on_record(record, fields, self.now)))
+            elif hasattr(m.core, 'on_reject'):
+                queue.append((m, m.core.on_reject(record, reader.last_reason, self.now)))
         self._publish_all(queue)
 
     def _publish(self, m: _Member, outputs: dict | None) -> None:
@@ -144,6 +146,13 @@ class Harness:
                 if writer is None:
                     raise KeyError(f'{m.core.node} is not the writer of {record} (msg_schemas)')
                 self._send(m.core.node, record, writer.pack(fields))
+
+    def set_radio_stop(self, on: bool) -> None:
+        """The hw/radio_stop input: to the world and every core that reads it."""
+        self.world.set_radio_stop(on)
+        for m in self.members:
+            if hasattr(m.core, 'on_radio_stop'):
+                m.core.on_radio_stop(on, self.now)
 
     def inject(self, record: str, raw: bytes) -> None:
         """Put foreign bytes on a record topic (fault injection, fuzzing)."""

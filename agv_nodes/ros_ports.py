@@ -51,10 +51,14 @@ class RecordSubscription(RecordReader):
         super().__init__(schema, integrity if schema.protected else 'none')
         self._node = node
         self._callback = callback
+        self.on_reject: Callable[[], None] | None = None  # told after each rejection
         self._sub = node.create_subscription(UInt8MultiArray, schema.topic, self._on_msg,
                                              qos.reader_qos(schema))
 
     def _on_msg(self, msg: UInt8MultiArray) -> None:
         fields = self.accept(bytes(msg.data), self._node.get_clock().now().nanoseconds)
-        if fields is not None and self._callback is not None:
+        if fields is None:
+            if self.on_reject is not None:
+                self.on_reject()
+        elif self._callback is not None:
             self._callback(fields)

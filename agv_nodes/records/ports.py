@@ -36,6 +36,10 @@ class RecordWriter:
         return raw
 
 
+# Rejections that mean the bytes themselves are corrupt (as opposed to stale or out of order).
+CORRUPT = frozenset({'bad_crc', 'wrong_length', 'spare_set', 'bad_value'})
+
+
 class RecordReader:
     """Validates received records of one schema; never lets a bad one through."""
 
@@ -50,6 +54,7 @@ class RecordReader:
         self.accepted = 0
         self.rejects: Counter[str] = Counter()
         self.last_error: str = ''
+        self.last_reason: str = ''  # key of the last rejection (bad_crc, spare_set, ...)
 
     @property
     def rejected(self) -> int:
@@ -91,6 +96,7 @@ class RecordReader:
     def _reject(self, reason: str, text: str) -> None:
         self.rejects[reason] += 1
         self.last_error = text
+        self.last_reason = reason
 
 
 def _reason(exc: RecordError) -> str:

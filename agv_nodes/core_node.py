@@ -1,0 +1,66 @@
+"""CoreNode: the thin rclpy wrapper every sub-processor node is made of.
+
+It creates one RecordPublisher per record the core writes and one RecordSubscription per record
+it reads, both from the schemas' writer/readers (the same port declarations the lock-step
+harness uses), feeds accepted records and rejections to the core, runs the core's timer on the
+ROS clock (sim time under use_sim_time), subscribes hw/radio_stop for cores that want it, and
+publishes whatever the core returns.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rclpy.node import Node
+from std_msgs.msg import Bool
+
+from agv_nodes import qos
+from agv_nodes.records import codec
+from agv_nodes.ros_ports import RecordPublisher, RecordSubscription
+
+
+class CoreNode(Node):
+    """A node around one core; subclasses declare parameters and build the core."""
+
+    def attach(self, core: Any, integrity: str) -> None:
+        """Create the core's ports and timer."""
+        self.core = core
+        reads, writes = codec().for_node(core.node)
+        self.writers = {s.name: RecordPublisher(self, s, integrity) for s in writes}
+        self.readers = {s.name: RecordSubscription(self, s, integrity,
+                                                   callback=self._on_record(s.name))
+                        for s in reads}
+        for reader in self.readers.values():
+            reader.on_reject = self._on_reject(reader)
+        if hasattr(core, 'on_radio_stop'):
+            self.create_subscription(Bool, 'hw/radio_stop', self._radio_stop,
+                                     qos.RECORD_READER)
+        if core.period:
+            self.timer = self.create_timer(core.period, self._tick)
+
+    def now_s(self) -> float:
+        """ROS time in seconds (sim time when use_sim_time is set)."""
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _on_record(self, name: str):
+        def callback(fields: dict[str, Any]) -> None:
+            self.publish(self.core.on_record(name, fields, self.now_s()))
+        return callback
+
+    def _on_reject(self, reader: RecordSubscription):
+        def callback() -> None:
+            handler = getattr(self.core, 'on_reject', None)
+            if handler is not None:
+                self.publish(handler(reader.schema.name, reader.last_reason, self.now_s()))
+        return callback
+
+    def _radio_stop(self, msg: Bool) -> None:
+        self.core.on_radio_stop(msg.data, self.now_s())
+
+    def _tick(self) -> None:
+        self.publish(self.core.tick(self.now_s()))
+
+    def publish(self, outputs: dict[str, dict[str, Any]] | None) -> None:
+        """Publish the records a core returned."""
+        for record, fields in (outputs or {}).items():
+            self.writers[record].publish(fields)

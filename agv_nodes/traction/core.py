@@ -1,0 +1,368 @@
+"""The Traction sub-processor: the 1983 speed-control program, its trips, and a closed loop.
+
+`open_loop_1983` is the listing of thesis App. B.2 (spec 5.1) as a state machine on the loop
+clock: START = MONO, GETREF, SENSOR, MONO, SUM, COMP, where the Z-80's blocking waits (the
+"runout" after a limited step, the two FLIP waits, the field build-up after reset) become
+timed states during which MONO keeps retriggering the trip relay. Record for record:
+
+* GETREF: manual (command byte 1 bit 0) takes byte 1 whole as the signed REF before any other
+  check (it bypasses the emergency stop and the radio stop); auto with byte 2 = 00H gives
+  REF = -5 % (plug braking, "emergency stop"); then the radio stop input (armature off,
+  DCYCLE := 0, re-poll); then the source: the executive (byte 2) or the Position link
+  (A := port & 3FH, NEG if bit 5).
+* SENSOR: SPEED := DCYCLE (open loop, SPDTAB is the identity).
+* SUM: ERROR := REF - SPEED limited to +-16 % (`arithmetic`: `saturating`, the intent, is the
+  default; `faithful_8bit` keeps the listing's mod-256 wrap, spec 5.2).
+* COMP: DCYCLE := SPEED + ERROR clamped to +-80; a sign that disagrees with the field
+  direction runs FLIP (armature and field off, wait, toggle, field on, wait); armature off when
+  the demand is 0 (coast), else CTC1 := |DCYCLE| and armature on; a limited step waits
+  `runout_wait`.
+
+Waits: the prose says 200 ms (runout) and 100 ms (FLIP halves, field build-up); B.2.2's delay
+formula gives 100 and 50 ms (spec 9 item 7). Both are parameters; the prose is the default.
+
+Trip relay (modern, issue 5): traction opens the contactor (drive and field off) and latches
+when its loop stalls, when the executive's command is older than `command_timeout`, when the
+Position link it is obeying is older than `link_timeout`, or when a corrupt command/link record
+arrives; it also starts tripped. The latch clears only on a fresh valid command with byte 2 =
+00H followed by one with byte 2 non-zero.
+
+`closed_loop` (beyond 1983, thesis B.2's skeleton with a speed sensor): REF is read as a speed
+demand through the open-loop map v = (|REF| - 5) / 75 m/s (spec 6.1), shaped by acceleration
+and jerk limits, and a PI loop on wheel odometry sets the armature duty.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from agv_nodes.records.ports import CORRUPT
+
+SOURCES = ('executive', 'position', 'manual', 'emergency_stop', 'radio_stop', 'trip')
+
+
+@dataclass
+class TractionParams:
+    """Traction program settings (node parameters map onto these)."""
+
+    loop_period: float = 0.010  # s, one pass of START (and the traction_drive rate)
+    status_period: float = 0.050  # s between traction_status records
+    runout_wait: float = 0.200  # s after a limited step: prose 200 ms; listing formula 100 ms
+    field_wait: float = 0.100  # s, each FLIP half and the start-up build-up: prose; formula 50
+    field_duty: int = 90  # %: thesis 6.3 says 90 %; the listing loads 98
+    step_limit: int = 16  # % per pass (SUM)
+    max_duty: int = 80  # % (COMP CP 80)
+    estop_ref: int = -5  # % (0FBH)
+    arithmetic: str = 'saturating'  # or 'faithful_8bit'
+    command_timeout: float = 0.200  # s
+    link_timeout: float = 0.200  # s
+    stall_limit: float = 0.200  # s: a gap between loop passes this long trips
+    control: str = 'open_loop_1983'  # or 'closed_loop'
+    # closed loop
+    kp: float = 40.0  # % duty per m/s of speed error
+    ki: float = 60.0  # % duty per m of integrated speed error
+    max_accel: float = 0.5  # m/s^2 of the speed demand ramp
+    max_jerk: float = 2.0  # m/s^3
+    v_per_percent: float = 1.0 / 75.0  # m/s per % above the 5 % dead band (spec 6.1 map)
+    dead_band: float = 5.0  # %
+    flip_hysteresis: float = 8.0  # %: smaller demands against the field coast instead
+
+    def check(self) -> list[tuple[str, Any, str]]:
+        """Problems as (name, value, reason); empty when the settings are usable."""
+        bad = []
+        if self.arithmetic not in ('saturating', 'faithful_8bit'):
+            bad.append(('arithmetic', self.arithmetic, 'not saturating or faithful_8bit'))
+        if self.control not in ('open_loop_1983', 'closed_loop'):
+            bad.append(('control', self.control, 'not open_loop_1983 or closed_loop'))
+        if not 0 < self.field_duty <= 100:
+            bad.append(('field_duty', self.field_duty, 'outside 1..100'))
+        return bad
+
+
+def _signed8(value: int) -> int:
+    value &= 0xFF
+    return value - 256 if value & 0x80 else value
+
+
+class TractionCore:
+    """See the module docstring. Inputs by record; outputs traction_drive / traction_status."""
+
+    node = 'traction'
+
+    def __init__(self, params: TractionParams | None = None) -> None:
+        self.p = params or TractionParams()
+        self.period = self.p.loop_period
+        # ADATA (PIO1-A): bit 7 armature disable, bit 6 field disable, bit 5 field forward.
+        self.armature_off = True
+        self.field_off = True
+        self.field_forward = False  # INIT leaves bit 5 = 0
+        self.ref = 0
+        self.speed = 0  # SPEED (%)
+        self.error = 0
+        self.dcycle = 0  # signed %
+        self.dcdem = 0  # |duty| loaded into CTC1
+        self.source = 'trip'
+        self.manual = False
+        self.estop = False
+        self.radio = False
+        self.watchdog = 0
+        self.state = 'start'  # start | run | flip_decay | flip_build | runout
+        self.wait_until = 0.0
+        self.tripped = True
+        self.trip_cause = 'startup'
+        self._reset_stage = 0  # 0: wait for byte 2 = 00H; 1: wait for byte 2 != 00H
+        self.command: dict[str, Any] | None = None
+        self.command_time = -1e9
+        self.link: dict[str, Any] | None = None
+        self.link_time = -1e9
+        self.measured_speed = 0.0  # m/s from wheel odometry
+        self._last_tick: float | None = None
+        self._next_status = 0.0
+        self._v_demand = 0.0
+        self._a_demand = 0.0
+        self._integral = 0.0
+
+    # -- inputs -----------------------------------------------------------------------------
+    def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
+        """An accepted traction_command, traction_link or wheel_odometry record."""
+        if record == 'traction_command':
+            self.command, self.command_time = fields, now
+            if self.tripped:
+                self._advance_reset(fields)
+        elif record == 'traction_link':
+            self.link, self.link_time = fields, now
+        elif record == 'wheel_odometry':
+            self.measured_speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
+        return None
+
+    def on_reject(self, record: str, reason: str, now: float) -> dict | None:
+        """A record the reader refused: corrupt command or link bytes trip the relay."""
+        if record in ('traction_command', 'traction_link') and reason in CORRUPT:
+            self._trip('corrupt_record')
+        return None
+
+    def on_radio_stop(self, on: bool, now: float) -> None:
+        """The radio-control stop input (PIO1-A bit 4, high = stop)."""
+        self.radio = bool(on)
+
+    def _advance_reset(self, fields: dict[str, Any]) -> None:
+        if fields['manual']:
+            return
+        if fields['demand'] == 0:
+            self._reset_stage = 1
+        elif self._reset_stage == 1:
+            self.tripped = False
+            self.trip_cause = 'none'
+            self._reset_stage = 0
+            self.state = 'start'  # restart at BEGIN: INIT (field bit 5 = 0), build-up wait
+            self.field_forward = False
+            self.wait_until = 0.0
+
+    def _trip(self, cause: str) -> None:
+        if not self.tripped:
+            self.trip_cause = cause
+        self.tripped = True
+        self._reset_stage = 0
+        self.armature_off = self.field_off = True
+        self.dcycle = self.dcdem = 0
+        self.source = 'trip'
+        self.state = 'start'
+        self._v_demand = self._a_demand = self._integral = 0.0
+
+    # -- the loop ---------------------------------------------------------------------------
+    def tick(self, now: float) -> dict[str, dict[str, Any]]:
+        """One pass of the program (or of a wait), then the outputs."""
+        if self._last_tick is not None and now - self._last_tick > self.p.stall_limit:
+            self._trip('stalled_loop')
+        dt = self.p.loop_period if self._last_tick is None else now - self._last_tick
+        self._last_tick = now
+        self.watchdog = (self.watchdog + 1) & 0xFF  # MONO, also inside every WAIT1
+        if not self.tripped:
+            if now - self.command_time > self.p.command_timeout:
+                self._trip('stale_command')
+            elif (self._position_has_priority() and now - self.link_time > self.p.link_timeout):
+                self._trip('stale_link')
+        if not self.tripped and now >= self.wait_until:
+            if self.p.control == 'closed_loop':
+                self._closed_loop(now, dt)
+            else:
+                self._program(now)
+        out = {'traction_drive': self.drive()}
+        if now >= self._next_status:
+            self._next_status = now + self.p.status_period
+            out['traction_status'] = self.status()
+        return out
+
+    def _position_has_priority(self) -> bool:
+        cmd = self.command
+        if cmd is None or cmd['manual'] or cmd['demand'] == 0 or cmd['executive_priority']:
+            return False
+        return self.link is not None and not self.link['executive_priority']
+
+    def _program(self, now: float) -> None:
+        """Continue the listing from where its last wait left it."""
+        if self.state == 'start':  # BEGIN/INIT: enable the field, WAIT1(D=100) build-up
+            self.field_off = False
+            self.armature_off = True
+            self.state = 'run'
+            self.wait_until = now + self.p.field_wait
+            return
+        if self.state == 'flip_decay':  # FLIP second half: toggle, field on, wait
+            self.field_forward = not self.field_forward
+            self.field_off = False
+            self.state = 'flip_build'
+            self.wait_until = now + self.p.field_wait
+            return
+        if self.state == 'flip_build':
+            self._comp_tail(now)
+            return
+        self.state = 'run'  # after runout, or a fresh pass
+        if not self._getref():
+            return
+        self.speed = self.dcycle  # SENSOR: SPDTAB identity (open loop)
+        self._sum()
+        self._comp(now)
+
+    def _getref(self) -> bool:
+        """GETREF; False while the radio stop holds the program in its re-poll loop."""
+        cmd = self.command or {'manual': 0, 'manual_speed': 0, 'reverse': 0, 'demand': 0,
+                               'executive_priority': 0}
+        self.manual = bool(cmd['manual'])
+        self.estop = False
+        if self.manual:  # byte 1 whole, before any other check
+            self.ref = _signed8(cmd['manual'] | cmd['manual_speed'] << 1 | cmd['reverse'] << 7)
+            self.source = 'manual'
+            return True
+        if cmd['demand'] == 0:
+            self.ref = self.p.estop_ref
+            self.estop = True
+            self.source = 'emergency_stop'
+            return True
+        if self.radio:
+            self.armature_off = True
+            self.dcycle = 0
+            self.source = 'radio_stop'
+            return False
+        link = self.link
+        if cmd['executive_priority'] or link is None or link['executive_priority']:
+            self.ref = cmd['demand']
+            self.source = 'executive'
+        else:
+            a = link['speed'] | link['reverse'] << 5  # port & 3FH (bit 6 = 0 here)
+            if a & 0x20:
+                a = -(a & 0x1F)
+            self.ref = a
+            self.source = 'position'
+        return True
+
+    def _sum(self) -> None:
+        if self.p.arithmetic == 'faithful_8bit':
+            e = _signed8(self.ref - self.speed)
+        else:
+            e = self.ref - self.speed
+        self.error = max(-self.p.step_limit, min(self.p.step_limit, e))
+
+    def _comp(self, now: float) -> None:
+        d = self.speed + self.error
+        if d >= 0:
+            d = min(d, self.p.max_duty)
+            self.dcycle = self.dcdem = d
+            flip = not self.field_forward  # the field must be forward, also for d = 0
+        else:
+            d = max(d, -self.p.max_duty)
+            self.dcycle, self.dcdem = d, -d
+            flip = self.field_forward
+        if flip:  # FLIP: armature and field off, DCYCLE := 0, wait
+            self.armature_off = self.field_off = True
+            self.dcycle = 0
+            self.state = 'flip_decay'
+            self.wait_until = now + self.p.field_wait
+            return
+        self._comp_tail(now)
+
+    def _comp_tail(self, now: float) -> None:
+        self.state = 'run'
+        if self.dcdem == 0:
+            self.armature_off = True  # coast: friction only
+            return
+        self.armature_off = False  # CTC1 := DCDEM; armature on
+        if abs(self.error) == self.p.step_limit:
+            self.state = 'runout'
+            self.wait_until = now + self.p.runout_wait
+
+    # -- closed loop (beyond 1983) -------------------------------------------------------------
+    def _closed_loop(self, now: float, dt: float) -> None:
+        if self.state == 'start':
+            self.field_off = False
+            self.field_forward = True
+            self.state = 'run'
+            self.wait_until = now + self.p.field_wait
+            return
+        if not self._getref():
+            self._v_demand = self._a_demand = self._integral = 0.0
+            return
+        p = self.p
+        if self.estop:  # emergency stop: demand zero at once, brake as hard as allowed
+            target = self._v_demand = self._a_demand = 0.0
+        else:
+            target = max(0.0, abs(self.ref) - p.dead_band) * p.v_per_percent
+            target = target if self.ref >= 0 else -target
+        # Jerk- and acceleration-limited ramp of the speed demand toward the target.
+        gap = target - self._v_demand
+        stop_dist_a = self._a_demand * abs(self._a_demand) / (2 * p.max_jerk)
+        want_a = max(-p.max_accel, min(p.max_accel, (gap - stop_dist_a) * 4.0))
+        da = max(-p.max_jerk * dt, min(p.max_jerk * dt, want_a - self._a_demand))
+        self._a_demand += da
+        step = self._a_demand * dt
+        self._v_demand = (min(self._v_demand + step, target) if gap > 0
+                          else max(self._v_demand + step, target))
+        error = self._v_demand - self.measured_speed
+        self._integral = max(-1.0, min(1.0, self._integral + error * dt))
+        feed = (p.dead_band + abs(self._v_demand) / p.v_per_percent) if self._v_demand else 0.0
+        duty = (feed if self._v_demand >= 0 else -feed) + p.kp * error + p.ki * self._integral
+        if target == 0.0 and abs(self._v_demand) < 1e-3 and abs(self.measured_speed) < 0.02:
+            duty, self._integral = 0.0, 0.0  # at rest: no hold current
+        duty = max(-p.max_duty, min(p.max_duty, round(duty)))
+        if (duty > 0) != self.field_forward and duty != 0 and abs(duty) < p.flip_hysteresis:
+            duty = 0  # a small demand against the field: coast rather than flip the field
+        if duty != 0 and (duty > 0) != self.field_forward:
+            self.armature_off = self.field_off = True
+            self.dcycle = self.dcdem = 0
+            self.state = 'flip_decay'
+            self.wait_until = now + p.field_wait
+            return
+        self.dcycle, self.dcdem = int(duty), abs(int(duty))
+        self.speed = self.dcycle
+        self.armature_off = self.dcdem == 0
+
+    # -- outputs ----------------------------------------------------------------------------
+    def drive(self) -> dict[str, Any]:
+        """The traction_drive record (what the motor controller board is told)."""
+        on = not self.tripped
+        return {
+            'armature_duty': self.dcdem if on and not self.armature_off else 0,
+            'field_duty': self.p.field_duty if on and not self.field_off else 0,
+            'armature_enable': int(on and not self.armature_off),
+            'field_enable': int(on and not self.field_off),
+            'field_forward': int(self.field_forward),
+            'contactor': int(on),
+            'watchdog': self.watchdog,
+        }
+
+    def status(self) -> dict[str, Any]:
+        """The traction_status record."""
+        return {
+            'ref': max(-128, min(127, self.ref)),
+            'duty': self.dcycle,
+            'emergency_stop': int(self.estop and not self.tripped),
+            'radio_stop': int(self.radio),
+            'tripped': int(self.tripped),
+            'manual': int(self.manual),
+            'field_forward': int(self.field_forward),
+            'armature_on': int(not self.tripped and not self.armature_off),
+            'reversing': int(self.state in ('flip_decay', 'flip_build')),
+            'source': self.source if not self.tripped else 'trip',
+            'trip_cause': self.trip_cause if self.tripped else 'none',
+            'speed': int(max(-32768, min(32767, round(self.measured_speed * 1000)))),
+        }

@@ -1,0 +1,275 @@
+"""Traction core: the thesis sequences with a fixed clock, and every trip path."""
+
+from __future__ import annotations
+
+import pytest
+
+from agv_nodes.traction.core import TractionCore, TractionParams
+
+DT = 0.010
+
+
+def cmd(demand: int = 0, manual: int = 0, speed: int = 0, reverse: int = 0,
+        priority: int = 0) -> dict:
+    return {'manual': manual, 'manual_speed': speed, 'reverse': reverse, 'demand': demand,
+            'executive_priority': priority}
+
+
+def link(speed: int = 0, reverse: int = 0, executive: int = 0) -> dict:
+    return {'executive_priority': executive, 'reverse': reverse, 'speed': speed}
+
+
+class Bench:
+    """Drives a TractionCore with a fixed clock; the executive republishes its command."""
+
+    def __init__(self, **params) -> None:
+        self.core = TractionCore(TractionParams(**params))
+        self.t = 0.0
+        self.command = cmd()
+        self.link: dict | None = None
+        self.log: list[tuple[float, dict]] = []
+
+    def run(self, seconds: float, send: bool = True) -> None:
+        end = self.t + seconds
+        while self.t < end - 1e-9:
+            if send and round(self.t / DT) % 5 == 0:  # commands every 50 ms
+                self.core.on_record('traction_command', self.command, self.t)
+                if self.link is not None:
+                    self.core.on_record('traction_link', self.link, self.t)
+            out = self.core.tick(self.t)
+            self.log.append((self.t, out['traction_drive']))
+            self.t = round(self.t + DT, 6)
+
+    def arm(self) -> None:
+        """Clear the start-up trip: e-stop, then a non-zero demand (the latch rule)."""
+        self.command = cmd(0)
+        self.run(0.1)
+        self.command = cmd(1)
+        self.run(0.02)
+
+    def duties(self, since: float = 0.0) -> list[tuple[float, int, int]]:
+        """(time, signed duty, field_forward) at each change of the drive record."""
+        out, last = [], None
+        for t, d in self.log:
+            if t < since:
+                continue
+            signed = d['armature_duty'] if d['field_forward'] else -d['armature_duty']
+            key = (signed, d['field_forward'], d['field_enable'])
+            if key != last:
+                out.append((round(t, 3), signed, d['field_enable']))
+                last = key
+        return out
+
+
+def test_starts_tripped_and_needs_estop_then_nonzero():
+    b = Bench()
+    b.command = cmd(30)
+    b.run(0.5)  # a drive demand alone does not clear the start-up trip
+    assert b.core.tripped and b.core.trip_cause == 'startup'
+    assert b.log[-1][1]['contactor'] == 0 and b.log[-1][1]['armature_duty'] == 0
+    b.command = cmd(0)
+    b.run(0.1)
+    assert b.core.tripped
+    b.command = cmd(30)
+    b.run(0.1)
+    assert not b.core.tripped and b.log[-1][1]['contactor'] == 1
+
+
+def test_slew_from_rest_to_50_percent_follows_the_listing():
+    """16 -> (flip) -> 16 -> 32 -> 48 -> 50, with the prose's 100/200 ms waits."""
+    b = Bench()
+    b.arm()
+    t0 = b.t
+    b.command = cmd(50)
+    b.run(2.0)
+    steps = [(round(t - t0, 2), duty) for t, duty, _f in b.duties(t0) if duty]
+    duties = [d for _t, d in steps]
+    assert duties == [16, 32, 48, 50]
+    times = [t for t, _d in steps]
+    # FLIP (INIT left the field reversed): 100 ms off + 100 ms build-up before the first 16 %,
+    # then a 200 ms runout after each limited step (the FLIP pass's own 16 % counts once).
+    assert times[1] - times[0] == pytest.approx(0.40, abs=0.02)  # runout + a repeated 16 step
+    assert times[2] - times[1] == pytest.approx(0.20, abs=0.02)
+    assert times[3] - times[2] == pytest.approx(0.20, abs=0.02)
+
+
+def test_listing_delays_option_halves_the_waits():
+    slow, fast = Bench(), Bench(runout_wait=0.100, field_wait=0.050)
+    for b in (slow, fast):
+        b.arm()
+        b.command = cmd(50)
+        b.run(2.0)
+    t_slow = next(t for t, d, _f in slow.duties() if d == 50)
+    t_fast = next(t for t, d, _f in fast.duties() if d == 50)
+    assert t_fast < t_slow - 0.3
+
+
+def test_reversal_disables_flips_the_field_and_re_enables():
+    b = Bench()
+    b.arm()
+    b.command = cmd(20)
+    b.run(2.0)
+    assert b.core.dcycle == 20 and b.core.field_forward
+    t0 = b.t
+    b.command = cmd(-20)
+    b.run(2.0)
+    seq = b.duties(t0)
+    signed = [d for _t, d, _f in seq]
+    # 20 -> 4 (limited step) -> field off (flip) -> -12 -> -16 -> -20 in reverse
+    assert signed[:3] == [20, 4, 0]
+    assert seq[2][2] == 0  # field disabled during the flip
+    assert [d for d in signed if d < 0] == [-12, -16, -20]
+    off = next(t for t, d, f in seq if f == 0)
+    on = next(t for t, d, f in seq if d == -12)
+    assert on - off == pytest.approx(0.20, abs=0.02)  # 100 ms decay + 100 ms build-up
+
+
+def test_emergency_stop_is_minus_5_percent_plug_braking():
+    b = Bench()
+    b.arm()
+    b.command = cmd(20)
+    b.run(2.0)
+    b.command = cmd(0)
+    b.run(2.0)
+    assert b.core.ref == -5 and b.core.estop
+    last = b.log[-1][1]
+    assert last['field_forward'] == 0 and last['armature_duty'] == 5  # reverse field, 5 %
+    assert b.core.status()['emergency_stop'] == 1
+    assert b.core.status()['source'] == 'emergency_stop'
+
+
+def test_manual_bypasses_emergency_and_radio_stop():
+    b = Bench()
+    b.arm()
+    b.core.on_radio_stop(True, b.t)
+    b.command = cmd(0, manual=1, speed=9)  # byte 1 = 0001 0011 = 19 -> REF 19 %
+    b.run(2.0)
+    assert b.core.ref == 19 and b.core.source == 'manual'
+    assert b.core.dcycle == 19 and b.log[-1][1]['armature_enable'] == 1
+    b.command = cmd(0, manual=1, speed=9, reverse=1)  # 1001 0011 = -109 -> clamped -80
+    b.run(0.05)
+    assert b.core.ref == -109
+
+
+def test_radio_stop_checked_after_estop_before_source():
+    b = Bench()
+    b.arm()
+    b.command = cmd(30)
+    b.run(2.0)
+    b.core.on_radio_stop(True, b.t)
+    b.run(0.1)
+    assert b.log[-1][1]['armature_enable'] == 0 and b.core.dcycle == 0
+    assert b.core.status()['radio_stop'] == 1 and b.core.source == 'radio_stop'
+    b.command = cmd(0)  # e-stop comes first in GETREF: it is served despite the radio stop
+    b.run(0.5)
+    assert b.core.source == 'emergency_stop'
+    b.core.on_radio_stop(False, b.t)
+    b.command = cmd(30)
+    b.run(2.0)
+    assert b.core.dcycle == 30
+
+
+def test_source_switching_between_executive_and_link():
+    b = Bench()
+    b.arm()
+    b.command = cmd(60)
+    b.link = link(executive=1)  # 40H: speed control with the executive
+    b.run(2.0)
+    assert b.core.ref == 60 and b.core.source == 'executive'
+    b.link = link(speed=20)  # 14H: Position priority, forward, 20 %
+    b.run(2.0)
+    assert b.core.ref == 20 and b.core.source == 'position' and b.core.dcycle == 20
+    b.link = link(speed=0)  # 00H at the centre view: REF 0, armature off, coast
+    b.run(1.0)
+    assert b.core.ref == 0 and b.log[-1][1]['armature_enable'] == 0
+    b.link = link(speed=20, reverse=1)  # 34H: bit 5 set -> NEG -> -20 (F5 reverse creep)
+    b.run(0.05)
+    assert b.core.ref == -20
+    b.command = cmd(60, priority=1)  # executive holds priority (via_executive)
+    b.run(0.6)  # the pass in progress finishes its waits (FLIP) before GETREF runs again
+    assert b.core.ref == 60
+
+
+def test_8bit_overflow_option():
+    sat, wrap = Bench(), Bench(arithmetic='faithful_8bit')
+    for b in (sat, wrap):
+        b.core.ref, b.core.speed = 50, -80
+        b.core._sum()
+    assert sat.core.error == 16
+    assert wrap.core.error == -16  # 130 wraps to -126: the listing drives the wrong way
+
+
+# -- trips -------------------------------------------------------------------------------------
+def running() -> Bench:
+    b = Bench()
+    b.arm()
+    b.command = cmd(40)
+    b.run(2.0)
+    assert not b.core.tripped and b.log[-1][1]['armature_enable'] == 1
+    return b
+
+
+def assert_tripped(b: Bench, cause: str) -> None:
+    assert b.core.tripped and b.core.trip_cause == cause
+    drive = b.log[-1][1]
+    assert drive['contactor'] == 0 and drive['armature_enable'] == 0
+    assert drive['field_enable'] == 0 and drive['armature_duty'] == 0
+    status = b.core.status()
+    assert status['tripped'] == 1 and status['trip_cause'] == cause
+
+
+def test_stale_command_trips_within_command_timeout():
+    b = running()
+    t0 = b.t
+    b.run(0.5, send=False)
+    trip_t = next(t for t, d in b.log if t >= t0 and d['contactor'] == 0)
+    assert trip_t - t0 <= 0.200 + 0.05 + DT  # last command <= 50 ms before t0
+    assert_tripped(b, 'stale_command')
+
+
+def test_stalled_loop_trips():
+    b = running()
+    b.core.on_record('traction_command', b.command, b.t + 0.3)
+    b.t += 0.3  # the process was stopped for 300 ms; the next pass notices the gap
+    b.run(0.02)
+    assert_tripped(b, 'stalled_loop')
+
+
+@pytest.mark.parametrize('reason, trips', [('bad_crc', True), ('spare_set', True),
+                                           ('wrong_length', True), ('bad_value', True),
+                                           ('repeated_counter', False)])
+def test_corrupt_record_trips(reason, trips):
+    b = running()
+    b.core.on_reject('traction_command', reason, b.t)
+    b.run(0.02)
+    if trips:
+        assert_tripped(b, 'corrupt_record')
+    else:
+        assert not b.core.tripped
+
+
+def test_stale_link_trips_only_when_position_has_priority():
+    b = running()
+    b.link = link(executive=1)
+    b.run(0.5)
+    b.link = None  # navigation falls silent while the executive has priority: no trip
+    b.run(0.5)
+    assert not b.core.tripped
+    b.link = link(speed=20)  # Position takes priority ...
+    b.run(0.5)
+    b.link = None  # ... and falls silent
+    b.run(0.5)
+    assert_tripped(b, 'stale_link')
+
+
+def test_trip_latches_until_estop_then_nonzero():
+    b = running()
+    b.core.on_reject('traction_link', 'bad_crc', b.t)
+    b.run(1.0)  # the same non-zero command keeps arriving: still latched
+    assert_tripped(b, 'corrupt_record')
+    b.command = cmd(0)
+    b.run(0.2)
+    assert b.core.tripped
+    b.command = cmd(40)
+    b.run(2.0)
+    assert not b.core.tripped and b.core.dcycle == 40
