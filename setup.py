@@ -38,6 +38,8 @@ setup(
     entry_points={
         'console_scripts': [
             # nodes (ros2 run agv_nodes <node>)
+            'navigation = agv_nodes.navigation.node:main',
+            'position_sensor = agv_nodes.position_sensor.node:main',
             'traction = agv_nodes.traction.node:main',
             'world = agv_nodes.world.node:main',
             # tools

@@ -9,12 +9,17 @@ publishes whatever the core returns.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+import sys
 from typing import Any
 
+import rclpy
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_msgs.msg import Bool
 
 from agv_nodes import qos
+from agv_nodes.params import ParameterError
 from agv_nodes.records import codec
 from agv_nodes.ros_ports import RecordPublisher, RecordSubscription
 
@@ -64,3 +69,27 @@ class CoreNode(Node):
         """Publish the records a core returned."""
         for record, fields in (outputs or {}).items():
             self.writers[record].publish(fields)
+
+
+def spin_main(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
+    """The rclpy main() idiom for one node: init, spin, clean shutdown, exit status.
+
+    A ParameterError (bad value or parameter file) ends start-up with its one-line message
+    and exit status 2; SIGINT and SIGTERM end the spin cleanly.
+    """
+    rclpy.init(args=args)
+    node = None
+    code = 0
+    try:
+        node = make_node()
+        rclpy.spin(node)
+    except ParameterError as exc:
+        print(exc, file=sys.stderr)
+        code = 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code

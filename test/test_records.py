@@ -198,6 +198,7 @@ def test_every_schema_names_topic_writer_readers_and_thesis():
 
 def test_port_declarations_from_schemas():
     reads, writes = C.for_node('navigation')
-    assert {s.name for s in reads} == {'navigation_command', 'position_sensor_status'}
+    assert {s.name for s in reads} == {'navigation_command', 'position_sensor_status',
+                                       'wheel_odometry'}
     assert {s.name for s in writes} == {'navigation_status', 'traction_link',
                                         'position_sensor_command'}

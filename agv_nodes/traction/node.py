@@ -9,11 +9,8 @@ from __future__ import annotations
 
 import sys
 
-import rclpy
-from rclpy.executors import ExternalShutdownException
-
-from agv_nodes.core_node import CoreNode
-from agv_nodes.params import ParameterError, Parameters
+from agv_nodes.core_node import CoreNode, spin_main
+from agv_nodes.params import Parameters
 from agv_nodes.traction.core import TractionCore, TractionParams
 
 
@@ -59,22 +56,7 @@ class TractionNode(CoreNode):
 
 def main(args: list[str] | None = None) -> int:
     """Entry point: ros2 run agv_nodes traction [--ros-args ...]."""
-    rclpy.init(args=args)
-    node = None
-    code = 0
-    try:
-        node = TractionNode()
-        rclpy.spin(node)
-    except ParameterError as exc:
-        print(exc, file=sys.stderr)
-        code = 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    return spin_main(TractionNode, args)
 
 
 if __name__ == '__main__':

@@ -1,0 +1,334 @@
+"""Navigation: PC6/1's navigating and positioning loops (Baker 6.2, App. B.1; spec 1.7, 1.9, 4).
+
+Records in: navigation_command (the executive's INFO), position_sensor_status (recognitions),
+wheel_odometry (controlled stopping only). Records out: navigation_status (OUTFO), traction_link
+(the direct Position -> Traction port), position_sensor_command (SAMIC/EDGIC).
+
+* INSTRS (idle): a new INFO[0] starts navigating (OPLOP) to that location with FLAG.4 :=
+  INFO[1].0; a change of INFO[1] alone means "position to the next stop marker" (CLOP).
+* CHK (moving): only INFO[0] is compared; a change abandons the loop and re-enters OPLOP.
+* OPLOP: link 40H (the executive has speed control), OUTFO = 00H / LOCN, filter cleared with the
+  location table. Every other location marker recognised is reported (OUTFO[1] := identity, then
+  52 ms "move clear of it"); stop-marker centres (0EH) never are. At the task location: CLOP at
+  once (first stop marker), or, for the second, wait for the first stop marker's centre view and
+  position from there.
+* CLOP: link 14H (Position priority, forward, 20 %), OUTFO = 03H / INFO[0], stop-view table.
+  Each view sets the link to its EDGE speed byte (14H creep, 00H at the centre); at the centre
+  OUTFO = 0BH and the loop ends (the truck coasts to rest on friction).
+
+`variant = as_listed` keeps PC6/1's quirks: LOCN starts at 00H (the first OPLOP reports marker
+00H, spec 1.7), and a centre view still in sight when positioning starts is accepted at once
+(the second-stop-marker hazard of spec 4). `intended` (default) starts LOCN at FFH and, on
+entering CLOP, ignores the centre view until another stop view has been seen.
+
+`stopping = controlled` (thesis 8.5 F4/F5, default `friction_1983`): every stop view gives the
+distance still to go (+60 ... -60 mm, spec 3.3); wheel odometry carries it between views and the
+link asks closed-loop traction to stop in that distance (traction_link.stop_in); an overshoot
+reverses slowly back onto the centre.
+
+`speed_request_path = via_executive` (thesis 8.2.2, spec F2): no direct link is published; the
+request travels in navigation_status.speed_request and the executive forwards it.
+
+A sensor that goes quiet (no status for `sensor_timeout`, or it reports its ADC stale or
+saturated) makes navigation report LOST and request speed 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from agv_nodes.markers import CENTRE_VIEW, EDIM, SLOW1, STOP_VIEWS
+
+NO_TASK = 0xFF
+
+
+@dataclass
+class NavigationParams:
+    """Navigation settings (node parameters map onto these)."""
+
+    variant: str = 'intended'  # or 'as_listed'
+    speed_request_path: str = 'direct_link'  # or 'via_executive'
+    stopping: str = 'friction_1983'  # or 'controlled'
+    period: float = 0.005  # s, the loop (CHK) and controlled-stop update rate
+    status_period: float = 0.050  # s between navigation_status heartbeats
+    link_period: float = 0.020  # s between traction_link records (and at once on change)
+    command_period: float = 0.050  # s between position_sensor_command records
+    landmark_wait: float = 0.052  # s, WAIT after reporting a landmark (PC6/1: ~52 ms)
+    sensor_timeout: float = 0.050  # s without a sensor status -> LOST
+    centre_lead: float = 5.0  # mm: a view is first matched this far before its alignment
+    reverse_speed: int = 12  # % duty of the slow reverse after an overshoot (F5)
+    settle_time: float = 0.3  # s at rest before a controlled stop reports 0BH
+
+    def check(self) -> list[tuple[str, Any, str]]:
+        """Problems as (name, value, reason)."""
+        bad = []
+        for name, allowed in (('variant', ('intended', 'as_listed')),
+                              ('speed_request_path', ('direct_link', 'via_executive')),
+                              ('stopping', ('friction_1983', 'controlled'))):
+            if getattr(self, name) not in allowed:
+                bad.append((name, getattr(self, name), f'not one of {allowed}'))
+        return bad
+
+
+def link_byte(link: dict[str, int]) -> int:
+    """The 1983 port value of a link record (bit 6 priority, bit 5 reverse, bits 0-4)."""
+    return link['executive_priority'] << 6 | link['reverse'] << 5 | link['speed']
+
+
+class NavigationCore:
+    """See the module docstring."""
+
+    node = 'navigation'
+
+    def __init__(self, params: NavigationParams | None = None) -> None:
+        self.p = params or NavigationParams()
+        self.period = self.p.period
+        self.mode = 'idle'  # idle (INSTRS) | navigating (OPLOP/SAM) | positioning (CLOP)
+        # OUTFO[0] bits and OUTFO[1]: power-up record 0AH / FFH.
+        self.at_location, self.slow, self.lost = 0, 1, 1
+        self.last_marker = 0xFF
+        self.locn = 0x00 if self.p.variant == 'as_listed' else 0xFF
+        self.locstp = NO_TASK
+        self.flag4 = 0
+        self.inchk = (NO_TASK, 0)  # the last INFO pair acted on
+        self.info = (NO_TASK, 0)
+        self.link = {'executive_priority': 0, 'reverse': 0, 'speed': 0, 'stop_in': 0}
+        self.table = 'navigating'
+        self.epoch = 0
+        self.stop_view = 0
+        self.sensor_lost = False
+        self.input_fault = False
+        self._sensor_time: float | None = None
+        self._seen_recognitions: int | None = None
+        self._blind_until = 0.0
+        self._guard = False  # ignore the centre view until another view is seen
+        self._next = {'status': 0.0, 'link': 0.0, 'command': 0.0}
+        self._pending: dict[str, dict[str, Any]] = {}
+        # controlled stopping
+        self._odometer = 0.0  # m, integrated wheel odometry
+        self._target: float | None = None  # odometer reading of the stop point
+        self._rest_since: float | None = None
+        self._speed = 0.0
+
+    # -- records out ------------------------------------------------------------------------
+    def status(self) -> dict[str, Any]:
+        """navigation_status (OUTFO plus the modern spare bytes)."""
+        return {'at_location': self.at_location, 'slow': self.slow, 'reverse': 0,
+                'lost': self.lost, 'last_marker': self.last_marker,
+                'speed_request': link_byte(self.link), 'sensor_lost': int(self.sensor_lost),
+                'input_fault': int(self.input_fault), 'stop_view': self.stop_view}
+
+    def _locup(self) -> None:
+        """LOCUP: report OUTFO to the executive now."""
+        self._pending['navigation_status'] = self.status()
+        self.input_fault = False
+
+    def _set_link(self, executive: int = 0, reverse: int = 0, speed: int = 0,
+                  stop_in: int = 0) -> None:
+        new = {'executive_priority': executive, 'reverse': reverse, 'speed': speed,
+               'stop_in': stop_in}
+        if new != self.link:
+            self.link = new
+            if self.p.speed_request_path == 'direct_link':
+                self._pending['traction_link'] = dict(new)
+            else:  # via the executive: the request rides in the status record
+                self._pending['navigation_status'] = self.status()
+
+    def _select_table(self, table: str) -> None:
+        """SAMIC / EDGIC: new table, filter cleared (a new epoch)."""
+        self.table = table
+        self.epoch = (self.epoch + 1) & 0xFF
+        self._pending['position_sensor_command'] = {'table': table, 'epoch': self.epoch}
+
+    # -- the two loops ----------------------------------------------------------------------
+    def _oplop(self) -> None:
+        self.mode = 'navigating'
+        self._select_table('navigating')
+        self._set_link(executive=1)  # 40H
+        self.at_location, self.slow, self.lost = 0, 0, 0  # OUTFO[0] := 00H
+        if self.locn != EDIM:
+            self.last_marker = self.locn
+        self.stop_view = 0
+        self._target = None
+        self._locup()
+
+    def _clop(self, guard: bool) -> None:
+        self.mode = 'positioning'
+        self._set_link(speed=SLOW1)  # 14H: Position priority, forward, 20 %
+        self.at_location, self.slow, self.lost = 1, 1, 0  # OUTFO[0] := 03H
+        self.last_marker = self.info[0]  # OUTFO[1] := INFO[0]
+        self._locup()
+        self._select_table('positioning')
+        self._guard = guard and self.p.variant == 'intended'
+        self._target = None
+        self._rest_since = None
+
+    def _arrived(self) -> None:
+        """Centre view (or a controlled stop at rest): 0BH, then INSTRS."""
+        self._set_link(speed=0)  # 00H
+        self.at_location, self.slow, self.lost = 1, 1, 1  # OUTFO[0] := 0BH
+        self._locup()
+        self.mode = 'idle'
+        self._target = None
+
+    def _instrs(self) -> None:
+        """INSTRS: act on a changed INFO pair while idle."""
+        if self.info == self.inchk:
+            return
+        location, edge = self.info
+        if location == NO_TASK:
+            self.inchk = self.info
+            return
+        if location == self.inchk[0]:  # same place, byte 2 changed: the next stop marker
+            self.inchk = self.info
+            self._clop(guard=True)
+            return
+        self.inchk = self.info
+        self.locstp, self.flag4 = location, edge
+        self._oplop()
+
+    def _chk(self) -> None:
+        """CHK: a new INFO[0] while moving abandons the loop."""
+        location, edge = self.info
+        if location == self.inchk[0]:
+            return
+        self.inchk = self.info
+        if location == NO_TASK:  # the executive withdrew the task: it takes speed control
+            self.mode = 'idle'
+            self._set_link(executive=1)
+            return
+        self.locstp, self.flag4 = location, edge
+        self._oplop()
+
+    # -- inputs -----------------------------------------------------------------------------
+    def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
+        """Handle one accepted record."""
+        if record == 'navigation_command':
+            self.info = (fields['task_location'], fields['stop_marker'])
+            if self.mode == 'idle':
+                self._instrs()
+            else:
+                self._chk()
+        elif record == 'position_sensor_status':
+            self._sensor_time = now
+            self._sensor_status(fields, now)
+        elif record == 'wheel_odometry':
+            self._speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
+        return self._flush()
+
+    def on_reject(self, record: str, reason: str, now: float) -> dict | None:
+        """A rejected command or sensor record is flagged in the next status."""
+        self.input_fault = True
+        return None
+
+    def _sensor_status(self, fields: dict[str, Any], now: float) -> None:
+        lost = bool(fields['adc_stale'] or fields['saturated'])
+        self._set_lost(lost)
+        count = fields['recognitions']
+        if self._seen_recognitions is None:
+            # Recognitions made before we listened are history; a recognition record itself
+            # is news.
+            self._seen_recognitions = (count - fields['recognised']) & 0xFF
+        if count == self._seen_recognitions:
+            return
+        self._seen_recognitions = count
+        if fields['table'] != self.table or fields['epoch'] != self.epoch:
+            return  # a recognition from before the last SAMIC/EDGIC
+        if self.mode == 'navigating':
+            if now >= self._blind_until:
+                self._location_seen(fields['identity'], now)
+        elif self.mode == 'positioning' and fields['stop_view']:
+            self._view_seen(fields['stop_view'], now)
+
+    def _location_seen(self, identity: int, now: float) -> None:
+        """ACTION (navigating table)."""
+        self.locn = identity
+        if self.locn == self.locstp:
+            if self.flag4 == 0:
+                self._clop(guard=self.locstp == EDIM)
+                return
+            self.flag4 = 0
+            self.locstp = EDIM  # now wait for the first stop marker's centre
+        if self.locn == EDIM:
+            return  # stop-marker centres are never reported
+        self.last_marker = self.locn
+        self._locup()
+        self._blind_until = now + self.p.landmark_wait
+
+    def _view_seen(self, view: int, now: float) -> None:
+        """ACT2 (positioning table)."""
+        if self._guard:
+            if view == CENTRE_VIEW:
+                return  # the centre we started on is still in sight
+            self._guard = False
+        self.stop_view = view
+        if self.p.stopping == 'controlled':
+            _code, _speed, to_go = STOP_VIEWS[view - 1]
+            self._target = self._odometer + (to_go - self.p.centre_lead) / 1000.0
+            self._rest_since = None
+            self._controlled(now)
+            return
+        speed = STOP_VIEWS[view - 1][1]
+        self._set_link(speed=speed)
+        if speed == 0:
+            self._arrived()
+
+    def _controlled(self, now: float) -> None:
+        """Controlled stop: ask traction to stop in the distance still to go."""
+        if self._target is None:
+            return
+        remaining_mm = (self._target - self._odometer) * 1000.0
+        if abs(remaining_mm) < 1.0 or (abs(self._speed) < 0.005 and abs(remaining_mm) < 3.0):
+            self._set_link(speed=0)
+            if abs(self._speed) < 0.002:
+                self._rest_since = self._rest_since if self._rest_since is not None else now
+                if now - self._rest_since >= self.p.settle_time:
+                    self._arrived()
+            return
+        self._rest_since = None
+        stop_in = int(min(250, max(1, round(abs(remaining_mm)))))
+        if remaining_mm > 0:
+            self._set_link(speed=SLOW1, stop_in=stop_in)
+        else:  # overshoot (F5): back up slowly onto the centre
+            self._set_link(reverse=1, speed=self.p.reverse_speed, stop_in=stop_in)
+
+    def _set_lost(self, lost: bool) -> None:
+        if lost == self.sensor_lost:
+            return
+        self.sensor_lost = lost
+        if lost:
+            self.lost = 1  # OUTFO bit 3: LOST
+            if self.mode != 'idle':
+                self.mode = 'idle'
+                self.inchk = (NO_TASK, 0)  # a new task is needed after this
+            self._set_link(speed=0)  # request speed 0
+            self._locup()
+
+    # -- the loop ---------------------------------------------------------------------------
+    def tick(self, now: float) -> dict | None:
+        """CHK rate: sensor watchdog, controlled stop, and the steady heartbeats."""
+        if self._sensor_time is None:
+            if self.mode != 'idle':
+                self._set_lost(True)  # a task, and no sensor has ever reported
+        elif now - self._sensor_time > self.p.sensor_timeout:
+            self._set_lost(True)
+        self._odometer += self._speed * self.p.period
+        if self.mode == 'positioning' and self.p.stopping == 'controlled':
+            self._controlled(now)
+        if now >= self._next['status']:
+            self._next['status'] = now + self.p.status_period
+            self._pending.setdefault('navigation_status', self.status())
+            self.input_fault = False
+        if now >= self._next['link'] and self.p.speed_request_path == 'direct_link':
+            self._next['link'] = now + self.p.link_period
+            self._pending.setdefault('traction_link', dict(self.link))
+        if now >= self._next['command']:
+            self._next['command'] = now + self.p.command_period
+            self._pending.setdefault('position_sensor_command',
+                                     {'table': self.table, 'epoch': self.epoch})
+        return self._flush()
+
+    def _flush(self) -> dict | None:
+        out, self._pending = self._pending, {}
+        return out or None

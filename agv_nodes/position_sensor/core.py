@@ -1,0 +1,181 @@
+"""The position sensor: PC6/1's SAMPLE, THRESH and DECODE on ADC snapshots (Baker ch 5, App B.1).
+
+Per snapshot (spec 2.2-2.7):
+1. d.c. removal: x = lit - dark, clamped at 0 (SUBT);
+2. running-sum filter of run length 4 per detector, TOTAL = x_k + ... + x_(k-3) (no division;
+   thresholds are in x4 units), cleared on every table change (SAMIC/EDGIC), so the first three
+   snapshots after a change read dark;
+3. THRESH per detector: WHITE if TOTAL > THRON, BLACK if TOTAL <= THROFF, otherwise the
+   snapshot is INVALID (all eight are still processed);
+4. CODE: each valid decision shifts a bit in, detector 1 ending in bit 7 (spec 2.5);
+5. TARGET: a valid CODE is looked up in the active table (navigating: UCTAB, the four location
+   markers and the stop-marker centre; positioning: EDGE, the seven stop views);
+6. a recognition is reported only after `min_consecutive_matches` equal matches in successive
+   snapshots (thesis 7.1.4; 1 = the printed listing). An invalid or different snapshot resets
+   the count.
+
+`variant = as_listed` keeps the listing's defects (spec 2.4, 2.6, register items 1 and 14): the
+black test compares only the high bytes of TOTAL and THROFF, and the EDGE search covers LEN = 5
+entries, so stop views 6 and 7 never match. The default `intended` is the design as described.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from agv_nodes.markers import LOCATION_TABLE, STOP_VIEWS, THRESHOLDS
+
+
+@dataclass
+class SensorProcessing:
+    """Position sensor settings (node parameters map onto these)."""
+
+    white: tuple[int, ...] = THRESHOLDS['sensor1']['white']  # THRON, x4 units
+    black: tuple[int, ...] = THRESHOLDS['sensor1']['black']  # THROFF
+    min_consecutive_matches: int = 2  # thesis 7.1.4 (the printed listing: 1)
+    variant: str = 'intended'  # or 'as_listed'
+    run_length: int = 4  # running-sum filter length (thesis 5.2.2.2, fig 5.21)
+    heartbeat: float = 0.020  # s between heartbeat status records
+    adc_timeout: float = 0.050  # s without a snapshot -> adc_stale
+    saturation: int = 255  # a dark reading at this level means the sensor is blinded
+    extra: dict = field(default_factory=dict)
+
+    def check(self) -> list[tuple[str, Any, str]]:
+        """Problems as (name, value, reason)."""
+        bad = []
+        for name in ('white', 'black'):
+            values = getattr(self, name)
+            if len(values) != 8 or not all(0 <= v <= 1020 for v in values):
+                bad.append((f'{name}_thresholds', list(values), 'needs 8 values in 0..1020'))
+        if len(self.white) == 8 and len(self.black) == 8 and any(
+                b >= w for w, b in zip(self.white, self.black, strict=True)):
+            bad.append(('black_thresholds', list(self.black), 'each must be below its white '
+                        'threshold'))
+        if self.variant not in ('intended', 'as_listed'):
+            bad.append(('variant', self.variant, 'not intended or as_listed'))
+        if not 1 <= self.min_consecutive_matches <= 10:
+            bad.append(('min_consecutive_matches', self.min_consecutive_matches, 'outside 1..10'))
+        return bad
+
+
+class PositionSensorCore:
+    """Snapshots in, recognitions out; see the module docstring."""
+
+    node = 'position_sensor'
+
+    def __init__(self, params: SensorProcessing | None = None) -> None:
+        self.p = params or SensorProcessing()
+        self.period = self.p.heartbeat
+        self.table = 'navigating'
+        self.epoch = 0
+        self._oldest = [[0] * 8 for _ in range(self.p.run_length)]  # OLDEST rows
+        self._total = [0] * 8  # TOTAL
+        self._row = 0  # run counter
+        self.code = 0  # CODE of the last valid snapshot
+        self.invalid = False
+        self.saturated = False
+        self.identity = 0xFF
+        self.stop_view = 0
+        self.recognitions = 0
+        self.samples = 0
+        self._streak_key: int | None = None
+        self._streak = 0
+        self._last_adc: float | None = None
+        self._templates = self._table()
+
+    # -- tables -----------------------------------------------------------------------------
+    def _table(self) -> dict[int, int]:
+        """CODE -> identity (navigating) or view number (positioning), as TARGET searches."""
+        if self.table == 'navigating':
+            return {code: identity for code, identity in LOCATION_TABLE}
+        views = 5 if self.p.variant == 'as_listed' else 7  # LEN = 5 over EDGE (spec 2.6)
+        return {code: view for view, (code, _speed, _mm) in enumerate(STOP_VIEWS[:views], 1)}
+
+    def _reset_filter(self) -> None:
+        """SAMIC / EDGIC: clear OLDEST, TOTAL and the counter; CODE := 0."""
+        self._oldest = [[0] * 8 for _ in range(self.p.run_length)]
+        self._total = [0] * 8
+        self._row = 0
+        self._streak_key, self._streak = None, 0
+
+    # -- inputs -----------------------------------------------------------------------------
+    def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
+        """adc_snapshot (340 Hz) or position_sensor_command (from navigation)."""
+        if record == 'position_sensor_command':
+            if fields['epoch'] != self.epoch or fields['table'] != self.table:
+                self.epoch = fields['epoch']
+                self.table = fields['table']
+                self._templates = self._table()
+                self._reset_filter()
+            return None
+        lit = [fields[f'lit_{d}'] for d in range(1, 9)]
+        dark = [fields[f'dark_{d}'] for d in range(1, 9)]
+        self._last_adc = now
+        return self.sample(lit, dark, now)
+
+    def sample(self, lit: list[int], dark: list[int], now: float) -> dict | None:
+        """One SAMPLE + DECODE; returns a status record when a recognition is made."""
+        p = self.p
+        self.samples = (self.samples + 1) & 0xFFFF
+        self.saturated = max(dark) >= p.saturation
+        row = self._oldest[self._row]
+        code, valid = 0, True
+        as_listed = p.variant == 'as_listed'
+        for d in range(8):
+            x = lit[d] - dark[d]
+            if x < 0:
+                x = 0  # SUBT clamp
+            self._total[d] += x - row[d]
+            row[d] = x
+            total = self._total[d]
+            if total > p.white[d]:
+                code = code << 1 | 1
+            elif (total >> 8 <= p.black[d] >> 8) if as_listed else (total <= p.black[d]):
+                code <<= 1
+            else:
+                valid = False
+        self._row = (self._row + 1) % p.run_length
+        self.invalid = not valid
+        if not valid:
+            self._streak_key, self._streak = None, 0
+            return None
+        self.code = code
+        match = self._templates.get(code)
+        if match is None:
+            self._streak_key, self._streak = None, 0
+            return None
+        if match == self._streak_key:
+            self._streak += 1
+        else:
+            self._streak_key, self._streak = match, 1
+        if self._streak != p.min_consecutive_matches:
+            return None  # not yet, or already reported for this streak
+        self.recognitions = (self.recognitions + 1) & 0xFF
+        if self.table == 'navigating':
+            self.identity, self.stop_view = match, 0
+        else:
+            self.identity, self.stop_view = 0xFF, match
+        return {'position_sensor_status': self.status(recognised=True, now=now)}
+
+    # -- outputs ----------------------------------------------------------------------------
+    def status(self, recognised: bool = False, now: float = 0.0) -> dict[str, Any]:
+        """The position_sensor_status record."""
+        stale = self._last_adc is None or now - self._last_adc > self.p.adc_timeout
+        return {
+            'recognised': int(recognised),
+            'invalid': int(self.invalid),
+            'adc_stale': int(stale),
+            'table': self.table,
+            'saturated': int(self.saturated),
+            'code': self.code,
+            'identity': self.identity,
+            'stop_view': self.stop_view,
+            'recognitions': self.recognitions,
+            'sample_count': self.samples,
+            'epoch': self.epoch,
+        }
+
+    def tick(self, now: float) -> dict | None:
+        """The heartbeat: the latest state, recognised = 0."""
+        return {'position_sensor_status': self.status(recognised=False, now=now)}

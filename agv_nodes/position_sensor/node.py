@@ -1,0 +1,58 @@
+"""position_sensor: marker recognition from ADC snapshots (ros2 run agv_nodes position_sensor).
+
+Reads hw/position_sensor/adc (340 Hz, best effort) and position_sensor/command; writes
+position_sensor/status on every recognition and as a heartbeat. Behaviour:
+`agv_nodes.position_sensor.core`.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from agv_nodes.core_node import CoreNode, spin_main
+from agv_nodes.markers import THRESHOLDS
+from agv_nodes.params import Parameters
+from agv_nodes.position_sensor.core import PositionSensorCore, SensorProcessing
+
+
+class PositionSensorNode(CoreNode):
+    """Parameters -> PositionSensorCore -> ports."""
+
+    def __init__(self) -> None:
+        super().__init__('position_sensor')
+        p = Parameters(self)
+        unit = p.choice('sensor_unit', 'sensor1', 'Table 7.1 threshold set used unless '
+                        'white_thresholds/black_thresholds are given', ('sensor1', 'sensor2'))
+        white = p.numbers('white_thresholds', [], 'THRON per detector 1-8, x4 running-sum '
+                          'units (empty = Table 7.1 of sensor_unit)', 8)
+        black = p.numbers('black_thresholds', [], 'THROFF per detector 1-8 (empty = Table 7.1)',
+                          8)
+        d = SensorProcessing()
+        sp = SensorProcessing(
+            white=tuple(int(v) for v in white) or THRESHOLDS[unit]['white'],
+            black=tuple(int(v) for v in black) or THRESHOLDS[unit]['black'],
+            min_consecutive_matches=p.integer(
+                'min_consecutive_matches', d.min_consecutive_matches, 'equal matches in '
+                'successive snapshots before a recognition (thesis 7.1.4: 2; listing: 1)', 1, 10),
+            variant=p.choice('variant', d.variant, "intended design, or the printed listing's "
+                             'defects (black-test compare, EDGE search length 5)',
+                             ('intended', 'as_listed')),
+            heartbeat=p.number('heartbeat', d.heartbeat, 'seconds between status heartbeats',
+                               0.005, 1.0),
+            adc_timeout=p.number('adc_timeout', d.adc_timeout, 'seconds without a snapshot '
+                                 'before adc_stale is reported', 0.005, 5.0),
+        )
+        for name, value, reason in sp.check():
+            p.fail(name, value, reason)
+        integrity = p.choice('record_integrity', 'e2e', 'end-to-end protection of the '
+                             'inter-processor records', ('e2e', 'none'))
+        self.attach(PositionSensorCore(sp), integrity)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point: ros2 run agv_nodes position_sensor [--ros-args ...]."""
+    return spin_main(PositionSensorNode, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

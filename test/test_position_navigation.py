@@ -1,0 +1,308 @@
+"""Position sensor and navigation cores: PC6/1 behaviour record by record."""
+
+from __future__ import annotations
+
+import pytest
+
+from agv_nodes.markers import LOCATION_PATTERNS, STOP_STRIP, THRESHOLDS, code_of, stop_view_columns
+from agv_nodes.navigation.core import NavigationCore, NavigationParams
+from agv_nodes.position_sensor.core import PositionSensorCore, SensorProcessing
+
+WHITE = THRESHOLDS['sensor1']['white']
+BLACK = THRESHOLDS['sensor1']['black']
+
+
+def snapshot_for(code: int, margin: float = 1.3) -> tuple[list[int], list[int]]:
+    """A steady (lit, dark) pair whose x4 sums read `code` with some margin."""
+    lit, dark = [], []
+    for d in range(8):
+        bit = code >> (7 - d) & 1
+        level = WHITE[d] * margin / 4 if bit else BLACK[d] / margin / 4
+        lit.append(int(round(level)) + 10)
+        dark.append(10)
+    return lit, dark
+
+
+def feed(core: PositionSensorCore, code: int, n: int, t0: float = 0.0) -> list[dict]:
+    out = []
+    for k in range(n):
+        lit, dark = snapshot_for(code)
+        got = core.sample(lit, dark, t0 + k / 340)
+        if got:
+            out.append(got['position_sensor_status'])
+    return out
+
+
+# -- position sensor ---------------------------------------------------------------------------
+def test_running_sum_needs_four_snapshots_after_a_reset():
+    core = PositionSensorCore(SensorProcessing(min_consecutive_matches=1))
+    lit, dark = snapshot_for(0x78)
+    results = [core.sample(lit, dark, k / 340) for k in range(4)]
+    assert results[:3] == [None, None, None]  # partial sums read dark or invalid: no match
+    assert results[3]['position_sensor_status']['identity'] == 0
+
+
+@pytest.mark.parametrize('identity', [0, 1, 2, 3])
+def test_location_markers_recognised_with_two_consecutive_matches(identity):
+    core = PositionSensorCore()
+    got = feed(core, code_of(LOCATION_PATTERNS[identity]), 8)
+    assert len(got) == 1  # one report per streak
+    rec = got[0]
+    assert rec['recognised'] == 1 and rec['identity'] == identity and rec['table'] == 'navigating'
+    assert rec['code'] == code_of(LOCATION_PATTERNS[identity])
+    assert core.samples == 8 and rec['sample_count'] == 5  # 4 to fill, + 2nd consecutive match
+
+
+def test_single_misread_is_ignored_with_two_consecutive_rule():
+    strict, listing = PositionSensorCore(), PositionSensorCore(
+        SensorProcessing(min_consecutive_matches=1))
+    for core in (strict, listing):
+        feed(core, 0x00, 4)
+        core.sample(*snapshot_for(0x1E), 0.1)  # one stray 'location 3' snapshot ...
+        core.sample(*snapshot_for(0x00), 0.11)  # ... then black again
+    assert strict.recognitions == 0
+    assert listing.recognitions == 0  # the running sum smooths a one-sample glitch too
+    for core in (strict, listing):
+        for _ in range(4):
+            core.sample(*snapshot_for(0x1E), 0.2)
+        core.sample(*snapshot_for(0x00), 0.3)
+    assert strict.recognitions == 1 and listing.recognitions == 1
+
+
+def test_invalid_band_gives_no_code():
+    core = PositionSensorCore()
+    lit, dark = snapshot_for(0x78)
+    mid = (WHITE[0] + BLACK[0]) / 8  # detector 1 between its thresholds
+    lit[0] = int(mid) + 10
+    for _ in range(6):
+        assert core.sample(lit, dark, 0.0) is None
+    assert core.invalid and core.recognitions == 0
+
+
+@pytest.mark.parametrize('view', range(1, 8))
+def test_stop_views_in_positioning_table(view):
+    core = PositionSensorCore()
+    core.on_record('position_sensor_command', {'table': 'positioning', 'epoch': 1}, 0.0)
+    got = feed(core, code_of(STOP_STRIP, stop_view_columns(view)), 6)
+    assert [g['stop_view'] for g in got] == [view]
+    assert got[0]['identity'] == 0xFF and got[0]['table'] == 'positioning'
+
+
+def test_as_listed_variant_never_matches_views_6_and_7():
+    core = PositionSensorCore(SensorProcessing(variant='as_listed'))
+    core.on_record('position_sensor_command', {'table': 'positioning', 'epoch': 1}, 0.0)
+    for view in (6, 7):
+        assert feed(core, code_of(STOP_STRIP, stop_view_columns(view)), 6) == []
+    assert [g['stop_view'] for g in feed(core, 0xA3, 6)] == [4]
+
+
+def test_as_listed_black_test_compares_high_bytes_only():
+    """Detector 6 (THROFF 262, THRON 456): a TOTAL of 300 is invalid as intended, black as
+    listed (its band disappears, spec 2.4)."""
+    lit, dark = snapshot_for(0x78)
+    lit[5] = 75 + 10  # 4 x 75 = 300
+    intended = PositionSensorCore(SensorProcessing(min_consecutive_matches=1))
+    listed = PositionSensorCore(SensorProcessing(min_consecutive_matches=1, variant='as_listed'))
+    for core in (intended, listed):
+        for _ in range(4):
+            core.sample(lit, dark, 0.0)
+    assert intended.invalid and listed.recognitions == 1 and listed.identity == 0
+
+
+def test_centre_view_in_navigating_table_is_edim():
+    core = PositionSensorCore()
+    assert feed(core, 0xA3, 6)[0]['identity'] == 0x0E
+
+
+def test_table_change_clears_the_filter():
+    core = PositionSensorCore(SensorProcessing(min_consecutive_matches=1))
+    feed(core, 0xA3, 6)
+    core.on_record('position_sensor_command', {'table': 'positioning', 'epoch': 7}, 0.0)
+    assert core._total == [0] * 8 and core.epoch == 7
+    got = feed(core, 0xA3, 4)
+    assert len(got) == 1 and got[0]['stop_view'] == 4 and got[0]['epoch'] == 7
+
+
+def test_heartbeat_reports_stale_and_saturated_adc():
+    core = PositionSensorCore()
+    assert core.tick(0.0)['position_sensor_status']['adc_stale'] == 1  # nothing yet
+    core.on_record('adc_snapshot', {**{f'lit_{d}': 255 for d in range(1, 9)},
+                                    **{f'dark_{d}': 255 for d in range(1, 9)}}, 1.0)
+    beat = core.tick(1.01)['position_sensor_status']
+    assert beat['adc_stale'] == 0 and beat['saturated'] == 1 and beat['recognised'] == 0
+    assert core.tick(1.2)['position_sensor_status']['adc_stale'] == 1
+
+
+# -- navigation ----------------------------------------------------------------------------
+class Nav:
+    """Drives a NavigationCore with records; keeps every status and link it sends."""
+
+    def __init__(self, **params) -> None:
+        self.core = NavigationCore(NavigationParams(**params))
+        self.t = 0.0
+        self.statuses: list[tuple[int, int]] = []
+        self.links: list[int] = []
+        self.recognitions = 0
+        self.table, self.epoch = 'navigating', 0
+
+    def _take(self, out) -> None:
+        for rec, fields in (out or {}).items():
+            if rec == 'navigation_status':
+                b1 = (fields['at_location'] | fields['slow'] << 1 | fields['reverse'] << 2
+                      | fields['lost'] << 3)
+                pair = (b1, fields['last_marker'])
+                if not self.statuses or self.statuses[-1] != pair:
+                    self.statuses.append(pair)
+            elif rec == 'traction_link':
+                byte = (fields['executive_priority'] << 6 | fields['reverse'] << 5
+                        | fields['speed'])
+                if not self.links or self.links[-1] != byte:
+                    self.links.append(byte)
+            elif rec == 'position_sensor_command':
+                self.table, self.epoch = fields['table'], fields['epoch']
+
+    def command(self, location: int, edge: int = 0) -> None:
+        self._take(self.core.on_record('navigation_command',
+                                       {'task_location': location, 'stop_marker': edge}, self.t))
+
+    def sensor(self, identity: int = 0xFF, view: int = 0, recognised: bool = True,
+               table: str | None = None) -> None:
+        if recognised:
+            self.recognitions += 1
+        fields = {'recognised': int(recognised), 'invalid': 0, 'adc_stale': 0,
+                  'table': table or self.table, 'saturated': 0, 'code': 0,
+                  'identity': identity, 'stop_view': view, 'recognitions': self.recognitions,
+                  'sample_count': 0, 'epoch': self.epoch}
+        self._take(self.core.on_record('position_sensor_status', fields, self.t))
+
+    def run(self, seconds: float) -> None:
+        end = self.t + seconds
+        while self.t < end:
+            if round(self.t * 1000) % 20 == 0:
+                self.sensor(recognised=False)  # heartbeat
+            self._take(self.core.tick(self.t))
+            self.t = round(self.t + 0.005, 6)
+
+
+def test_spec_4_status_sequence_stop_at_2_first_marker_as_listed():
+    """The step table of spec 4, exactly (as_listed keeps LOCN = 00H at the first OPLOP)."""
+    n = Nav(variant='as_listed')
+    n.run(0.1)
+    n.sensor(recognised=False)
+    assert n.statuses == [(0x0A, 0xFF)] and n.links == [0x00]  # power-up
+    n.command(2, 0)
+    n.run(0.1)
+    assert n.statuses[-1] == (0x00, 0x00) and n.links[-1] == 0x40  # OPLOP, LOCN quirk
+    n.sensor(identity=1)
+    n.run(0.1)
+    assert n.statuses[-1] == (0x00, 0x01)  # location 1 passed and reported
+    n.sensor(identity=2)
+    n.run(0.1)
+    assert n.statuses[-1] == (0x03, 0x02) and n.links[-1] == 0x14  # CLOP: 20 %
+    assert n.table == 'positioning'
+    for view in (1, 2, 3):
+        n.sensor(view=view)
+        n.run(0.05)
+        assert n.links[-1] == 0x14 and n.statuses[-1] == (0x03, 0x02)
+    n.sensor(view=4)
+    n.run(0.1)
+    assert n.statuses[-1] == (0x0B, 0x02) and n.links[-1] == 0x00
+    assert [s[0] for s in n.statuses] == [0x0A, 0x00, 0x00, 0x03, 0x0B]
+    assert n.links == [0x00, 0x40, 0x14, 0x00]
+
+
+def test_intended_variant_starts_locn_at_ff():
+    n = Nav()
+    n.command(2, 0)
+    n.run(0.1)
+    assert n.statuses[-1] == (0x00, 0xFF)
+
+
+def test_second_stop_marker_then_first_then_second():
+    """{n, 1}: pass the first stop marker's centre and stop at the second; then task 6."""
+    n = Nav()
+    n.command(2, 1)
+    n.run(0.05)
+    n.sensor(identity=2)  # the location: reported, then wait for the first stop centre
+    n.run(0.1)
+    assert n.statuses[-1] == (0x00, 0x02) and n.core.mode == 'navigating'
+    n.sensor(identity=0x0E)  # first stop marker's centre: positioning starts from here
+    n.run(0.05)
+    assert n.statuses[-1] == (0x03, 0x02) and n.links[-1] == 0x14
+    n.sensor(view=4)  # the same centre still in sight: ignored (intended guard)
+    n.run(0.05)
+    assert n.statuses[-1] == (0x03, 0x02)
+    for view in (5, 6, 7, 1, 2, 3, 4):
+        n.sensor(view=view)
+        n.run(0.02)
+    assert n.statuses[-1] == (0x0B, 0x02)
+
+
+def test_task_6_byte2_change_alone_positions_to_next_marker():
+    n = Nav()
+    n.command(2, 0)
+    n.sensor(identity=2)
+    n.sensor(view=4)
+    n.run(0.05)
+    assert n.statuses[-1] == (0x0B, 0x02) and n.core.mode == 'idle'
+    n.command(2, 1)  # INSTRS: only byte 2 changed -> CLOP
+    n.run(0.05)
+    assert n.statuses[-1] == (0x03, 0x02) and n.links[-1] == 0x14
+
+
+def test_as_listed_hazard_accepts_the_old_centre():
+    n = Nav(variant='as_listed')
+    n.command(2, 0)
+    n.sensor(identity=2)
+    n.sensor(view=4)
+    n.command(2, 1)
+    n.sensor(view=4)  # the first marker's centre still in view: listing stops at once
+    n.run(0.05)
+    assert n.statuses[-1] == (0x0B, 0x02)
+
+
+def test_chk_new_location_while_moving_restarts_navigating():
+    n = Nav()
+    n.command(2, 0)
+    n.sensor(identity=2)
+    assert n.core.mode == 'positioning'
+    n.command(3, 0)
+    n.run(0.05)
+    assert n.core.mode == 'navigating' and n.links[-1] == 0x40
+    assert n.table == 'navigating'
+
+
+def test_chk_ignores_byte2_change_while_moving():
+    n = Nav()
+    n.command(2, 0)
+    n.run(0.05)
+    n.command(2, 1)  # CHK compares INFO[0] only
+    n.run(0.05)
+    n.sensor(identity=2)
+    assert n.core.mode == 'positioning' and n.core.flag4 == 0
+
+
+def test_sensor_silence_reports_lost_and_requests_speed_0():
+    n = Nav()
+    n.command(1, 0)
+    n.run(0.1)
+    assert n.links[-1] == 0x40
+    end = n.t + 0.2
+    while n.t < end:  # no sensor heartbeats any more
+        n._take(n.core.tick(n.t))
+        n.t = round(n.t + 0.005, 6)
+    assert n.core.sensor_lost and n.links[-1] == 0x00
+    assert n.statuses[-1][0] & 0x08  # LOST bit
+    status = n.core.status()
+    assert status['sensor_lost'] == 1
+
+
+def test_via_executive_puts_the_request_in_the_status_record():
+    n = Nav(speed_request_path='via_executive')
+    n.command(2, 0)
+    n.sensor(identity=2)
+    n.run(0.1)
+    assert n.links == []  # no direct link at all
+    assert n.core.status()['speed_request'] == 0x14
+    n.sensor(view=4)
+    assert n.core.status()['speed_request'] == 0x00
