@@ -67,8 +67,8 @@ def test_navigation_status_step_table_of_spec_4():
 ])
 def test_traction_link_values(value, fields):
     raw = plain('traction_link', **fields)
-    assert raw[0] == value and raw[1:] == bytes(15)
-    assert C.decode('traction_link', raw, integrity='none') == fields
+    assert raw[0] == value and raw[1:] == bytes(15)  # a plain 1983 one-byte link
+    assert C.decode('traction_link', raw, integrity='none') == {**fields, 'stop_in': 0}
 
 
 def test_traction_link_bit7_is_spare():

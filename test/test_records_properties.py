@@ -106,5 +106,5 @@ def test_reader_none_mode_accepts_plain_thesis_records():
     schema = C['traction_link']
     reader = RecordReader(schema, integrity='none')
     assert reader.accept(bytes([0x14]) + bytes(15), 0) == {
-        'executive_priority': 0, 'reverse': 0, 'speed': 20}
+        'executive_priority': 0, 'reverse': 0, 'speed': 20, 'stop_in': 0}
     assert reader.accept(bytes([0x14]) + bytes(15), 1) is not None  # no counter to repeat
