@@ -40,6 +40,7 @@ setup(
             # nodes (ros2 run agv_nodes <node>)
             'navigation = agv_nodes.navigation.node:main',
             'position_sensor = agv_nodes.position_sensor.node:main',
+            'route_following = agv_nodes.route_following.node:main',
             'traction = agv_nodes.traction.node:main',
             'world = agv_nodes.world.node:main',
             # tools

@@ -174,6 +174,11 @@ class Harness:
             self.events.append(event)
         if out['frames']:
             self.frames = out['frames']
+            front = out['frames'].get('front')
+            if front is not None:  # hw/camera/front (sensor_msgs/Image in the graph)
+                for m in self.members:
+                    if hasattr(m.core, 'on_frame'):
+                        self._publish(m, m.core.on_frame(front, now))
         for m in self.members:
             period = m.core.period
             if period is None:

@@ -1,0 +1,164 @@
+"""Binary-camera guidance of Rajagopalan (1991): image analysis and steering laws, ROS-free.
+
+Frames are 64 x 128 binary images of the floor (1 = dark tape), row 0 the leading edge and
+column 0 the left edge (digest 1.1-1.2). Signs follow the digest's section 0: eps_d > 0 when
+the tape lies to the left of the window centre, eps_theta > 0 when it is turned CCW, and the
+caster angle theta_s > 0 turns the vehicle left.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import enum
+import math
+
+import numpy as np
+
+
+class Validity(enum.Enum):
+    """imageok_flag as an explicit enum (digest 1.5)."""
+
+    NORMAL = 'normal'
+    WIDE = 'wide'  # track grew by about 2 bytes: a road sign (thesis 4.3)
+    ABSENT = 'absent'  # mostly white: no track
+    SATURATED = 'saturated'  # mostly dark: ignore the frame, keep the last command
+
+
+@dataclass
+class Measurement:
+    """What one frame says about the track."""
+
+    eps_d: float  # m
+    eps_theta: float  # rad
+    validity: Validity
+    width_px: float  # mean accepted run length
+    rows_used: int
+    left_edge: bool  # column 0 dark in >= sign_rows rows
+    right_edge: bool  # column 127 dark in >= sign_rows rows
+
+
+@dataclass
+class ImageParams:
+    """Window calibration and the noise filter (thesis 4.2, Table 6.1, App F.2)."""
+
+    depth: float = 0.050  # m along travel (64 rows)
+    width: float = 0.250  # m across (128 columns)
+    min_run: int = 16  # px: shorter dark runs are noise (thesis: 2 bytes)
+    rows: tuple[int, ...] = ()  # rows analysed; () = all 64 (thesis used 3, 29, 55)
+    normal_width: float = 0.0  # px of a normal track; 0 = learn from the first frames
+    wide_factor: float = 1.35  # a run this much wider than normal flags a road sign
+    sign_rows: int = 10  # rows with an edge column dark to flag a branch (thesis 4.3)
+    saturated_fraction: float = 0.7  # dark pixels beyond this fraction: a saturated frame
+
+
+def runs_of(row: np.ndarray) -> list[tuple[int, int]]:
+    """Pass 1 (run-length table): (start column, length) of each dark run in a row."""
+    padded = np.concatenate(([0], row.astype(np.int8), [0]))
+    edges = np.flatnonzero(np.diff(padded))
+    return [(int(a), int(b - a)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+class ImageAnalyser:
+    """Noise filter, least-squares line fit, validity and road-sign primitives."""
+
+    def __init__(self, params: ImageParams | None = None) -> None:
+        self.p = params or ImageParams()
+        self.mm_row = self.p.depth / 64
+        self.mm_col = self.p.width / 128
+        self.normal_width = self.p.normal_width
+        self._prev_centre: float | None = None
+
+    def analyse(self, frame: np.ndarray) -> Measurement:
+        """eps_d, eps_theta and validity of one frame."""
+        p = self.p
+        dark_fraction = float(frame.mean())
+        left = int(frame[:, 0].sum()) >= p.sign_rows
+        right = int(frame[:, -1].sum()) >= p.sign_rows
+        if dark_fraction > p.saturated_fraction:
+            return Measurement(0.0, 0.0, Validity.SATURATED, 0.0, 0, left, right)
+        rows = p.rows or range(64)
+        ys, xs, widths = [], [], []
+        for r in rows:
+            kept = [(a, n) for a, n in runs_of(frame[r]) if n >= p.min_run]  # pass 2
+            if not kept:
+                continue
+            # One run per row (Table 4.2). The thesis kept the first; nearest to the previous
+            # centre is the digest's recommendation, falling back to the widest.
+            if self._prev_centre is not None:
+                a, n = min(kept, key=lambda k: abs(k[0] + k[1] / 2 - self._prev_centre))
+            else:
+                a, n = max(kept, key=lambda k: k[1])
+            ys.append(r)
+            xs.append(a + n / 2.0)
+            widths.append(n)
+        if len(ys) < 2:
+            self._prev_centre = None
+            return Measurement(0.0, 0.0, Validity.ABSENT, 0.0, len(ys), left, right)
+        # Well-conditioned fit (digest 1.4): column on row, in metres from the window centre.
+        y = (31.5 - np.array(ys, dtype=float)) * self.mm_row  # + ahead
+        x = (63.5 - np.array(xs, dtype=float)) * self.mm_col  # + left
+        ybar, xbar = y.mean(), x.mean()
+        syy = float(((y - ybar) ** 2).sum())
+        a = float(((y - ybar) * (x - xbar)).sum() / syy) if syy > 0 else 0.0
+        b = float(xbar - a * ybar)
+        self._prev_centre = float(np.mean(xs))
+        width = float(np.mean(widths))
+        if not self.normal_width:
+            self.normal_width = width
+        validity = Validity.WIDE if width > p.wide_factor * self.normal_width else \
+            Validity.NORMAL
+        return Measurement(b, math.atan(a), validity, width, len(ys), left, right)
+
+
+@dataclass
+class SteeringParams:
+    """Camera steering laws and the CONCIC-II geometry (thesis 5.2, digest 2.5, 3.2)."""
+
+    law: str = 'pi'  # 'p' (Eq 5.4) or 'pi' (Eq 5.6)
+    gain_d: float = 2.5  # rad per m of eps_d (thesis P = 2.5)
+    gain_theta: float = 0.0  # rad per rad of eps_theta (not fed back in the experiments)
+    gain_i: float = 0.07  # thesis I = 0.07 (see integral_form)
+    # Eq 5.8 as printed adds G3 eps_d(n) every frame, without the Delta-T of Eq 5.6: at ~20
+    # frames/s that is 1.4 rad per m s (digest 2.3). 'per_frame' (default) follows the printed
+    # velocity form the vehicle ran; 'with_dt' integrates Eq 5.6 with the measured Delta-T.
+    integral_form: str = 'per_frame'
+    max_angle: float = math.radians(60.0)  # caster angle limit
+    wheel_span: float = 0.52  # m, L
+    caster_distance: float = 0.31  # m, L_a
+    caster_trail: float = 0.05  # m, s
+    absent_frames: int = 4  # consecutive absent frames before the motor-off stop
+
+
+class CameraSteering:
+    """P / PI steering on (eps_d, eps_theta) and its conversion to wheel speeds."""
+
+    def __init__(self, params: SteeringParams | None = None) -> None:
+        self.p = params or SteeringParams()
+        self.integral = 0.0
+        self.theta_s = 0.0
+        self.absent = 0
+
+    def update(self, m: Measurement, dt: float) -> float | None:
+        """New caster angle theta_s, or None when the vehicle must stop (track absent)."""
+        p = self.p
+        if m.validity is Validity.ABSENT:
+            self.absent += 1
+            return None if self.absent >= p.absent_frames else self.theta_s
+        self.absent = 0
+        if m.validity is Validity.SATURATED:
+            return self.theta_s  # ignore the frame: steer from the previous data
+        if p.law == 'pi':  # Eq 5.6 (G1 on eps_theta, G2 on eps_d, G3 on the integral)
+            self.integral += (dt if p.integral_form == 'with_dt' else 1.0) * m.eps_d
+            theta = p.gain_theta * m.eps_theta + p.gain_d * m.eps_d + p.gain_i * self.integral
+        else:  # Eq 5.4
+            theta = p.gain_d * m.eps_d + p.gain_theta * m.eps_theta
+        self.theta_s = max(-p.max_angle, min(p.max_angle, theta))
+        return self.theta_s
+
+    def wheel_speeds(self, speed: float, theta_s: float) -> tuple[float, float]:
+        """Eq 5.10-5.16: left and right rim speeds for cruise `speed` and caster angle."""
+        p = self.p
+        lae = p.caster_distance + p.caster_trail * (1.0 - math.cos(theta_s))  # Eq 5.11
+        yaw_rate = speed * math.tan(theta_s) / lae  # Eq 5.10
+        half = yaw_rate * p.wheel_span / 2.0  # Eq 5.12
+        return speed - half, speed + half  # Eq 5.13-5.14 (a left turn speeds up the right)

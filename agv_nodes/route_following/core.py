@@ -1,0 +1,320 @@
+"""Route following: guide-wire steering, software-resident manoeuvres, binary-camera guidance.
+
+Guide wire (Baker 3.5.3, 6.2, 7.2): the two coil amplitudes give the wire's lateral offset from
+the sensor point (inverting the straight-line-current model of the pickup), and a PI law on it,
+with a derivative term on the offset for damping, steers the Ackermann front wheels. A signal
+below `lost_level` for `lost_samples` samples reports LOST at once; the executive stops the
+truck. An SRM (route_command mode = srm, a new `manoeuvre` value) leaves the wire at the
+pre-programmed steering angle until the signal has dropped and a wire is detected again, then
+wire following resumes (thesis 7.2 task 7).
+
+Camera (Rajagopalan 1991, mode = camera, the differential-drive CONCIC-II): each frame is
+analysed (run-length noise filter, least-squares line fit, validity, road-sign edges), the P or
+PI law gives the caster angle, and Eq 5.15/5.16 the wheel speeds. Four absent frames stop the
+vehicle (motor off); a saturated frame keeps the last command. At a road sign the branch flags
+are collected and the junction choice of route_command is reported.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+from typing import Any
+
+import numpy as np
+
+from agv_nodes.route_following.camera_guidance import (
+    CameraSteering,
+    ImageAnalyser,
+    ImageParams,
+    SteeringParams,
+    Validity,
+)
+
+
+@dataclass
+class WireParams:
+    """Guide-wire steering settings ([A]; tuned in bench/route_bench.py)."""
+
+    coil_spacing: float = 0.20  # m between the coils (as fitted on the truck)
+    coil_height: float = 0.08  # m above the floor
+    nominal: float = 732.0  # counts per coil over the wire (calibration)
+    kp: float = 20.0  # rad of steering per m of lateral offset
+    ki: float = 20.0  # rad per m s
+    kd: float = 2.0  # rad per m/s of offset rate
+    max_steer: float = math.radians(40.0)
+    lost_level: float = 0.25  # of nominal: below this the wire is not there
+    lost_samples: int = 5  # consecutive samples (50 ms at 100 Hz)
+    found_level: float = 0.55  # of nominal: a wire found during an SRM
+    srm_timeout: float = 12.0  # s: an SRM that finds no wire ends LOST
+    found_hold: float = 0.5  # s the wire_found state is shown after an SRM
+    wheelbase: float = 1.20  # m (heading change = v sin(delta) / wheelbase)
+    steer_rate: float = math.radians(45.0)  # rad/s of the steering actuator
+    look_ahead: float = 0.40  # m: capture aims the front wheels at the wire this far ahead
+    capture_done: float = 0.02  # m of offset (and 3 deg of heading) to end the capture
+
+
+@dataclass
+class RouteParams:
+    """All route-following settings."""
+
+    period: float = 0.010  # s
+    status_period: float = 0.050  # s
+    vehicle: str = 'electruk'  # or 'concic2' (steering_command mode)
+    camera_speed: float = 0.47  # m/s cruise in camera mode (thesis "normal industrial speed")
+    wire: WireParams = field(default_factory=WireParams)
+    image: ImageParams = field(default_factory=ImageParams)
+    steering: SteeringParams = field(default_factory=SteeringParams)
+
+
+def wire_offset(left: float, right: float, spacing: float, height: float,
+                nominal: float) -> float:
+    """Lateral offset (m, + = wire left of the sensor point) from the two coil amplitudes.
+
+    A coil at lateral distance y from a long straight wire, height h above it, reads
+    K / (h^2 + y^2) in its horizontal axis, with K fixed by the calibration `nominal` (either
+    coil's reading with the wire midway between them). Each coil therefore gives a distance:
+    y = sqrt(K / reading - h^2); the wire is where the left coil's two candidates (c -+ y_L)
+    meet the right coil's (-c +- y_R). Unlike the ratio L/R, this does not fold back when the
+    wire lies outside the coils, so an SRM can capture a wire from well to one side.
+    """
+    if left <= 0 or right <= 0:
+        return 0.0
+    c, h = spacing / 2.0, height
+    k = nominal * (h * h + c * c)
+    y_left = math.sqrt(max(k / left - h * h, 0.0))
+    y_right = math.sqrt(max(k / right - h * h, 0.0))
+    pairs = [(a, b) for a in (c - y_left, c + y_left) for b in (-c + y_right, -c - y_right)]
+    a, b = min(pairs, key=lambda ab: abs(ab[0] - ab[1]))
+    return 0.5 * (a + b)
+
+
+class RouteCore:
+    """See the module docstring."""
+
+    node = 'route_following'
+
+    def __init__(self, params: RouteParams | None = None) -> None:
+        self.p = params or RouteParams()
+        self.period = self.p.period
+        self.mode = 'idle'
+        self.state = 'idle'
+        self.srm_angle = 0.0
+        self.manoeuvre = 0
+        self.junction = 'straight'
+        self.speed_request = 0.0
+        self.lateral = 0.0
+        self.signal = 0.0
+        self.steer = 0.0
+        self._integral = 0.0
+        self._prev_lateral: float | None = None
+        self._weak = 0
+        self._srm_phase = ''
+        self._srm_start = 0.0
+        self._found_at = -1e9
+        self._wire_time: float | None = None
+        self._mode_since = 0.0
+        self.speed = 0.0  # m/s from wheel odometry
+        self.steer_actual = 0.0  # model of the actuator's position
+        self.heading_error = 0.0  # SRM: heading relative to the wire left (new wire parallel)
+        self._aligned_since: float | None = None
+        self._lateral_rate = 0.0  # filtered d(lateral)/dt, m/s
+        self._next_status = 0.0
+        self._last_state = ''
+        # camera
+        self.analyser = ImageAnalyser(self.p.image)
+        self.camera = CameraSteering(self.p.steering)
+        self.wheels = (0.0, 0.0)
+        self.motor_on = False
+        self.sign = {'left': 0, 'right': 0, 'straight': 0}
+        self._in_sign = False
+        self._frame_time: float | None = None
+        self.measurement = None
+
+    # -- inputs -----------------------------------------------------------------------------
+    def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
+        """route_command, guide_wire or wheel_odometry."""
+        if record == 'route_command':
+            return self._command(fields, now)
+        if record == 'guide_wire':
+            self._wire_time = now
+            self._wire(fields['left_coil'], fields['right_coil'], now)
+        elif record == 'wheel_odometry':
+            self.speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
+        return None
+
+    def _command(self, fields: dict[str, Any], now: float) -> dict | None:
+        self.junction = fields['junction']
+        mode = fields['mode']
+        new_srm = mode == 'srm' and fields['manoeuvre'] != self.manoeuvre
+        self.manoeuvre = fields['manoeuvre']
+        if new_srm:
+            self.mode = 'srm'
+            self._mode_since = now
+            self.srm_angle = math.radians(fields['srm_angle'])
+            self.state = 'srm_running'
+            self._srm_phase = 'leaving'
+            self._srm_start = now
+            # While following, the front axle stays on the wire, so its path angle
+            # psi + delta = -asin(e'/v) tells the heading error the manoeuvre starts from.
+            rate = self._lateral_rate
+            v = max(abs(self.speed), 0.05)
+            self.heading_error = -self.steer_actual - math.asin(max(-1.0, min(1.0, rate / v)))
+            return self._outputs(now, force_status=True)
+        if mode != 'srm' and mode != self.mode:
+            self.mode = mode
+            self._mode_since = now
+            self._integral = 0.0
+            self._prev_lateral = None
+            self.state = {'idle': 'idle', 'follow_wire': 'following',
+                          'camera': 'following'}[mode]
+            return self._outputs(now, force_status=True)
+        return None
+
+    # -- guide wire -------------------------------------------------------------------------
+    def _wire(self, left: int, right: int, now: float) -> None:
+        w = self.p.wire
+        dt = self.p.period
+        # Where the steering actuator is (rate-limited toward the last demand), and how far the
+        # truck has turned since the SRM began: psi' = v_rear tan(delta) / wheelbase.
+        step = max(-w.steer_rate * dt, min(w.steer_rate * dt, self.steer - self.steer_actual))
+        self.steer_actual += step
+        self.heading_error += self.speed * math.tan(self.steer_actual) / w.wheelbase * dt
+        self.signal = (left + right) / (2.0 * w.nominal)
+        present = self.signal >= w.lost_level
+        self._weak = 0 if present else self._weak + 1
+        previous = self.lateral
+        self.lateral = wire_offset(left, right, w.coil_spacing, w.coil_height, w.nominal) \
+            if present else 0.0
+        self._lateral_rate += 0.1 * ((self.lateral - previous) / dt - self._lateral_rate)
+        if self.mode == 'follow_wire':
+            if self._weak >= w.lost_samples:
+                self.state = 'lost'
+                self.steer = 0.0
+            elif self.state != 'lost':
+                self._steer_wire()
+        elif self.mode == 'srm':
+            self._srm(now)
+
+    def _srm(self, now: float) -> None:
+        """Leave the wire at the programmed angle; search; capture the next wire."""
+        w = self.p.wire
+        if self._srm_phase == 'capture':
+            if self._weak >= w.lost_samples:
+                self.state, self.mode, self.steer = 'lost', 'follow_wire', 0.0
+                return
+            # Pursuit: aim the front wheels at the wire look_ahead metres on.
+            steer = math.atan2(self.lateral, w.look_ahead) - self.heading_error
+            self.steer = max(-w.max_steer, min(w.max_steer, steer))
+            # Aligned: on the wire and no longer closing on it (the lateral rate is ~0).
+            aligned = abs(self.lateral) < w.capture_done and \
+                abs(self._lateral_rate) < 0.05 * max(self.speed, 0.1)
+            if not aligned:
+                self._aligned_since = None
+            elif self._aligned_since is None:
+                self._aligned_since = now
+            elif now - self._aligned_since > 0.3:
+                self.mode, self.state = 'follow_wire', 'following'
+                self._integral, self._prev_lateral = 0.0, None
+            return
+        self.steer = max(-w.max_steer, min(w.max_steer, self.srm_angle))
+        if self._srm_phase == 'leaving' and self.signal < w.lost_level:
+            self._srm_phase = 'searching'
+        elif self._srm_phase == 'searching' and self.signal >= w.found_level:
+            self._srm_phase = 'capture'
+            self.state = 'wire_found'
+            self._found_at = now
+            self._aligned_since = None
+        elif now - self._srm_start > w.srm_timeout:
+            self.state, self.mode, self.steer = 'lost', 'follow_wire', 0.0
+
+    def _steer_wire(self) -> None:
+        w = self.p.wire
+        dt = self.p.period
+        rate = 0.0 if self._prev_lateral is None else (self.lateral - self._prev_lateral) / dt
+        self._prev_lateral = self.lateral
+        self._integral = max(-0.2, min(0.2, self._integral + self.lateral * dt))
+        steer = w.kp * self.lateral + w.ki * self._integral + w.kd * rate
+        self.steer = max(-w.max_steer, min(w.max_steer, steer))
+
+    # -- camera -----------------------------------------------------------------------------
+    def on_frame(self, frame: np.ndarray, now: float) -> dict | None:
+        """A binary camera frame (1 = dark tape)."""
+        dt = 0.05 if self._frame_time is None else max(now - self._frame_time, 1e-3)
+        self._frame_time = now
+        m = self.analyser.analyse(frame)
+        self.measurement = m
+        self._road_sign(m)
+        if self.mode != 'camera':
+            return None
+        theta = self.camera.update(m, dt)
+        if theta is None:
+            self.motor_on = False  # four absent frames: motor-off stop
+            self.state = 'lost'
+            self.wheels = (0.0, 0.0)
+        else:
+            self.motor_on = self.state != 'lost'
+            self.steer = theta
+            if m.validity is not Validity.ABSENT:
+                self.lateral = m.eps_d
+            speed = self.speed_request or self.p.camera_speed
+            self.wheels = self.camera.wheel_speeds(speed, theta) if self.motor_on else (0, 0)
+        return None
+
+    def _road_sign(self, m) -> None:
+        """Branch flags while the track is wide (thesis 4.3)."""
+        if m.validity is Validity.WIDE:
+            if not self._in_sign:
+                self._in_sign = True
+                self.sign = {'left': 0, 'right': 0, 'straight': 0}
+            self.sign['left'] |= int(m.left_edge)
+            self.sign['right'] |= int(m.right_edge)
+        elif self._in_sign and m.validity is Validity.NORMAL:
+            self._in_sign = False
+            if self.sign['left'] or self.sign['right']:
+                self.sign['straight'] = 1  # width back to normal after a turn signal
+
+    # -- outputs ----------------------------------------------------------------------------
+    def tick(self, now: float) -> dict | None:
+        """Steering command every period; status on change and as a heartbeat."""
+        w = self.p.wire
+        last = self._wire_time if self._wire_time is not None else self._mode_since
+        if self.mode in ('follow_wire', 'srm') and now - last > w.lost_samples * 0.01 + 0.05:
+            self.state = 'lost'  # the pickup itself has gone quiet
+            self.steer = 0.0
+        if self.state == 'wire_found' and self.mode == 'follow_wire':
+            self.state = 'following'
+        return self._outputs(now)
+
+    def _outputs(self, now: float, force_status: bool = False) -> dict:
+        out: dict[str, dict[str, Any]] = {'steering_command': self.steering_command()}
+        if force_status or now >= self._next_status or self.state != self._last_state:
+            self._next_status = now + self.p.status_period
+            self._last_state = self.state
+            out['route_status'] = self.status()
+        return out
+
+    def steering_command(self) -> dict[str, Any]:
+        """The steering_command record for the configured vehicle."""
+        if self.p.vehicle == 'concic2':
+            left, right = self.wheels
+            return {'mode': 'wheel_speeds', 'enable': int(self.motor_on and self.mode == 'camera'),
+                    'angle': 0, 'left_speed': int(round(left * 1000)),
+                    'right_speed': int(round(right * 1000))}
+        active = self.mode in ('follow_wire', 'srm') and self.state != 'lost'
+        angle = int(round(max(-1.0, min(1.0, self.steer)) * 1000))
+        return {'mode': 'angle', 'enable': 1, 'angle': angle if active else 0,
+                'left_speed': 0, 'right_speed': 0}
+
+    def status(self) -> dict[str, Any]:
+        """The route_status record."""
+        sign_state = self._in_sign and self.mode == 'camera'
+        return {
+            'state': 'sign' if sign_state else self.state,
+            'lateral_error': int(max(-128, min(127, round(self.lateral * 1000)))),
+            'signal': int(max(0, min(255, round(self.signal * 100)))),
+            'steering': int(max(-128, min(127, round(math.degrees(self.steer))))),
+            'sign_left': self.sign['left'], 'sign_right': self.sign['right'],
+            'sign_straight': self.sign['straight'],
+            'manoeuvre': self.manoeuvre,
+        }

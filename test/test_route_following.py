@@ -1,0 +1,170 @@
+"""Route following: wire offset from the coils, lost wire, SRM landing, camera guidance."""
+
+from __future__ import annotations
+
+import math
+import random
+
+import numpy as np
+import pytest
+
+from agv_nodes.harness import Harness
+from agv_nodes.route_following.camera_guidance import (
+    CameraSteering,
+    ImageAnalyser,
+    ImageParams,
+    Measurement,
+    SteeringParams,
+    Validity,
+    runs_of,
+)
+from agv_nodes.route_following.core import RouteCore, RouteParams, wire_offset
+from agv_nodes.traction.core import TractionCore
+from agv_nodes.world.camera import BinaryCamera, CameraParams
+from agv_nodes.world.core import WorldCore, WorldParams
+from agv_nodes.world.guide_wire import GuideWirePickup, PickupParams
+from agv_nodes.world.layout import layout_path, load_layout
+
+
+@pytest.mark.parametrize('offset', [-0.35, -0.15, -0.05, -0.01, 0.0, 0.02, 0.09, 0.2, 0.3])
+def test_wire_offset_from_the_coils_is_unambiguous(offset):
+    lay = load_layout(layout_path('straight_track'))
+    pickup = GuideWirePickup(PickupParams(noise=0.0), [lay.paths['A']], random.Random(0))
+    left, right = pickup.coils(10.0, -offset, 0.0)  # sensor point `offset` right of the wire
+    est = wire_offset(left, right, 0.20, 0.08, pickup.p.nominal)
+    assert est == pytest.approx(offset, abs=0.004 + 0.02 * abs(offset))
+
+
+class Exec:
+    """A stand-in executive: drives, and commands route following."""
+
+    node = 'executive'
+    period = 0.05
+
+    def __init__(self, demand: int, mode: str = 'follow_wire') -> None:
+        self.demand, self.mode, self.manoeuvre, self.angle = demand, mode, 0, 0
+        self.states: list[str] = []
+
+    def on_record(self, record, fields, now):
+        if record == 'route_status' and (not self.states or self.states[-1] != fields['state']):
+            self.states.append(fields['state'])
+
+    def tick(self, now):
+        return {'traction_command': dict(manual=0, manual_speed=0, reverse=0,
+                                         demand=self.demand if now > 0.3 else 0,
+                                         executive_priority=0),
+                'route_command': dict(mode=self.mode, srm_angle=self.angle,
+                                      junction='straight', manoeuvre=self.manoeuvre)}
+
+
+def test_follows_the_demo_wire_within_1_cm_and_reports_lost_at_its_end():
+    world = WorldCore(load_layout(layout_path('demo_1983')), WorldParams(seed=4))
+    ex, route = Exec(55), RouteCore()
+    h = Harness(world, [ex, TractionCore(), route])
+    worst = 0.0
+    while route.state != 'lost' and h.now < 60:
+        h.step()
+        if h.now > 3 and world.sample % 17 == 0:
+            sx, sy = world.vehicle.sensor_point
+            worst = max(worst, abs(world.nearest_path_offset(sx, sy)))
+    assert worst < 0.010  # thesis 6.2: the wire held to +-1 cm (straights and the arc)
+    assert route.state == 'lost' and ex.states[-1] == 'lost'  # wire A ends at x = 6
+    sx, _sy = world.vehicle.sensor_point
+    assert sx < 6.0
+
+
+def test_srm_leaves_wire_a_and_lands_on_wire_b():
+    world = WorldCore(load_layout(layout_path('demo_1983')), WorldParams(seed=4))
+    ex, route = Exec(27), RouteCore()
+    h = Harness(world, [ex, TractionCore(), route])
+    started = None
+    while h.now < 120:
+        h.step()
+        sx, sy = world.vehicle.sensor_point
+        if started is None and sy > 4.5 and sx < 8.5:  # L1 on A's west leg
+            ex.mode, ex.manoeuvre, ex.angle, started = 'srm', 1, 15, h.now
+        if started is not None and h.now > started + 18:
+            break
+    assert ex.states[-4:] == ['following', 'srm_running', 'wire_found', 'following']
+    sx, sy = world.vehicle.sensor_point
+    assert abs(sy - 4.0) < 0.01  # on wire B (y = 4) within 1 cm
+    assert route.status()['manoeuvre'] == 1
+
+
+def test_srm_that_finds_nothing_ends_lost():
+    world = WorldCore(load_layout(layout_path('straight_track')), WorldParams(seed=4))
+    ex, route = Exec(27), RouteCore()
+    h = Harness(world, [ex, TractionCore(), route])
+    h.run(4.0)
+    ex.mode, ex.manoeuvre, ex.angle = 'srm', 1, 20
+    h.run(20.0)
+    assert route.state == 'lost'
+
+
+# -- camera ---------------------------------------------------------------------------------
+def test_run_length_table():
+    row = np.zeros(128, dtype=np.uint8)
+    row[20:25] = row[40:65] = row[84:109] = 1  # the example of thesis Table 4.1
+    assert runs_of(row) == [(20, 5), (40, 25), (84, 25)]
+
+
+@pytest.mark.parametrize('offset, angle', [(0.0, 0.0), (0.03, 0.0), (-0.06, 5.0), (0.05, -8.0)])
+def test_line_fit_recovers_the_tape_within_2_mm(offset, angle):
+    lay = load_layout(layout_path('tape_1991'))
+    tape = lay.paths['circle']
+    cam = BinaryCamera(CameraParams(specks=8), [tape], np.random.default_rng(3))
+    x, y, h = tape.pose_at(4.0)
+    cx, cy = x + math.sin(h) * offset, y - math.cos(h) * offset
+    heading = h + math.radians(angle)
+    frame = cam.render(cx, cy, heading)  # with noise specks below the 16 px filter...
+    analyser = ImageAnalyser(ImageParams(min_run=8))  # ...30 mm tape is ~15 px wide
+    m = analyser.analyse(frame)
+    eps_d, eps_theta = cam.truth(cx, cy, heading)
+    assert m.validity is Validity.NORMAL
+    assert m.eps_d == pytest.approx(eps_d, abs=0.002)
+    assert math.degrees(m.eps_theta) == pytest.approx(math.degrees(eps_theta), abs=3.0)
+
+
+def test_absent_four_frames_stops_saturated_holds():
+    steer = CameraSteering(SteeringParams())
+    good = Measurement(0.01, 0.0, Validity.NORMAL, 15, 64, False, False)
+    absent = Measurement(0.0, 0.0, Validity.ABSENT, 0, 0, False, False)
+    dark = Measurement(0.0, 0.0, Validity.SATURATED, 0, 0, False, False)
+    held = steer.update(good, 0.05)
+    assert steer.update(dark, 0.05) == held
+    assert [steer.update(absent, 0.05) is None for _ in range(4)] == [False, False, False, True]
+
+
+def test_wheel_speeds_eq_5_15_5_16():
+    steer = CameraSteering(SteeringParams())
+    left, right = steer.wheel_speeds(0.5, math.radians(10))
+    assert right > left and (left + right) / 2 == pytest.approx(0.5)
+    p = steer.p
+    yaw = 0.5 * math.tan(math.radians(10)) / (p.caster_distance + p.caster_trail * (
+        1 - math.cos(math.radians(10))))
+    assert (right - left) / p.wheel_span == pytest.approx(yaw)
+
+
+class CameraExec:
+    node = 'executive'
+    period = 0.05
+
+    def on_record(self, *args):
+        return None
+
+    def tick(self, now):
+        return {'route_command': dict(mode='camera', srm_angle=0, junction='straight',
+                                      manoeuvre=0)}
+
+
+@pytest.mark.parametrize('law, gain_i, limit_mm', [('p', 0.0, 60.0), ('pi', 0.07, 3.0)])
+def test_camera_guidance_follows_the_circle(law, gain_i, limit_mm):
+    world = WorldCore(load_layout(layout_path('tape_1991')), WorldParams(seed=2))
+    route = RouteCore(RouteParams(vehicle='concic2', camera_speed=0.47,
+                                  steering=SteeringParams(law=law, gain_i=gain_i)))
+    h = Harness(world, [CameraExec(), route])
+    h.run(30.0)
+    s = world.vehicle.state
+    cx, cy = s.x + 0.64 * math.cos(s.heading), s.y + 0.64 * math.sin(s.heading)
+    assert abs(world.nearest_path_offset(cx, cy)) * 1000 < limit_mm
+    assert route.state == 'following' and s.speed > 0.4
