@@ -38,6 +38,9 @@ setup(
     entry_points={
         'console_scripts': [
             # nodes (ros2 run agv_nodes <node>)
+            'communications = agv_nodes.communications.node:main',
+            'executive = agv_nodes.executive.node:main',
+            'load_handling = agv_nodes.load_handling.node:main',
             'navigation = agv_nodes.navigation.node:main',
             'position_sensor = agv_nodes.position_sensor.node:main',
             'route_following = agv_nodes.route_following.node:main',

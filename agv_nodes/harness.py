@@ -203,3 +203,56 @@ class Harness:
             if m.core.node == node:
                 return m.readers[record]
         raise KeyError(node)
+
+
+# -- the whole truck ---------------------------------------------------------------------------
+DEMO_PROGRAMME = (  # thesis 7.2 tasks 1-7 on demo_1983, then fig 3.1
+    'load at 0 then continue',  # 1: stop at location n, take on a load, carry on
+    'unload at 2 then continue',  # 2: stop, discharge the load, carry on
+    'wait at 0 for 3 then continue',  # 3: stop and dwell
+    'stop at 2 first',  # 4: first stop marker
+    'stop at 2 second',  # 5: second stop marker
+    'stop at 2 first then second',  # 6: first, then advance to the second
+    'srm at 1 angle 15',  # 7: leave the wire at n by an SRM
+    'load A at 1 and take to 3',  # fig 3.1: load A at B and take to C
+)
+DEMO_SRM_MAP = {1: 15, 3: 15}  # demo_1983: where the route leaves each wire
+
+
+def truck(layout_name: str = 'demo_1983', *, seed: int = 1, world_params: Any = None,
+          integrity: str = 'e2e', traction: Any = None, navigation: Any = None,
+          sensor: Any = None, route: Any = None, executive: Any = None,
+          comms: Any = None, load: Any = None) -> Harness:
+    """World + all seven node cores with their default (or given) parameters, in lock step."""
+    from agv_nodes.communications.core import CommsParams, CommunicationsCore
+    from agv_nodes.executive.core import ExecutiveCore, ExecutiveParams
+    from agv_nodes.load_handling.core import LoadHandlingCore, LoadParams
+    from agv_nodes.navigation.core import NavigationCore, NavigationParams
+    from agv_nodes.position_sensor.core import PositionSensorCore, SensorProcessing
+    from agv_nodes.route_following.core import RouteCore, RouteParams
+    from agv_nodes.traction.core import TractionCore, TractionParams
+    from agv_nodes.world.core import WorldParams
+    from agv_nodes.world.layout import layout_path, load_layout
+
+    lay = load_layout(layout_path(layout_name))
+    wp = world_params or WorldParams(seed=seed)
+    ep = executive or ExecutiveParams(srm_map=dict(DEMO_SRM_MAP) if layout_name ==
+                                      'demo_1983' else {})
+    cores = [TractionCore(traction or TractionParams()),
+             PositionSensorCore(sensor or SensorProcessing()),
+             NavigationCore(navigation or NavigationParams()),
+             RouteCore(route or RouteParams(vehicle=lay.vehicle)),
+             ExecutiveCore(ep),
+             CommunicationsCore(comms or CommsParams()),
+             LoadHandlingCore(load or LoadParams())]
+    h = Harness(WorldCore(lay, wp), cores, integrity=integrity, seed=seed)
+    h.cores = {c.node: c for c in cores}
+    return h
+
+
+def submit(h: Harness, text: str) -> None:
+    """Hand a task to communications (what a comms/task message does in the graph)."""
+    comms = h.cores['communications']
+    for m in h.members:
+        if m.core is comms:
+            h._publish(m, comms.on_task(text, h.now))

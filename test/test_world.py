@@ -316,7 +316,7 @@ def test_camera_truth_agrees_with_the_pose_to_one_pixel(offset, angle_deg):
 def test_shipped_layouts_load():
     demo = layout('demo_1983')
     assert {m.name for m in demo.markers if m.kind == 'location'} == {'L0', 'L1', 'L2', 'L3'}
-    assert len(demo.paths) == 2 and set(demo.stations) == {'W1', 'W2'}
+    assert len(demo.paths) == 2 and set(demo.stations) == {'W0', 'W1', 'W2', 'W3'}
     assert sum(1 for m in demo.markers if m.station == 'W2') == 2
     for loc in (m for m in demo.markers if m.kind == 'location' and m.path == 'A'):
         stops = [m for m in demo.markers if m.kind == 'stop' and m.path == loc.path

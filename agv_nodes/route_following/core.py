@@ -51,7 +51,7 @@ class WireParams:
     wheelbase: float = 1.20  # m (heading change = v sin(delta) / wheelbase)
     steer_rate: float = math.radians(45.0)  # rad/s of the steering actuator
     look_ahead: float = 0.40  # m: capture aims the front wheels at the wire this far ahead
-    capture_done: float = 0.02  # m of offset (and 3 deg of heading) to end the capture
+    capture_done: float = 0.03  # m of offset held for 0.3 s that ends the capture
 
 
 @dataclass
@@ -119,6 +119,7 @@ class RouteCore:
         self.heading_error = 0.0  # SRM: heading relative to the wire left (new wire parallel)
         self._aligned_since: float | None = None
         self._lateral_rate = 0.0  # filtered d(lateral)/dt, m/s
+        self._following_heading = 0.0  # heading error relative to the wire, while following
         self._next_status = 0.0
         self._last_state = ''
         # camera
@@ -155,11 +156,8 @@ class RouteCore:
             self.state = 'srm_running'
             self._srm_phase = 'leaving'
             self._srm_start = now
-            # While following, the front axle stays on the wire, so its path angle
-            # psi + delta = -asin(e'/v) tells the heading error the manoeuvre starts from.
-            rate = self._lateral_rate
-            v = max(abs(self.speed), 0.05)
-            self.heading_error = -self.steer_actual - math.asin(max(-1.0, min(1.0, rate / v)))
+            # The heading error the manoeuvre starts from: the estimate kept while following.
+            self.heading_error = self._following_heading
             return self._outputs(now, force_status=True)
         if mode != 'srm' and mode != self.mode:
             self.mode = mode
@@ -187,6 +185,12 @@ class RouteCore:
         self.lateral = wire_offset(left, right, w.coil_spacing, w.coil_height, w.nominal) \
             if present else 0.0
         self._lateral_rate += 0.1 * ((self.lateral - previous) / dt - self._lateral_rate)
+        if self.mode == 'follow_wire' and self.speed > 0.1 and present:
+            # While following, the front axle stays on the wire, so its path angle
+            # psi + delta = -asin(e'/v) gives the heading error; frozen at rest, where the
+            # relation does not hold.
+            ratio = max(-1.0, min(1.0, self._lateral_rate / self.speed))
+            self._following_heading = -self.steer_actual - math.asin(ratio)
         if self.mode == 'follow_wire':
             if self._weak >= w.lost_samples:
                 self.state = 'lost'
@@ -206,9 +210,10 @@ class RouteCore:
             # Pursuit: aim the front wheels at the wire look_ahead metres on.
             steer = math.atan2(self.lateral, w.look_ahead) - self.heading_error
             self.steer = max(-w.max_steer, min(w.max_steer, steer))
-            # Aligned: on the wire and no longer closing on it (the lateral rate is ~0).
-            aligned = abs(self.lateral) < w.capture_done and \
-                abs(self._lateral_rate) < 0.05 * max(self.speed, 0.1)
+            # Hand over to the PID once near the wire (it removes what heading error is left),
+            # or after 5 s of capture within 10 cm.
+            aligned = abs(self.lateral) < w.capture_done or (
+                now - self._found_at > 5.0 and abs(self.lateral) < 0.10)
             if not aligned:
                 self._aligned_since = None
             elif self._aligned_since is None:

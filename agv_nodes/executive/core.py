@@ -1,0 +1,420 @@
+"""The Vehicle Executive: tasks into commands for every sub-system, and the truck's health.
+
+It talks to the sub-systems only through their command and status records (thesis 3.5.3). A
+task from communications becomes an itinerary (fig 3.1, level 2) of steps, each run through the
+sub-systems' records (level 3):
+
+    goto(n, edge)   navigation_command {n, edge}; cruise until navigation reports 0BH at n
+    next_marker(n)  navigation_command {n, 1} (byte 2 alone changes): position to the next marker
+    load / unload   load_command job, wait for load_status done or failed
+    wait(s)         dwell
+    srm(n, angle)   cruise, reporting landmarks, until n is passed, then leave the wire there
+    continue        cruise on along the wire (the task is over, the truck keeps going)
+
+At every location marker navigation reports, the route map decides continue or SRM (the demo
+floor needs an SRM at L1 and at L3 on every lap); wire changes run at `srm_demand`, and the
+truck stays slow until the next landmark (so location 0, just after an SRM, is passed slowly,
+thesis 7.2). Traction's byte 2 is kept non-zero while navigation positions the truck.
+
+Faults - the wire lost, the marker sensor lost, a status record older than `status_timeout`,
+more than `reject_limit` rejected records in a second, a sub-system reporting a fault (traction
+tripped, radio stop, load failed), the distance travelled in one step beyond `route_limit` -
+give an emergency stop (traction byte 2 = 00H), the task is reported failed with the named
+cause and sub-system, and the truck stays stopped until a new task.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+EXPLORE = 31  # a location identity no marker carries: "cruise and report every landmark"
+NO_TASK = 0xFF
+STATUS_RECORDS = {'navigation': 'navigation_status', 'traction': 'traction_status',
+                  'route': 'route_status', 'load': 'load_status',
+                  'communications': 'comms_status'}
+
+
+@dataclass
+class ExecutiveParams:
+    """Executive settings (node parameters map onto these)."""
+
+    period: float = 0.050  # s
+    cruise_demand: int = 55  # % duty, about 0.7 m/s, the practical top speed (thesis 7.2)
+    srm_demand: int = 27  # % duty, about 0.3 m/s for wire changes (thesis 6.2)
+    srm_map: dict[int, int] = field(default_factory=dict)  # location -> SRM angle, degrees
+    status_timeout: float = 0.300  # s: a status record older than this is a fault
+    reject_limit: int = 5  # rejected records per second before it is a fault
+    route_limit: float = 80.0  # m travelled within one step before it is a fault
+    positioning_limit: float = 4.0  # m creeping toward a stop marker before it is a fault
+    load_timeout: int = 20  # s, passed to load handling
+    trip_grace: float = 1.0  # s after a task starts before a traction trip counts
+    speed_request_path: str = 'direct_link'  # or 'via_executive' (forward navigation's request)
+
+
+@dataclass
+class Step:
+    """One itinerary step."""
+
+    kind: str
+    location: int = NO_TASK
+    edge: int = 0
+    value: int = 0  # seconds, SRM angle, conveyor index
+    name: str = ''
+
+
+def itinerary(task: dict[str, Any]) -> list[Step]:
+    """Fig 3.1 level 2: the steps of one task record (empty = nothing to do / bad task)."""
+    op, n = task['op'], task['location']
+    edge = 1 if task['marker'] == 'second' else 0
+    conveyor = 1 if task['conveyor'] == 'second' else 0
+    steps: list[Step] = []
+    if op in ('stop', 'load', 'unload', 'wait'):
+        steps.append(Step('goto', n, edge, name=f'go to L{n}, stop marker {edge + 1}'))
+        if op == 'stop' and task['marker'] == 'first_then_second':
+            steps.append(Step('next_marker', n, 1, name=f'advance to the 2nd stop marker at L{n}'))
+        elif op in ('load', 'unload'):
+            steps.append(Step(op, n, value=conveyor, name=f'{op} on conveyor {conveyor + 1}'))
+        elif op == 'wait':
+            steps.append(Step('wait', n, value=task['dwell'], name=f'wait {task["dwell"]} s'))
+    elif op == 'srm':
+        steps.append(Step('srm', n, value=task['srm_angle'],
+                          name=f'SRM at L{n}, {task["srm_angle"]} deg'))
+    elif op == 'transfer':
+        b, c = n, task['destination']
+        steps += [Step('goto', b, 0, name=f'go to B = L{b}'),
+                  Step('load', b, value=0, name='check A is there, load A'),
+                  Step('goto', c, 0, name=f'go to C = L{c}'),
+                  Step('unload', c, value=0, name='check C can accept, unload A')]
+    if steps and task['then'] == 'continue':
+        steps.append(Step('continue', name='carry on along the wire'))
+    return steps
+
+
+class ExecutiveCore:
+    """See the module docstring."""
+
+    node = 'executive'
+
+    def __init__(self, params: ExecutiveParams | None = None) -> None:
+        self.p = params or ExecutiveParams()
+        self.period = self.p.period
+        self.status: dict[str, dict[str, Any]] = {}  # latest status record per sub-system
+        self.status_time: dict[str, float] = {}
+        self.rejects: list[float] = []  # times of rejected records
+        self.mode = 'idle'  # idle | running | cruising | failed
+        self.task: dict[str, Any] | None = None
+        self.task_id = 0
+        self.steps: list[Step] = []
+        self.index = 0
+        self.phase = ''
+        self.phase_time = 0.0
+        self.report = {'state': 'idle', 'cause': 'none', 'subsystem': 'none'}
+        self.fault: tuple[str, str] | None = None
+        self.demand = 0
+        self.executive_priority = 0
+        self.nav = (NO_TASK, 0)
+        self.route = {'mode': 'follow_wire', 'srm_angle': 0, 'junction': 'straight',
+                      'manoeuvre': 0}
+        self.load = {'action': 'idle', 'conveyor': 'first', 'timeout': self.p.load_timeout,
+                     'job': 0}
+        self.slow = False  # after an SRM, until the next landmark
+        self.last_marker = NO_TASK
+        self._srm_pending: int | None = None  # SRM angle to start at the next landmark n
+        self._srm_at: int | None = None
+        self._srm_manoeuvre = 0
+        self.stopped_at: int | None = None  # the location the truck last stopped at
+        self.distance = 0.0  # m travelled in the current step (from traction's speed)
+        self.distance_since_landmark = 0.0
+        self.positioning_distance = 0.0
+        self.task_start = 0.0
+        self.arm_until = 0.0
+        self.log: list[tuple[float, str]] = []
+
+    # -- inputs -----------------------------------------------------------------------------
+    def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
+        """A status record from a sub-system (or a task from communications)."""
+        for sub, name in STATUS_RECORDS.items():
+            if name == record:
+                previous = self.status.get(sub)
+                self.status[sub] = fields
+                self.status_time[sub] = now
+                if sub == 'communications':
+                    self._task_record(fields, now)
+                elif sub == 'navigation':
+                    self._navigation(previous, fields, now)
+        return None
+
+    def on_reject(self, record: str, reason: str, now: float) -> dict | None:
+        """Count rejected status records (a burst of them is a fault)."""
+        self.rejects.append(now)
+        return None
+
+    def _task_record(self, fields: dict[str, Any], now: float) -> None:
+        if fields['task_id'] == 0 or fields['task_id'] == self.task_id:
+            return
+        self.task_id = fields['task_id']
+        self.task = fields
+        if fields['op'] == 'abort':
+            self._stop_everything()
+            self.mode = 'idle'
+            self.report = {'state': 'completed', 'cause': 'none', 'subsystem': 'none'}
+            self._log(now, f'task {self.task_id}: abort')
+            return
+        steps = itinerary(fields)
+        if not steps:
+            self.report = {'state': 'rejected', 'cause': 'bad_task', 'subsystem': 'none'}
+            self._log(now, f'task {self.task_id}: rejected (no itinerary)')
+            return
+        self.steps, self.index, self.mode = steps, 0, 'running'
+        self.fault = None
+        self.task_start = now
+        self.arm_until = now + 2 * self.p.period  # 00H first: traction's trip latch rule
+        self.report = {'state': 'accepted', 'cause': 'none', 'subsystem': 'none'}
+        self._log(now, f'task {self.task_id}: {len(steps)} steps: '
+                  + '; '.join(s.name for s in steps))
+        self._enter(now)
+
+    def _navigation(self, previous: dict | None, fields: dict[str, Any], now: float) -> None:
+        """Landmarks: every change of the last marker while navigating is a decision point."""
+        marker = fields['last_marker']
+        if fields['at_location']:  # OUTFO[1] = the task location: not a landmark report
+            self.last_marker = marker if marker <= 31 else self.last_marker
+            self.slow = False  # a location reached after an SRM: the slow stretch is over
+            return
+        if marker == self.last_marker or marker > 31:
+            return
+        self.last_marker = marker
+        self.distance_since_landmark = 0.0
+        self._log(now, f'landmark L{marker}')
+        if self.slow and self.route['mode'] == 'follow_wire':
+            self.slow = False  # the landmark after an SRM: back to cruise
+        angle = self._srm_pending if (self._srm_at == marker) else self.p.srm_map.get(marker)
+        if angle is not None and self.mode in ('running', 'cruising'):
+            self._start_srm(marker, angle, now)
+
+    def _start_srm(self, marker: int, angle: int, now: float) -> None:
+        self._srm_manoeuvre = (self._srm_manoeuvre + 1) & 0xFF or 1
+        self.route = {'mode': 'srm', 'srm_angle': angle, 'junction': 'straight',
+                      'manoeuvre': self._srm_manoeuvre}
+        self.slow = True
+        self._log(now, f'SRM at L{marker}: {angle:+d} deg (manoeuvre {self._srm_manoeuvre})')
+        if self._srm_at == marker:
+            self._srm_at, self._srm_pending = None, None
+
+    # -- itinerary --------------------------------------------------------------------------
+    @property
+    def step(self) -> Step | None:
+        """The step being run."""
+        return self.steps[self.index] if self.mode == 'running' and self.index < len(
+            self.steps) else None
+
+    def _enter(self, now: float) -> None:
+        step = self.step
+        self.phase, self.phase_time = 'start', now
+        self.distance = 0.0
+        if step is None:
+            return
+        self._log(now, f'step {self.index + 1}/{len(self.steps)}: {step.name}')
+        self.report = {'state': 'running', 'cause': 'none', 'subsystem': 'none'}
+        if step.kind in ('goto', 'srm', 'continue'):
+            self.demand = self.p.cruise_demand
+            departing = self.stopped_at
+            self.stopped_at = None
+            if departing is not None and (departing in self.p.srm_map or (
+                    step.kind == 'srm' and step.location == departing)):
+                # Stopped at an SRM location's workstation: the manoeuvre starts on departure.
+                angle = step.value if step.kind == 'srm' and step.location == departing \
+                    else self.p.srm_map[departing]
+                self._start_srm(departing, angle, now)
+                if step.kind == 'srm' and step.location == departing:
+                    step = Step('continue', name=step.name)
+                    self.steps[self.index] = Step('srm_landing', departing, value=angle,
+                                                  name=self.steps[self.index].name)
+            if step.kind == 'goto':
+                self.nav = (NO_TASK, 0)  # withdraw first, so an identical task is new
+                self.phase = 'release'
+            elif step.kind == 'srm':
+                self.nav = (EXPLORE, 0)
+                self._srm_at, self._srm_pending = step.location, step.value
+                self.phase = 'wait_landmark'
+            else:
+                self.nav = (EXPLORE, 0)
+        elif step.kind == 'next_marker':
+            self.nav = (step.location, 1)
+            self.demand = self.p.cruise_demand
+            self.phase = 'wait_positioning'
+        elif step.kind in ('load', 'unload'):
+            self.load = {'action': step.kind, 'conveyor': 'second' if step.value else 'first',
+                         'timeout': self.p.load_timeout, 'job': (self.load['job'] + 1) & 0xFF}
+            self.phase = 'transfer'
+        elif step.kind == 'wait':
+            self.phase = 'dwell'
+
+    def _advance(self, now: float) -> None:
+        step = self.step
+        if step is not None and step.kind in ('goto', 'next_marker'):
+            self.stopped_at = step.location
+        self.index += 1
+        if self.index >= len(self.steps):
+            last = self.steps[-1].kind
+            self.mode = 'cruising' if last == 'continue' else 'idle'
+            if self.mode == 'idle':
+                self.demand = 0  # stay put until the next order (e-stop hold)
+            self.report = {'state': 'completed', 'cause': 'none', 'subsystem': 'none'}
+            self._log(now, f'task {self.task_id}: completed')
+            return
+        self.report = {'state': 'step_done', 'cause': 'none', 'subsystem': 'none'}
+        self._enter(now)
+
+    def _run_step(self, now: float) -> None:
+        step = self.step
+        nav = self.status.get('navigation') or {}
+        if step is None:
+            return
+        arrived = nav.get('at_location') == 1 and nav.get('lost') == 1 and \
+            nav.get('last_marker') == step.location
+        if step.kind == 'goto':
+            if self.phase == 'release':
+                if now - self.phase_time >= 2 * self.p.period:
+                    self.nav = (step.location, step.edge)
+                    self.phase, self.phase_time = 'await_oplop', now
+            elif self.phase == 'await_oplop':  # until navigation has left the last 0BH
+                if nav.get('lost') == 0:
+                    self.phase = 'navigating'
+            elif self.phase == 'navigating':
+                if nav.get('at_location') == 1 and nav.get('lost') == 0:
+                    self.phase = 'positioning'  # 03H: Position has speed control
+                    self.positioning_distance = 0.0
+                elif arrived:
+                    self._advance(now)
+            elif self.phase == 'positioning' and arrived:
+                self._advance(now)
+        elif step.kind == 'next_marker':
+            if self.phase == 'wait_positioning' and nav.get('lost') == 0:
+                self.phase = 'positioning'
+                self.positioning_distance = 0.0
+            elif self.phase == 'positioning' and arrived:
+                self._advance(now)
+        elif step.kind in ('load', 'unload'):
+            load = self.status.get('load') or {}
+            if load.get('job') == self.load['job']:
+                if load.get('state') == 'done':
+                    self.load = {**self.load, 'action': 'idle'}
+                    self._advance(now)
+                elif load.get('state') == 'failed':
+                    self.load = {**self.load, 'action': 'stop'}
+                    self._fail(now, 'load_failed', 'load', load.get('cause', ''))
+        elif step.kind == 'wait':
+            if now - self.phase_time >= step.value:
+                self._advance(now)
+        elif step.kind == 'srm_landing':  # an SRM begun on departure: wait for the landing
+            route = self.status.get('route') or {}
+            if route.get('manoeuvre') == self._srm_manoeuvre and \
+                    route.get('state') == 'following' and now - self.phase_time > 0.5:
+                self._advance(now)
+        elif step.kind == 'srm':
+            route = self.status.get('route') or {}
+            if self.phase == 'wait_landmark' and self.route['mode'] == 'srm':
+                self.phase = 'srm'
+            elif self.phase == 'srm' and route.get('manoeuvre') == self._srm_manoeuvre and \
+                    route.get('state') == 'following':
+                self._advance(now)
+        elif step.kind == 'continue':
+            if now - self.phase_time >= 0.5:
+                self._advance(now)
+
+    # -- faults -----------------------------------------------------------------------------
+    def _supervise(self, now: float) -> None:
+        for sub in ('navigation', 'traction', 'route', 'load'):
+            t = self.status_time.get(sub)
+            if t is None:
+                if now - self.task_start > 1.0:
+                    return self._fail(now, 'stale_status', sub, 'never heard from')
+                continue
+            if now - t > self.p.status_timeout:
+                return self._fail(now, 'stale_status', sub, f'{now - t:.2f} s old')
+        self.rejects = [t for t in self.rejects if now - t <= 1.0]
+        if len(self.rejects) > self.p.reject_limit:
+            return self._fail(now, 'rejected_records', 'none', f'{len(self.rejects)} in 1 s')
+        nav = self.status.get('navigation') or {}
+        if nav.get('sensor_lost'):
+            return self._fail(now, 'sensor_lost', 'navigation', 'marker sensor lost')
+        route = self.status.get('route') or {}
+        if route.get('state') == 'lost':
+            return self._fail(now, 'lost_wire', 'route', 'guide wire lost')
+        traction = self.status.get('traction') or {}
+        if traction.get('radio_stop'):
+            return self._fail(now, 'radio_stop', 'traction', 'radio stop')
+        if traction.get('tripped') and now - self.task_start > self.p.trip_grace:
+            return self._fail(now, 'tripped', 'traction', traction.get('trip_cause', ''))
+        if self.distance > self.p.route_limit:
+            return self._fail(now, 'route_limit', 'navigation',
+                              f'{self.distance:.1f} m without reaching the step goal')
+        if self.phase == 'positioning' and self.positioning_distance > self.p.positioning_limit:
+            return self._fail(now, 'route_limit', 'navigation',
+                              f'no stop marker within {self.positioning_distance:.1f} m')
+        return None
+
+    def _fail(self, now: float, cause: str, subsystem: str, detail: str) -> None:
+        self._stop_everything()
+        self.mode = 'failed'
+        self.fault = (cause, subsystem)
+        self.report = {'state': 'failed', 'cause': cause, 'subsystem': subsystem}
+        self._log(now, f'task {self.task_id}: FAILED {cause} ({subsystem}): {detail}')
+
+    def _stop_everything(self) -> None:
+        self.demand = 0  # EMERGENCY STOP: traction byte 2 = 00H
+        self.nav = (NO_TASK, 0)
+        self.load = {**self.load, 'action': 'stop'}
+        self.slow = False
+        self._srm_at = self._srm_pending = None
+        if self.route['mode'] == 'srm':  # keep steering on the wire while the truck stops
+            self.route = {**self.route, 'mode': 'follow_wire'}
+
+    def _log(self, now: float, text: str) -> None:
+        self.log.append((now, text))
+
+    # -- the loop ---------------------------------------------------------------------------
+    def tick(self, now: float) -> dict[str, dict[str, Any]]:
+        """Supervise, run the step, and send every command record (pigeon-holes)."""
+        traction = self.status.get('traction') or {}
+        travelled = abs(traction.get('speed', 0)) / 1000.0 * self.p.period
+        self.distance += travelled
+        self.distance_since_landmark += travelled
+        self.positioning_distance += travelled
+        if self.mode == 'cruising':
+            self.distance = self.distance_since_landmark  # no goal: progress is landmarks
+        if self.mode in ('running', 'cruising'):
+            self._supervise(now)
+        if self.mode == 'running':
+            self._run_step(now)
+        route = self.status.get('route') or {}
+        if self.route['mode'] == 'srm' and route.get('manoeuvre') == self.route['manoeuvre'] \
+                and route.get('state') == 'following':
+            self.route = {**self.route, 'mode': 'follow_wire'}  # the SRM has landed
+        demand = self.demand if now >= self.arm_until else 0
+        if demand and (self.slow or self.route['mode'] == 'srm'):
+            demand = min(demand, self.p.srm_demand)
+        priority = 0
+        if self.p.speed_request_path == 'via_executive' and demand:
+            request = (self.status.get('navigation') or {}).get('speed_request', 0x40)
+            priority = 1
+            if not request & 0x40:  # navigation asks for control: forward its request
+                speed = request & 0x1F
+                demand = -speed if request & 0x20 else speed
+                demand = demand or 0
+                if demand == 0:
+                    demand = 1  # 0 would be an emergency stop; 1 % is below breakaway
+        return {
+            'traction_command': {'manual': 0, 'manual_speed': 0, 'reverse': 0,
+                                 'demand': demand, 'executive_priority': priority},
+            'navigation_command': {'task_location': self.nav[0], 'stop_marker': self.nav[1]},
+            'route_command': dict(self.route),
+            'load_command': dict(self.load),
+            'comms_command': {'task_id': self.task_id, 'state': self.report['state'],
+                              'step': self.index if self.mode == 'running' else 0,
+                              'cause': self.report['cause'],
+                              'subsystem': self.report['subsystem'],
+                              'location': self.last_marker if self.last_marker <= 31 else 0xFF},
+        }

@@ -1,0 +1,132 @@
+"""The executive's maintenance display (thesis 8.2.2, spec F3), ROS-free.
+
+One status per sub-system: the last 16 bytes in (its status record) and out (its command
+record) in hex and decoded, the record rate, the age of the last good record, the rejected
+records by reason, and OK / WARN / ERROR with the reason - "level 2" of the thesis: name the
+sub-system at fault. The executive node turns these into a diagnostic_msgs/DiagnosticArray on
+/diagnostics; agv-diag shows the same as a live table.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from agv_nodes.records.ports import RecordReader, RecordWriter
+
+OK, WARN, ERROR = 0, 1, 2
+LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR'}
+SUBSYSTEMS = {  # name: (status record in, command record out)
+    'navigation': ('navigation_status', 'navigation_command'),
+    'traction': ('traction_status', 'traction_command'),
+    'route': ('route_status', 'route_command'),
+    'load': ('load_status', 'load_command'),
+    'communications': ('comms_status', 'comms_command'),
+}
+
+
+@dataclass
+class SubsystemHealth:
+    """One row of the display."""
+
+    name: str
+    level: int
+    message: str
+    values: dict[str, str]
+
+
+def _decoded(reader_or_writer: Any, fields: dict[str, Any] | None) -> str:
+    if not fields:
+        return '-'
+    return ', '.join(f'{k}={v}' for k, v in fields.items())
+
+
+class HealthMonitor:
+    """Keeps the rate state between updates and builds the display."""
+
+    def __init__(self, status_timeout: float = 0.3, reject_window: float = 1.0) -> None:
+        self.status_timeout = status_timeout
+        self.reject_window = reject_window
+        self._last: dict[str, tuple[float, int, int]] = {}  # name: (time, accepted, rejected)
+        self._rates: dict[str, float] = {}
+        self._recent_rejects: dict[str, int] = {}
+
+    def update(self, now: float, readers: dict[str, RecordReader],
+               writers: dict[str, RecordWriter], executive: Any) -> list[SubsystemHealth]:
+        """The display now (call at a steady rate, e.g. 1-2 Hz)."""
+        rows = []
+        fault = getattr(executive, 'fault', None)
+        for name, (in_record, out_record) in SUBSYSTEMS.items():
+            reader, writer = readers.get(in_record), writers.get(out_record)
+            rows.append(self._row(now, name, reader, writer, fault))
+        rows.append(self._executive_row(executive))
+        return rows
+
+    def _row(self, now: float, name: str, reader: RecordReader | None,
+             writer: RecordWriter | None, fault: tuple[str, str] | None) -> SubsystemHealth:
+        values: dict[str, str] = {}
+        if writer is not None:
+            values['out (hex)'] = writer.last_raw.hex().upper() if writer.last_raw else '-'
+            values['out'] = _decoded(writer, writer.last_fields)
+        level, reasons = OK, []
+        if reader is None:
+            return SubsystemHealth(name, WARN, 'no status record', values)
+        values['in (hex)'] = reader.raw.hex().upper() if reader.raw else '-'
+        values['in'] = _decoded(reader, reader.fields)
+        t0, acc0, rej0 = self._last.get(name, (now, reader.accepted, reader.rejected))
+        if now - t0 >= 0.5:
+            self._rates[name] = (reader.accepted - acc0) / (now - t0)
+            self._recent_rejects[name] = reader.rejected - rej0
+            self._last[name] = (now, reader.accepted, reader.rejected)
+        elif name not in self._last:
+            self._last[name] = (now, reader.accepted, reader.rejected)
+        rate = self._rates.get(name, 0.0)
+        age = reader.age_s(round(now * 1e9))
+        values['rate (Hz)'] = f'{rate:.1f}'
+        values['age (s)'] = 'never' if age == float('inf') else f'{age:.3f}'
+        values['rejected'] = str(reader.rejected)
+        values['rejects by reason'] = ', '.join(f'{k}={v}' for k, v in
+                                                sorted(reader.rejects.items())) or 'none'
+        values['lost (counter gaps)'] = str(reader.lost)
+        if reader.last_error:
+            values['last rejection'] = reader.last_error
+        if age == float('inf'):
+            level, reasons = ERROR, ['no status record received']
+        elif age > self.status_timeout:
+            level, reasons = ERROR, [f'status record {age:.2f} s old (silent?)']
+        fields = reader.fields or {}
+        flags = {
+            'traction': [('tripped', 'trip relay open: ' + str(fields.get('trip_cause'))),
+                         ('radio_stop', 'radio stop')],
+            'route': [('state', 'guide wire lost')],
+            'navigation': [('sensor_lost', 'marker sensor lost'),
+                           ('input_fault', 'rejected a record')],
+            'load': [('state', 'transfer failed: ' + str(fields.get('cause')))],
+        }.get(name, [])
+        for key, text in flags:
+            value = fields.get(key)
+            bad = value == 'lost' if (name, key) == ('route', 'state') else \
+                value == 'failed' if (name, key) == ('load', 'state') else bool(value)
+            if bad:
+                level = max(level, WARN if key in ('input_fault',) else ERROR)
+                reasons.append(text)
+        recent = self._recent_rejects.get(name, 0)
+        if recent:
+            level = max(level, WARN)
+            reasons.append(f'{recent} records rejected recently')
+        if fault and fault[1] == name:
+            level = ERROR
+            reasons.insert(0, f'task failed: {fault[0].replace("_", " ")}')
+        return SubsystemHealth(name, level, '; '.join(reasons) or 'OK', values)
+
+    @staticmethod
+    def _executive_row(executive: Any) -> SubsystemHealth:
+        step = executive.step
+        values = {'mode': executive.mode, 'task': str(executive.task_id),
+                  'step': step.name if step else '-',
+                  'report': executive.report['state']}
+        if executive.fault:
+            cause, sub = executive.fault
+            return SubsystemHealth('executive', ERROR, f'{cause.replace("_", " ")} ({sub})',
+                                   values)
+        return SubsystemHealth('executive', OK, executive.mode, values)

@@ -1,0 +1,105 @@
+"""executive: the Vehicle Executive (ros2 run agv_nodes executive).
+
+Reads every sub-system's status record and comms/status; writes every command record and
+comms/command; publishes /diagnostics (diagnostic_msgs/DiagnosticArray) once a second, with the
+32-byte display of each sub-system (thesis 8.2.2). Behaviour: `agv_nodes.executive.core`.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+from agv_nodes import qos
+from agv_nodes.core_node import CoreNode, spin_main
+from agv_nodes.executive.core import ExecutiveCore, ExecutiveParams
+from agv_nodes.executive.diagnostics import HealthMonitor
+from agv_nodes.params import Parameters
+
+
+def parse_srm_map(entries: list[str]) -> dict[int, int]:
+    """['1:15', '3:15'] -> {1: 15, 3: 15} (location: SRM angle in degrees, + = left)."""
+    out = {}
+    for entry in entries:
+        location, _, angle = entry.partition(':')
+        loc, ang = int(location), int(angle)
+        if not (0 <= loc <= 31 and -45 <= ang <= 45):
+            raise ValueError(entry)
+        out[loc] = ang
+    return out
+
+
+class ExecutiveNode(CoreNode):
+    """Parameters -> ExecutiveCore -> ports, plus /diagnostics."""
+
+    def __init__(self) -> None:
+        super().__init__('executive')
+        p = Parameters(self)
+        d = ExecutiveParams()
+        srm = p.texts('srm_map', [], 'route map: location:angle pairs where the route leaves '
+                      'the wire by an SRM (demo_1983: 1:15, 3:15)')
+        try:
+            srm_map = parse_srm_map(srm)
+        except ValueError:
+            p.fail('srm_map', srm, 'entries must be location:angle, 0-31 and -45..45')
+        ep = ExecutiveParams(
+            cruise_demand=p.integer('cruise_demand', d.cruise_demand, 'cruise, % armature duty '
+                                    '(55 ~ 0.7 m/s, the practical top speed)', 6, 80),
+            srm_demand=p.integer('srm_demand', d.srm_demand, 'wire changes, % duty (27 ~ '
+                                 '0.3 m/s)', 6, 80),
+            srm_map=srm_map,
+            status_timeout=p.number('status_timeout', d.status_timeout, 'a status record older '
+                                    'than this is a fault, s', 0.05, 10.0),
+            reject_limit=p.integer('reject_limit', d.reject_limit, 'rejected records per second '
+                                   'tolerated', 0, 10000),
+            route_limit=p.number('route_limit', d.route_limit, 'metres per step before the '
+                                 'route is declared overrun', 1.0, 10000.0),
+            positioning_limit=p.number('positioning_limit', d.positioning_limit, 'metres of '
+                                       'positioning without reaching the stop marker', 0.5,
+                                       100.0),
+            load_timeout=p.integer('load_timeout', d.load_timeout, 'seconds per load transfer',
+                                   1, 255),
+            speed_request_path=p.choice('speed_request_path', d.speed_request_path, 'forward '
+                                        "navigation's speed request (via_executive) or let the "
+                                        'direct link carry it', ('direct_link',
+                                                                 'via_executive')),
+        )
+        integrity = p.choice('record_integrity', 'e2e', 'end-to-end protection of the '
+                             'inter-processor records', ('e2e', 'none'))
+        self.health = HealthMonitor(ep.status_timeout)
+        self.attach(ExecutiveCore(ep), integrity)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos.EVENTS)
+        self.create_timer(1.0, self._diagnostics)
+        self._logged = 0
+
+    def _tick(self) -> None:
+        super()._tick()
+        log = self.core.log
+        for _t, text in log[self._logged:]:
+            self.get_logger().info(text)
+        self._logged = len(log)
+
+    def _diagnostics(self) -> None:
+        rows = self.health.update(self.now_s(), self.readers, self.writers, self.core)
+        msg = DiagnosticArray()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        ns = self.get_namespace().strip('/')
+        for row in rows:
+            status = DiagnosticStatus()
+            status.level = bytes([row.level])
+            status.name = f'agv{"/" + ns if ns else ""}/{row.name}'
+            status.message = row.message
+            status.hardware_id = row.name
+            status.values = [KeyValue(key=k, value=v) for k, v in row.values.items()]
+            msg.status.append(status)
+        self.diag_pub.publish(msg)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point: ros2 run agv_nodes executive [--ros-args ...]."""
+    return spin_main(ExecutiveNode, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
