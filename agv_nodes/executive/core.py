@@ -49,6 +49,8 @@ class ExecutiveParams:
     positioning_limit: float = 4.0  # m creeping toward a stop marker before it is a fault
     load_timeout: int = 20  # s, passed to load handling
     trip_grace: float = 1.0  # s after a task starts before a traction trip counts
+    rest_speed: int = 3  # mm/s: below this (traction_status speed) the truck is at rest
+    rest_time: float = 0.3  # s at rest before a stop is complete
     speed_request_path: str = 'direct_link'  # or 'via_executive' (forward navigation's request)
 
 
@@ -267,6 +269,14 @@ class ExecutiveCore:
         self.report = {'state': 'step_done', 'cause': 'none', 'subsystem': 'none'}
         self._enter(now)
 
+    def _settle(self, now: float) -> None:
+        """0BH came while the truck still coasts: the stop is done once it is at rest."""
+        speed = abs((self.status.get('traction') or {}).get('speed', 0))
+        if speed > self.p.rest_speed:
+            self.phase_time = now
+        elif now - self.phase_time >= self.p.rest_time:
+            self._advance(now)
+
     def _run_step(self, now: float) -> None:
         step = self.step
         nav = self.status.get('navigation') or {}
@@ -287,15 +297,19 @@ class ExecutiveCore:
                     self.phase = 'positioning'  # 03H: Position has speed control
                     self.positioning_distance = 0.0
                 elif arrived:
-                    self._advance(now)
+                    self.phase, self.phase_time = 'settling', now
             elif self.phase == 'positioning' and arrived:
-                self._advance(now)
+                self.phase, self.phase_time = 'settling', now
+            elif self.phase == 'settling':
+                self._settle(now)
         elif step.kind == 'next_marker':
             if self.phase == 'wait_positioning' and nav.get('lost') == 0:
                 self.phase = 'positioning'
                 self.positioning_distance = 0.0
             elif self.phase == 'positioning' and arrived:
-                self._advance(now)
+                self.phase, self.phase_time = 'settling', now
+            elif self.phase == 'settling':
+                self._settle(now)
         elif step.kind in ('load', 'unload'):
             load = self.status.get('load') or {}
             if load.get('job') == self.load['job']:
