@@ -1,0 +1,244 @@
+"""Executive, communications and load handling: cores alone, and the whole truck in lock step."""
+
+from __future__ import annotations
+
+import pytest
+
+from agv_nodes.communications.core import CommunicationsCore, TaskError, parse_task
+from agv_nodes.executive.core import ExecutiveCore, ExecutiveParams, itinerary
+from agv_nodes.executive.diagnostics import ERROR, OK, HealthMonitor
+from agv_nodes.harness import DEMO_PROGRAMME, submit, truck
+from agv_nodes.load_handling.core import LoadHandlingCore
+
+
+# -- communications ------------------------------------------------------------------------
+@pytest.mark.parametrize('text, op, fields', [
+    ('load at 0 then continue', 'load', {'location': 0, 'then': 'continue'}),
+    ('unload at 2 second', 'unload', {'location': 2, 'marker': 'second', 'conveyor': 'second'}),
+    ('wait at 0 for 3 s then continue', 'wait', {'dwell': 3}),
+    ('stop at 2 first', 'stop', {'marker': 'first', 'then': 'stay'}),
+    ('stop at 2 first then second', 'stop', {'marker': 'first_then_second'}),
+    ('srm at 1 angle -20', 'srm', {'srm_angle': -20, 'then': 'continue'}),
+    ('leave wire at 3', 'srm', {'location': 3, 'srm_angle': 15}),
+    ('load A at 1 and take to 3', 'transfer', {'location': 1, 'destination': 3}),
+    ('ABORT', 'abort', {}),
+])
+def test_task_language(text, op, fields):
+    task = parse_task(text)
+    assert task.op == op
+    record = task.record()
+    for key, value in fields.items():
+        assert record[key] == value
+
+
+@pytest.mark.parametrize('text, column, words', [
+    ('lod at 2', 1, "unknown task 'lod'"),
+    ('load at 7', 9, 'no such location marker'),
+    ('stop at', 8, 'expected location'),
+    ('stop at 2 sideways', 11, "unexpected 'sideways'"),
+    ('wait at 1 for -3', 15, 'outside 0..255'),
+    ('load A at 1 and take to 1', 25, 'destination equals the source'),
+    ('load A at 1 and bring to 3', 17, "expected 'take'"),
+    ('unload at 2 first then second', 24, 'is a stop task'),
+    ('   ', 4, 'empty task'),
+])
+def test_bad_tasks_name_the_column_and_reason(text, column, words):
+    with pytest.raises(TaskError) as info:
+        parse_task(text)
+    assert info.value.column == column and words in str(info.value)
+
+
+def test_bad_task_changes_nothing():
+    comms = CommunicationsCore()
+    comms.on_task('stop at 2 first', 0.0)
+    before = comms.tick(0.1)
+    comms.on_task('stop at 9 first', 0.2)
+    assert comms.tick(0.3) == before and len(comms.queue) == 1
+    assert 'rejected' in comms.reports[-1] and 'column 9' in comms.reports[-1]
+
+
+def test_comms_queue_relays_in_order_and_reports():
+    comms = CommunicationsCore()
+    comms.on_task('stop at 2 first', 0.0)
+    comms.on_task('load at 0', 0.0)
+    assert comms.tick(0.1)['comms_status']['task_id'] == 1
+    base = {'step': 0, 'cause': 'none', 'subsystem': 'none', 'location': 2}
+    comms.on_record('comms_command', {**base, 'task_id': 1, 'state': 'running'}, 1.0)
+    out = comms.on_record('comms_command', {**base, 'task_id': 1, 'state': 'completed'}, 2.0)
+    assert out['comms_status']['task_id'] == 2 and out['comms_status']['op'] == 'load'
+    comms.on_record('comms_command', {**base, 'task_id': 2, 'state': 'failed',
+                                      'cause': 'lost_wire', 'subsystem': 'route'}, 3.0)
+    assert comms.results == [(1, 'completed', 'none'), (2, 'failed', 'lost_wire')]
+    assert 'FAILED: lost wire (route)' in comms.reports[-1]
+
+
+# -- executive -------------------------------------------------------------------------------
+def test_itineraries_follow_fig_3_1():
+    transfer = parse_task('load A at 1 and take to 3').record()
+    assert [s.kind for s in itinerary(transfer)] == ['goto', 'load', 'goto', 'unload']
+    six = parse_task('stop at 2 first then second').record()
+    assert [(s.kind, s.location, s.edge) for s in itinerary(six)] == [
+        ('goto', 2, 0), ('next_marker', 2, 1)]
+    assert [s.kind for s in itinerary(parse_task('wait at 0 for 3 then continue').record())] \
+        == ['goto', 'wait', 'continue']
+
+
+def status_records(now_ok: float) -> dict:
+    return {'navigation': {'at_location': 0, 'slow': 0, 'reverse': 0, 'lost': 0,
+                           'last_marker': 0xFF, 'speed_request': 0x40, 'sensor_lost': 0,
+                           'input_fault': 0, 'stop_view': 0},
+            'traction': {'ref': 55, 'duty': 55, 'emergency_stop': 0, 'radio_stop': 0,
+                         'tripped': 0, 'manual': 0, 'field_forward': 1, 'armature_on': 1,
+                         'reversing': 0, 'source': 'executive', 'trip_cause': 'none',
+                         'speed': 700},
+            'route': {'state': 'following', 'lateral_error': 0, 'signal': 100, 'steering': 0,
+                      'sign_left': 0, 'sign_right': 0, 'sign_straight': 0, 'manoeuvre': 0},
+            'load': {'state': 'idle', 'cause': 'none', 'load_first': 0, 'load_second': 0,
+                     'job': 0}}
+
+
+def running_executive() -> ExecutiveCore:
+    ex = ExecutiveCore(ExecutiveParams())
+    t = 0.0
+    for sub, fields in status_records(t).items():
+        ex.on_record(f'{sub}_status', fields, t)
+    ex.on_record('comms_status', parse_task('stop at 2 first').record() | {'task_id': 1}, t)
+    for k in range(10):
+        t = k * 0.05
+        for sub, fields in status_records(t).items():
+            ex.on_record(f'{sub}_status', fields, t)
+        out = ex.tick(t)
+    assert ex.mode == 'running' and out['traction_command']['demand'] == 55
+    return ex
+
+
+@pytest.mark.parametrize('sub, change, cause', [
+    ('route', {'state': 'lost'}, 'lost_wire'),
+    ('navigation', {'sensor_lost': 1, 'lost': 1}, 'sensor_lost'),
+    ('traction', {'tripped': 1, 'trip_cause': 'stale_command'}, 'tripped'),
+    ('traction', {'radio_stop': 1}, 'radio_stop'),
+])
+def test_faults_give_an_emergency_stop_and_a_named_failure(sub, change, cause):
+    ex = running_executive()
+    t = 1.5  # past the start-up grace for traction's own trip
+    records = status_records(t)
+    records[sub] = {**records[sub], **change}
+    for name, fields in records.items():
+        ex.on_record(f'{name}_status', fields, t)
+    out = ex.tick(t)
+    assert out['traction_command']['demand'] == 0  # byte 2 = 00H: EMERGENCY STOP
+    assert out['comms_command']['state'] == 'failed' and out['comms_command']['cause'] == cause
+    assert out['navigation_command']['task_location'] == 0xFF
+    for k in range(20):  # it stays stopped
+        assert ex.tick(t + 0.05 * (k + 1))['traction_command']['demand'] == 0
+
+
+def test_stale_status_names_the_silent_subsystem():
+    ex = running_executive()
+    t = 0.5
+    for k in range(10):  # traction falls silent; the others keep reporting
+        t = 0.5 + k * 0.05
+        for name, fields in status_records(t).items():
+            if name != 'traction':
+                ex.on_record(f'{name}_status', fields, t)
+        out = ex.tick(t)
+    assert ex.fault == ('stale_status', 'traction')
+    assert out['comms_command']['subsystem'] == 'traction'
+    rows = HealthMonitor().update(t, {}, {}, ex)
+    assert rows[-1].level == ERROR and 'traction' in rows[-1].message
+
+
+def test_reject_burst_is_a_fault():
+    ex = running_executive()
+    for k in range(8):
+        ex.on_reject('route_status', 'bad_crc', 0.6 + k * 0.01)
+    for name, fields in status_records(0.7).items():
+        ex.on_record(f'{name}_status', fields, 0.7)
+    ex.tick(0.7)
+    assert ex.fault == ('rejected_records', 'none')
+
+
+def test_load_handling_checks_and_transfers():
+    load = LoadHandlingCore()
+    sensors = {'load_first': 0, 'load_second': 0, 'station_aligned': 1, 'station_load': 0,
+               'station_full': 0, 'transfer': 0}
+    load.on_record('conveyor_status', sensors, 0.0)
+    out = load.on_record('load_command', {'action': 'load', 'conveyor': 'first', 'timeout': 5,
+                                          'job': 1}, 0.0)
+    assert out['load_status']['state'] == 'failed' and out['load_status']['cause'] == 'no_load'
+    load.on_record('conveyor_status', {**sensors, 'station_load': 1}, 0.1)
+    out = load.on_record('load_command', {'action': 'load', 'conveyor': 'first', 'timeout': 5,
+                                          'job': 2}, 0.1)
+    assert out['conveyor_command'] == {'first': 'load', 'second': 'off', 'station_request': 1}
+    load.on_record('conveyor_status', {**sensors, 'station_load': 1, 'load_first': 1}, 2.0)
+    out = load.tick(2.0)
+    assert out['load_status']['state'] == 'done' and out['conveyor_command']['first'] == 'off'
+    out = load.on_record('load_command', {'action': 'unload', 'conveyor': 'second',
+                                          'timeout': 5, 'job': 3}, 3.0)
+    assert out['load_status']['cause'] == 'no_load'  # nothing on the second conveyor
+    load.on_record('conveyor_status', {**sensors, 'station_aligned': 0}, 4.0)
+    load.on_record('load_command', {'action': 'load', 'conveyor': 'first', 'timeout': 5,
+                                    'job': 4}, 4.0)
+    assert load.tick(7.5)['load_status']['cause'] == 'truck_moving'  # never came to rest
+
+
+# -- the whole truck -----------------------------------------------------------------------
+def run_programme(tasks, limit: float = 900.0, **kw):
+    h = truck('demo_1983', seed=kw.pop('seed', 1), **kw)
+    for text in tasks:
+        submit(h, text)
+    comms, ex = h.cores['communications'], h.cores['executive']
+    while h.now < limit and (comms.queue or ex.mode == 'running'):
+        h.step()
+    return h
+
+
+@pytest.mark.slow
+def test_demonstration_programme_completes_in_lock_step():
+    """Thesis 7.2 tasks 1-7 and fig 3.1 on demo_1983: every task, stop and load."""
+    h = run_programme(DEMO_PROGRAMME)
+    comms = h.cores['communications']
+    assert [r[1] for r in comms.results] == ['completed'] * len(DEMO_PROGRAMME)
+    stops = [e for e in h.events if e['event'] == 'stopped']
+    # Every requested stop, at the right stop marker, within the 1983 truck's +-4 cm about
+    # its mean (the friction stop rolls ~3 cm past the centre, thesis 7.2).
+    assert [e['marker'] for e in stops] == ['W0.1', 'W2.1', 'W0.1', 'W2.1', 'W2.2', 'W2.1',
+                                            'W2.2', 'W1.1', 'W3.1']
+    assert all(-10 <= e['error'] <= 70 for e in stops)
+    moved = [e['marker'] for e in h.events if e['event'] == 'load_moved']
+    assert moved == ['W0.1', 'W2.1', 'W1.1', 'W3.1']
+    world = h.world
+    assert world.station_loads == {'W0': 0, 'W1': 0, 'W2': 1, 'W3': 1}
+    assert world.loads == [False, False]
+    reports = ' '.join(comms.reports)
+    assert reports.index("task 1 'load at 0") < reports.index("task 8 'load A at 1")
+    assert h.cores['executive'].mode == 'idle' and world.vehicle.state.speed == 0.0
+
+
+def test_missing_stop_marker_stops_at_the_positioning_limit():
+    h = truck('straight_track', seed=2)
+    h.world.layout.markers = [m for m in h.world.layout.markers if m.station != 'S1']
+    submit(h, 'stop at 1 first')
+    ex = h.cores['executive']
+    while h.now < 200 and ex.mode == 'running':
+        h.step()
+    assert ex.fault == ('route_limit', 'navigation')
+    h.run(5.0)
+    assert h.world.vehicle.state.speed == 0.0
+
+
+def test_diagnostics_rows_for_a_healthy_truck():
+    h = run_programme(['stop at 0 first'], limit=60)
+    ex = h.cores['executive']
+    member = next(m for m in h.members if m.core is ex)
+    monitor = HealthMonitor()
+    monitor.update(h.now, member.readers, member.writers, ex)
+    h.run(1.0)
+    rows = {r.name: r for r in monitor.update(h.now, member.readers, member.writers, ex)}
+    assert set(rows) == {'navigation', 'traction', 'route', 'load', 'communications',
+                         'executive'}
+    assert all(r.level == OK for r in rows.values()), {n: r.message for n, r in rows.items()}
+    nav = rows['navigation'].values
+    assert nav['in (hex)'].startswith('0B00') and len(nav['in (hex)']) == 32
+    assert len(nav['out (hex)']) == 32 and 'task_location=0' in nav['out']
+    assert float(rows['traction'].values['rate (Hz)']) == pytest.approx(20, abs=2)
