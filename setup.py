@@ -43,11 +43,15 @@ setup(
             'load_handling = agv_nodes.load_handling.node:main',
             'navigation = agv_nodes.navigation.node:main',
             'position_sensor = agv_nodes.position_sensor.node:main',
+            'recorder = agv_nodes.recorder:main',
             'route_following = agv_nodes.route_following.node:main',
             'traction = agv_nodes.traction.node:main',
             'world = agv_nodes.world.node:main',
             # tools
+            'agv-demo = agv_nodes.demo:main',
+            'agv-launch = agv_nodes.launcher:main',
             'agv-records = agv_nodes.records.cli:main',
+            'agv-report = agv_nodes.report:main',
         ],
     },
 )

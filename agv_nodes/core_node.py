@@ -10,11 +10,12 @@ publishes whatever the core returns.
 from __future__ import annotations
 
 from collections.abc import Callable
+import os
 import sys
 from typing import Any
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from std_msgs.msg import Bool
 
@@ -71,7 +72,26 @@ class CoreNode(Node):
             self.writers[record].publish(fields)
 
 
-def spin_main(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
+def make_executor() -> Any:
+    """The executor for one node process (never MultiThreadedExecutor: anchors.md 3.3).
+
+    The SingleThreadedExecutor is the default. AGV_EXECUTOR=events tries rclpy's experimental
+    EventsExecutor (a third of the CPU in anchors.md 3.2), but with the PyPI rclpy 7.1.6 and
+    sim time it spun at ~22 % CPU per process without ever running the graph here, so it stays
+    an experiment.
+    """
+    if os.environ.get('AGV_EXECUTOR', 'single') == 'events':
+        try:
+            from rclpy.experimental import EventsExecutor
+
+            return EventsExecutor()
+        except ImportError:  # an rclpy without it
+            pass
+    return SingleThreadedExecutor()
+
+
+def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
+              executor: Callable[[], Any] | None = None) -> int:
     """The rclpy main() idiom for one node: init, spin, clean shutdown, exit status.
 
     A ParameterError (bad value or parameter file) ends start-up with its one-line message
@@ -82,7 +102,9 @@ def spin_main(make_node: Callable[[], Node], args: list[str] | None = None) -> i
     code = 0
     try:
         node = make_node()
-        rclpy.spin(node)
+        spinner = executor() if executor is not None else make_executor()
+        spinner.add_node(node)
+        spinner.spin()
     except ParameterError as exc:
         print(exc, file=sys.stderr)
         code = 2

@@ -1,43 +1,154 @@
-"""agv-demo: the main job of the README.
+"""agv-demo: the closed-loop demonstration (the README's first command).
 
-The closed-loop demonstration (the whole graph, one process per node, the demonstration
-programme of thesis 7.2 in the simulated room, recorded to a bag) is built issue by issue. Until
-it exists this command says so and shows what does exist: the record layer, by walking the
-status/link records of the task "stop at location 2, first stop marker" (spec 4) through the
-codec exactly as navigation will publish them.
+Starts the whole graph - one process per node over real DDS, sim time, the demo_1983 room -
+with the recorder, hands the demonstration programme (thesis 7.2 tasks 1-7 and the fig 3.1
+transfer) to communications on comms/task, shows the reports as they come, then stops the graph,
+writes the report (agv-report: report.json, summary.md, PNG plots) and prints a summary table.
+`--quick` runs the short variant CI uses (tasks 1 and 2).
 """
 
 from __future__ import annotations
 
+import argparse
+import json
+import os
+from pathlib import Path
 import sys
+import time
 
-from agv_nodes.records import codec
+from agv_nodes.harness import DEMO_PROGRAMME
+from agv_nodes.launcher import GraphError, Launch, Options
 
-SPEC4_STEPS = [
-    ('power-up', dict(), dict()),
-    ('executive sends INFO = {02, 00}', dict(slow=0, lost=0, last_marker=0),
-     dict(executive_priority=1)),
-    ('location 1 passed', dict(slow=0, lost=0, last_marker=1), dict(executive_priority=1)),
-    ('location 2 seen', dict(at_location=1, slow=1, lost=0, last_marker=2), dict(speed=20)),
-    ('centre stop view seen', dict(at_location=1, slow=1, lost=1, last_marker=2), dict()),
-]
+QUICK = DEMO_PROGRAMME[:2]
+
+
+def run(args: argparse.Namespace) -> int:
+    """Launch, drive the programme, stop, report; exit status."""
+    out = Path(args.out or f'runs/demo-{time.strftime("%Y%m%d-%H%M%S")}')
+    out.mkdir(parents=True, exist_ok=True)
+    tasks = list(QUICK if args.quick else DEMO_PROGRAMME)
+    try:
+        launch = Launch(Options(time_factor=args.time_factor, bag=out / 'bag', quiet=True,
+                                log_dir=out / 'logs', domain_id=args.domain_id))
+    except GraphError as exc:
+        print(f'agv-demo: {exc}', file=sys.stderr)
+        return 2
+    os.environ.update(ROS_DOMAIN_ID=str(launch.domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    import rclpy  # after the domain is chosen: this process joins the graph
+    from rosgraph_msgs.msg import Clock
+    from std_msgs.msg import String
+
+    from agv_nodes import qos
+
+    print(f'agv-demo: {len(tasks)} tasks on demo_1983; {len(launch.specs())} processes, '
+          f'ROS_DOMAIN_ID={launch.domain}, time_factor {args.time_factor:g}; output in {out}')
+    rclpy.init()
+    node = rclpy.create_node('demo')
+    state = {'sim': 0.0, 'results': {}, 'reports': []}
+
+    def on_clock(msg: Clock) -> None:
+        state['sim'] = msg.clock.sec + msg.clock.nanosec * 1e-9
+
+    def on_report(msg: String) -> None:
+        line = msg.data
+        state['reports'].append((state['sim'], line))
+        print(f'  {state["sim"]:7.1f} s  {line}', flush=True)
+        words = line.split()
+        if len(words) > 2 and words[0] == 'task' and words[1].isdigit():
+            for final in ('completed', 'FAILED', 'rejected'):
+                if f': {final}' in line:
+                    state['results'][int(words[1])] = (final.lower(), line, state['sim'])
+
+    node.create_subscription(Clock, '/clock', on_clock, 10)
+    node.create_subscription(String, 'comms/report', on_report, qos.EVENTS)
+    task_pub = node.create_publisher(String, 'comms/task', qos.EVENTS)
+    wall0 = time.monotonic()
+    launch.start()
+    code = 0
+    try:
+        deadline = time.monotonic() + 120
+        while not launch.moving.is_set() or task_pub.get_subscription_count() == 0:
+            rclpy.spin_once(node, timeout_sec=0.1)
+            if launch.poll() or time.monotonic() > deadline:
+                raise RuntimeError('the graph did not come up (see the logs in '
+                                   f'{out / "logs"})')
+        print(f'agv-demo: graph up in {time.monotonic() - wall0:.1f} s; sending the programme')
+        moving_wall, sim0 = time.monotonic(), state['sim']
+        for text in tasks:
+            task_pub.publish(String(data=text))
+        limit = args.sim_limit
+        while len(state['results']) < len(tasks):
+            rclpy.spin_once(node, timeout_sec=0.1)
+            if launch.poll():
+                raise RuntimeError(f'node(s) died: {", ".join(launch.failed)}')
+            if state['sim'] - sim0 > limit:
+                raise RuntimeError(f'programme not finished after {limit:.0f} simulated s')
+        sim_elapsed = state['sim'] - sim0
+        wall_elapsed = time.monotonic() - moving_wall
+    except (RuntimeError, KeyboardInterrupt) as exc:
+        print(f'agv-demo: {exc}', file=sys.stderr)
+        code = 1
+        sim_elapsed = state['sim']
+        wall_elapsed = time.monotonic() - wall0
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+        launch.stop()
+    failed = [t for t, (s, _l, _t) in state['results'].items() if s != 'completed']
+    code = code or (1 if failed else 0)
+    summary = {'tasks': [{'task': i + 1, 'text': text,
+                          'result': state['results'].get(i + 1, ('not finished',))[0],
+                          'sim_time': state['results'].get(i + 1, (None, None, None))[2]}
+                         for i, text in enumerate(tasks)],
+               'sim_seconds': sim_elapsed, 'wall_seconds': wall_elapsed,
+               'real_time_factor': sim_elapsed / wall_elapsed if wall_elapsed else 0.0,
+               'bag': str(out / 'bag'), 'processes': len(launch.specs()),
+               'node_exits': launch.exits}
+    (out / 'demo.json').write_text(json.dumps(summary, indent=2))
+    report = None
+    if not args.no_report and (out / 'bag').exists():
+        from agv_nodes.report import make_report
+
+        report = make_report(out / 'bag', out / 'report')
+    print_summary(summary, report, out)
+    return code
+
+
+def print_summary(summary: dict, report: dict | None, out: Path) -> None:
+    """The closing table."""
+    print('\n| task | result | sim time (s) |\n|---|---|---|')
+    for t in summary['tasks']:
+        when = f'{t["sim_time"]:.1f}' if t['sim_time'] is not None else '-'
+        print(f'| {t["task"]}: {t["text"]} | {t["result"]} | {when} |')
+    if report:
+        print('\n| stop | marker | error (mm, + = past the centre) | speed before (mm/s) |\n'
+              '|---|---|---|---|')
+        for i, s in enumerate(report['stops'], 1):
+            print(f'| {i} | {s["marker"]} | {s["error_mm"]:+d} | {s["speed_mm_s"]} |')
+        faults = report['faults'] or ['none']
+        print(f'\nfaults: {"; ".join(faults)}')
+    print(f'\nsimulated {summary["sim_seconds"]:.1f} s in {summary["wall_seconds"]:.1f} s wall '
+          f'= real-time factor {summary["real_time_factor"]:.2f} '
+          f'({summary["processes"]} processes)')
+    print(f'bag: {summary["bag"]}')
+    if report:
+        print(f'report: {out / "report" / "summary.md"} (plots: {out / "report"}/*.png)')
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Print the interim demonstration."""
-    c = codec()
-    print('agv-demo: the closed-loop demonstration is not built yet (issues 3-8).')
-    print('What exists: the 16-byte record layer. The spec 4 task "stop at location 2, first')
-    print('stop marker", as navigation_status / traction_link records (e2e protected):\n')
-    print(f'{"step":34s} {"navigation_status":34s} {"traction_link":34s}')
-    for counter, (what, status, link) in enumerate(SPEC4_STEPS):
-        s = c.encode('navigation_status', status, counter=counter).hex().upper()
-        t = c.encode('traction_link', link, counter=counter).hex().upper()
-        print(f'{what:34s} {s:34s} {t:34s}')
-    print('\nByte 1 of navigation_status: 0AH, 00H, 00H, 03H, 0BH; traction_link: 00H, 40H, '
-          '40H, 14H, 00H (thesis fig 6.2, spec 1.7, 1.9).')
-    return 0
+    """Entry point of agv-demo."""
+    ap = argparse.ArgumentParser(prog='agv-demo', description=__doc__.splitlines()[0])
+    ap.add_argument('--quick', action='store_true', help='tasks 1-2 only (the CI variant)')
+    ap.add_argument('--time-factor', type=float, default=1.25,
+                    help='simulated seconds per real second the world aims for (the 9 '
+                    'processes need ~1.5 cores at 1x on the 2-core reference machine)')
+    ap.add_argument('--out', help='output directory (default runs/demo-<time>)')
+    ap.add_argument('--domain-id', type=int, help='ROS_DOMAIN_ID (default: a free one)')
+    ap.add_argument('--sim-limit', type=float, default=1500.0,
+                    help='give up after this many simulated seconds')
+    ap.add_argument('--no-report', action='store_true')
+    return run(ap.parse_args(argv))
 
 
 if __name__ == '__main__':
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(main())

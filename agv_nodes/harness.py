@@ -206,15 +206,17 @@ class Harness:
 
 
 # -- the whole truck ---------------------------------------------------------------------------
-DEMO_PROGRAMME = (  # thesis 7.2 tasks 1-7 on demo_1983, then fig 3.1
-    'load at 0 then continue',  # 1: stop at location n, take on a load, carry on
-    'unload at 2 then continue',  # 2: stop, discharge the load, carry on
-    'wait at 0 for 3 then continue',  # 3: stop and dwell
-    'stop at 2 first',  # 4: first stop marker
-    'stop at 2 second',  # 5: second stop marker
-    'stop at 2 first then second',  # 6: first, then advance to the second
-    'srm at 1 angle 15',  # 7: leave the wire at n by an SRM
+DEMO_PROGRAMME = (  # thesis 7.2 tasks 1-7 and fig 3.1 on demo_1983, in an order that needs
+    # few laps: each task at a location must reach its marker from upstream, so the tasks at L2
+    # are spread over laps, and task 7 and the transfer ride along laps the others make anyway.
+    'load at 0 then continue',  # task 1: stop at location n, take on a load, carry on
+    'unload at 2 then continue',  # task 2: stop, discharge the load, carry on
+    'srm at 1 angle 15',  # task 7: leave the wire at n by an SRM
+    'wait at 0 for 3 then continue',  # task 3: stop and dwell, carry on
+    'stop at 2 first',  # task 4: the first stop marker
     'load A at 1 and take to 3',  # fig 3.1: load A at B and take to C
+    'stop at 2 second',  # task 5: the second stop marker
+    'stop at 2 first then second',  # task 6: first, then advance to the second
 )
 DEMO_SRM_MAP = {1: 15, 3: 15}  # demo_1983: where the route leaves each wire
 

@@ -50,7 +50,7 @@ class NavigationParams:
     variant: str = 'intended'  # or 'as_listed'
     speed_request_path: str = 'direct_link'  # or 'via_executive'
     stopping: str = 'friction_1983'  # or 'controlled'
-    period: float = 0.005  # s, the loop (CHK) and controlled-stop update rate
+    period: float = 0.010  # s, the loop (CHK) and controlled-stop update rate
     status_period: float = 0.050  # s between navigation_status heartbeats
     link_period: float = 0.020  # s between traction_link records (and at once on change)
     command_period: float = 0.050  # s between position_sensor_command records

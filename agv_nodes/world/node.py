@@ -79,6 +79,9 @@ class WorldNode(Node):
                                     '(0 = as fast as possible)', 0.0, 1000.0)
         self.publish_clock = p.flag('publish_clock', True, 'publish /clock (the graph runs on '
                                     'sim time with use_sim_time:=true)')
+        self.clock_every = p.integer('clock_every', 1, 'samples per /clock message (1 = every '
+                                     '340 Hz sample; keep the clock faster than the fastest node '
+                                     'timer)', 1, 100)
         self.wait_subs = p.texts('wait_for_subscribers', [], 'topics that need a reader '
                                  'before the world moves')
         self.wait_pubs = p.texts('wait_for_publishers', [], 'topics that need a writer '
@@ -153,7 +156,7 @@ class WorldNode(Node):
     def publish_step(self, out: dict) -> None:
         """Publish what one core step produced."""
         stamp = self.stamp()
-        if self.publish_clock:
+        if self.publish_clock and self.core.sample % self.clock_every == 0:
             self.clock_pub.publish(Clock(clock=stamp))
         for name, fields in out['records'].items():
             self.out[name].publish(fields)
@@ -234,9 +237,14 @@ class WorldNode(Node):
     def peers_ready(self) -> bool:
         """True when every awaited topic has its reader/writer."""
         ns = self.get_namespace().rstrip('/')
-        full = (lambda t: t if t.startswith('/') else f'{ns}/{t}')  # noqa: E731
-        subs_ok = all(self.count_subscribers(full(t)) > 0 for t in self.wait_subs)
-        pubs_ok = all(self.count_publishers(full(t)) > 0 for t in self.wait_pubs)
+
+        def needed(entry: str) -> tuple[str, int]:  # 'topic' or 'topic:N' (at least N peers)
+            topic, _, count = entry.partition(':')
+            full = topic if topic.startswith('/') else f'{ns}/{topic}'
+            return full, int(count) if count.isdigit() else 1
+
+        subs_ok = all(self.count_subscribers(t) >= n for t, n in map(needed, self.wait_subs))
+        pubs_ok = all(self.count_publishers(t) >= n for t, n in map(needed, self.wait_pubs))
         return subs_ok and pubs_ok
 
     def run(self, executor: SingleThreadedExecutor) -> int:

@@ -1,0 +1,370 @@
+"""agv-launch: start the graph one process per node, as `ros2 launch` would on a ROS install.
+
+It reads the graph description (config/graph.yaml) and the parameter file, and starts every
+node as its own process with the venv's python: `--ros-args -r __ns:=<namespace>
+--params-file <file> -p use_sim_time:=... -p record_integrity:=...`. Output is prefixed with
+the node's name; SIGINT/SIGTERM are forwarded and the graph is shut down in order (world first,
+so time stops, recorder last, so the bag sees the end); a node that dies is reported with its
+exit status and ends the launch with a non-zero status (or is restarted with --respawn).
+Discovery is localhost-only; the domain id is settable (never 0: the launcher refuses it).
+
+The world waits before it moves until every record topic of the graph has its writer and its
+readers (and the recorder, when recording): the graph is complete before time starts.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass, field
+import fcntl
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import threading
+import time
+from typing import TextIO
+
+import yaml
+
+from agv_nodes.package_share import config_dir
+from agv_nodes.records import codec
+
+ROLES = ('node', 'world', 'recorder')
+
+
+class GraphError(ValueError):
+    """A graph description that cannot be used (names the file, key and value)."""
+
+
+@dataclass
+class NodeSpec:
+    """One node of the graph."""
+
+    name: str
+    executable: str
+    module: str
+    role: str = 'node'
+
+
+@dataclass
+class Graph:
+    """The graph description."""
+
+    name: str
+    nodes: list[NodeSpec]
+    parameters: Path
+    file: Path
+
+    def node(self, name: str) -> NodeSpec:
+        """The node called `name`."""
+        return next(n for n in self.nodes if n.name == name)
+
+
+def load_graph(file: Path | None = None) -> Graph:
+    """Load and check config/graph.yaml (or another description)."""
+    file = Path(file) if file else config_dir() / 'graph.yaml'
+    try:
+        doc = yaml.safe_load(file.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise GraphError(f'{file}: cannot read: {" ".join(str(exc).split())}') from None
+    if not isinstance(doc, dict) or not isinstance(doc.get('nodes'), list):
+        raise GraphError(f'{file}: key nodes: a list of nodes is required')
+    nodes = []
+    for i, spec in enumerate(doc['nodes']):
+        if not isinstance(spec, dict):
+            raise GraphError(f'{file}: key nodes[{i}]: {spec!r} must be a mapping')
+        for key in ('name', 'executable', 'module'):
+            if not isinstance(spec.get(key), str) or not spec[key]:
+                raise GraphError(f'{file}: key nodes[{i}].{key}: {spec.get(key)!r} missing')
+        role = spec.get('role', 'node')
+        if role not in ROLES:
+            raise GraphError(f'{file}: key nodes[{i}].role: {role!r} not one of {ROLES}')
+        nodes.append(NodeSpec(spec['name'], spec['executable'], spec['module'], role))
+    params = file.parent / str(doc.get('parameters', 'agv_demo.yaml'))
+    return Graph(str(doc.get('graph', 'agv')), nodes, params, file)
+
+
+def wait_lists(graph: Graph, world: bool, recording: bool) -> tuple[list[str], list[str]]:
+    """Topics that need readers / writers before the world moves (relative names)."""
+    running = {n.name for n in graph.nodes if n.role == 'node' or (n.role == 'world' and world)}
+    subs, pubs = [], []
+    for s in codec():
+        if s.kind == 'ground_truth':
+            continue
+        writer_up = s.writer in running
+        readers_up = [r for r in s.readers if r in running]
+        if writer_up and readers_up:
+            pubs.append(s.topic)
+            subs.append(s.topic)
+    if recording:  # the position sensor and the recorder must both be reading
+        subs.append('hw/position_sensor/adc:2')
+    return sorted(set(subs)), sorted(set(pubs))
+
+
+def claim_domain(explicit: int | None = None) -> tuple[int, TextIO | None]:
+    """A ROS domain id for this graph: explicit, ROS_DOMAIN_ID, or a free one by lock file."""
+    if explicit is None and os.environ.get('ROS_DOMAIN_ID'):
+        explicit = int(os.environ['ROS_DOMAIN_ID'])
+    if explicit is not None:
+        if not 1 <= explicit <= 232:
+            raise GraphError(f'domain id {explicit}: use 1-232 (never 0: other graphs on this '
+                             'host may be on it)')
+        return explicit, None
+    start = 1 + os.getpid() % 200
+    for i in range(232):
+        domain = 1 + (start + i - 1) % 232
+        handle = open(f'/tmp/agv_nodes_ros_domain_{domain}.lock', 'w')  # noqa: SIM115
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return domain, handle
+        except OSError:
+            handle.close()
+    raise GraphError('no free ROS domain id 1-232 on this host')
+
+
+@dataclass
+class Options:
+    """Everything agv-launch can be told."""
+
+    graph: Path | None = None
+    params: Path | None = None
+    namespace: str = ''
+    use_sim_time: bool = True
+    time_factor: float = 1.0
+    record_integrity: str = 'e2e'
+    world: str = 'sim'
+    domain_id: int | None = None
+    bag: Path | None = None
+    respawn: bool = False
+    layout: str | None = None
+    extra: dict[str, list[str]] = field(default_factory=dict)  # node -> extra -p args
+    quiet: bool = False
+    log_dir: Path | None = None
+
+
+class Launch:
+    """A running graph."""
+
+    def __init__(self, options: Options) -> None:
+        self.o = options
+        self.graph = load_graph(options.graph)
+        self.params = Path(options.params) if options.params else self.graph.parameters
+        if not self.params.is_file():
+            raise GraphError(f'parameter file {self.params} not found')
+        self.domain, self._lock = claim_domain(options.domain_id)
+        self.env = dict(os.environ, ROS_DOMAIN_ID=str(self.domain),
+                        ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
+        self.env.pop('ROS_LOCALHOST_ONLY', None)
+        self.procs: dict[str, subprocess.Popen] = {}
+        self.exits: dict[str, int] = {}
+        self.moving = threading.Event()
+        self.stopping = False
+        self.failed: list[str] = []
+        self.lines: list[str] = []
+        self._threads: list[threading.Thread] = []
+        self._logs: dict[str, TextIO] = {}
+
+    def specs(self) -> list[NodeSpec]:
+        """Nodes to start, in order."""
+        out = []
+        for n in self.graph.nodes:
+            if n.role == 'world' and self.o.world == 'none':
+                continue
+            if n.role == 'recorder' and self.o.bag is None:
+                continue
+            out.append(n)
+        return out
+
+    def command(self, spec: NodeSpec) -> list[str]:
+        """The command line of one node."""
+        exe = Path(sys.executable).parent / spec.executable
+        cmd = [str(exe)] if exe.exists() else [sys.executable, '-m', spec.module]
+        cmd += ['--ros-args', '-r', f'__node:={spec.name}']
+        if self.o.namespace:
+            cmd += ['-r', f'__ns:={self.o.namespace}']
+        cmd += ['--params-file', str(self.params),
+                '-p', f'use_sim_time:={"true" if self.o.use_sim_time else "false"}']
+        if spec.role == 'node':
+            cmd += ['-p', f'record_integrity:={self.o.record_integrity}']
+        if spec.role == 'world':
+            subs, pubs = wait_lists(self.graph, True, self.o.bag is not None)
+            quoted = (lambda topics: ','.join(f"'{t}'" for t in topics))  # noqa: E731
+            cmd += ['-p', f'time_factor:={self.o.time_factor}',
+                    '-p', f'publish_clock:={"true" if self.o.use_sim_time else "false"}',
+                    '-p', f'wait_for_subscribers:=[{quoted(subs)}]',
+                    '-p', f'wait_for_publishers:=[{quoted(pubs)}]']
+            if self.o.layout:
+                cmd += ['-p', f'layout:={self.o.layout}']
+        if spec.role == 'recorder':
+            cmd += ['-p', f'bag:={self.o.bag}']
+        for arg in self.o.extra.get(spec.name, []):
+            cmd += ['-p', arg]
+        return cmd
+
+    def _pump(self, name: str, stream) -> None:
+        width = max(len(s.name) for s in self.graph.nodes)
+        log = self._logs.get(name)
+        for raw in stream:
+            line = raw.rstrip('\n')
+            if log is not None:
+                log.write(line + '\n')
+            if 'moving at time_factor' in line:
+                self.moving.set()
+            self.lines.append(f'{name}: {line}')
+            if not self.o.quiet:
+                print(f'[{name:{width}s}] {line}', flush=True)
+
+    def _start(self, spec: NodeSpec) -> None:
+        proc = subprocess.Popen(self.command(spec), env=self.env, stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, text=True, bufsize=1,
+                                start_new_session=True)
+        self.procs[spec.name] = proc
+        thread = threading.Thread(target=self._pump, args=(spec.name, proc.stdout), daemon=True)
+        thread.start()
+        self._threads.append(thread)
+
+    def start(self) -> None:
+        """Start every node (recorder first, world last)."""
+        if self.o.log_dir:
+            self.o.log_dir.mkdir(parents=True, exist_ok=True)
+            self._logs = {s.name: open(self.o.log_dir / f'{s.name}.log', 'w')  # noqa: SIM115
+                          for s in self.specs()}
+        for spec in self.specs():
+            self._start(spec)
+
+    def poll(self) -> list[str]:
+        """Check the processes; return the names of those that died unexpectedly."""
+        dead = []
+        for name, proc in list(self.procs.items()):
+            code = proc.poll()
+            if code is None or name in self.exits:
+                continue
+            self.exits[name] = code
+            if self.stopping:
+                continue
+            spec = self.graph.node(name)
+            if spec.role == 'world' and code == 0:
+                continue  # the world ran its `duration`
+            dead.append(name)
+            message = f'agv-launch: node {name} exited with status {code}'
+            if self.o.respawn and spec.role == 'node':
+                print(f'{message}; respawning', file=sys.stderr, flush=True)
+                del self.exits[name]
+                time.sleep(1.0)
+                self._start(spec)
+            else:
+                print(message, file=sys.stderr, flush=True)
+                self.failed.append(name)
+        return dead
+
+    def world_done(self) -> bool:
+        """True once the world process has exited."""
+        proc = self.procs.get('world')
+        return proc is not None and proc.poll() is not None
+
+    def stop(self, timeout: float = 15.0) -> None:
+        """Shut the graph down in order: world, nodes, recorder."""
+        self.stopping = True
+        order = sorted(self.procs, key=lambda n: {'world': 0, 'node': 1, 'recorder': 2}[
+            self.graph.node(n).role])
+        for group in ('world', 'node', 'recorder'):
+            names = [n for n in order if self.graph.node(n).role == group]
+            for name in names:
+                proc = self.procs[name]
+                if proc.poll() is None:
+                    proc.send_signal(signal.SIGINT)
+            deadline = time.monotonic() + timeout
+            for name in names:
+                proc = self.procs[name]
+                try:
+                    proc.wait(timeout=max(0.1, deadline - time.monotonic()))
+                except subprocess.TimeoutExpired:
+                    print(f'agv-launch: {name} ignored SIGINT; killing it', file=sys.stderr)
+                    proc.kill()
+                    proc.wait()
+                self.exits.setdefault(name, proc.returncode)
+        for thread in self._threads:
+            thread.join(timeout=2.0)
+        for log in self._logs.values():
+            log.close()
+
+    def run(self, duration: float | None = None) -> int:
+        """Start, wait for a signal, a dead node or the world's end, stop; exit status."""
+        stop = threading.Event()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, lambda *_: stop.set())
+        self.start()
+        t0 = time.monotonic()
+        code = 0
+        while not stop.is_set():
+            if self.poll() and not self.o.respawn:
+                code = 1
+                break
+            if self.world_done():
+                code = self.exits.get('world', 0)
+                break
+            if duration and time.monotonic() - t0 > duration:
+                break
+            stop.wait(0.2)
+        self.stop()
+        if self.failed:
+            print(f'agv-launch: failed nodes: {", ".join(self.failed)}', file=sys.stderr)
+            code = code or 1
+        return code
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """agv-launch arguments (also used by agv-demo)."""
+    ap = argparse.ArgumentParser(prog='agv-launch', description=__doc__.splitlines()[0])
+    ap.add_argument('--graph', type=Path, help='graph description (default config/graph.yaml)')
+    ap.add_argument('--params', type=Path, help="ROS parameter file (default: the graph's)")
+    ap.add_argument('--namespace', default='', help='e.g. /agv2 for a second truck')
+    ap.add_argument('--use-sim-time', choices=('true', 'false'), default='true')
+    ap.add_argument('--time-factor', type=float, default=1.0,
+                    help='simulated seconds per real second (0 = as fast as possible)')
+    ap.add_argument('--record-integrity', choices=('e2e', 'none'), default='e2e')
+    ap.add_argument('--world', choices=('sim', 'none'), default='sim',
+                    help='none: the hardware topics come from drivers')
+    ap.add_argument('--domain-id', type=int, help='ROS_DOMAIN_ID 1-232 (default: a free one)')
+    ap.add_argument('--bag', type=Path, help='record every topic into this new bag directory')
+    ap.add_argument('--layout', help='world layout (overrides the parameter file)')
+    ap.add_argument('--respawn', action='store_true', help='restart nodes that die')
+    ap.add_argument('--duration', type=float, help='stop after this many real seconds')
+    ap.add_argument('--log-dir', type=Path, help="also write each node's output here")
+    ap.add_argument('-p', '--param', action='append', default=[], metavar='NODE:NAME:=VALUE',
+                    help='extra parameter for one node, e.g. traction:control:=closed_loop')
+    return ap
+
+
+def options_from(args: argparse.Namespace) -> Options:
+    """Options from parsed arguments."""
+    extra: dict[str, list[str]] = {}
+    for item in args.param:
+        node, sep, rest = item.partition(':')
+        if not sep or ':=' not in rest:
+            raise GraphError(f'-p {item!r}: expected NODE:NAME:=VALUE')
+        extra.setdefault(node, []).append(rest)
+    return Options(graph=args.graph, params=args.params, namespace=args.namespace,
+                   use_sim_time=args.use_sim_time == 'true', time_factor=args.time_factor,
+                   record_integrity=args.record_integrity, world=args.world,
+                   domain_id=args.domain_id, bag=args.bag, respawn=args.respawn,
+                   layout=args.layout, extra=extra, log_dir=args.log_dir)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of agv-launch."""
+    args = build_parser().parse_args(argv)
+    try:
+        launch = Launch(options_from(args))
+    except GraphError as exc:
+        print(f'agv-launch: {exc}', file=sys.stderr)
+        return 2
+    print(f'agv-launch: graph {launch.graph.name}, ROS_DOMAIN_ID={launch.domain}, '
+          f'{len(launch.specs())} processes', flush=True)
+    return launch.run(args.duration)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

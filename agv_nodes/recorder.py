@@ -1,0 +1,203 @@
+"""recorder: writes every topic of the graph to a rosbag2 bag (ros2 run agv_nodes recorder).
+
+Where ros2 bag is not installed (PyPI-only machines), this node does what `ros2 bag record -a -s
+mcap` does for this graph: it discovers topics as they appear (or takes a fixed list),
+subscribes with raw=True so the serialized CDR goes to disk untouched, and writes a rosbag2
+bag - metadata version 9, MCAP storage, with each topic's offered QoS profiles - through
+`rosbags`. Timestamps are the node's ROS time (sim time under use_sim_time). Each subscription
+asks for the publishers' reliability and, when they all offer it, transient-local durability
+(so latched topics like world/route are caught). When a bag passes `max_bag_size` bytes it is
+closed and recording continues in `<bag>_1`, `<bag>_2`, ... (each a complete bag). The bag is
+closed cleanly on SIGINT/SIGTERM.
+"""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+import sys
+from typing import Any
+
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosbags.interfaces import (
+    Qos,
+    QosDurability,
+    QosHistory,
+    QosLiveliness,
+    QosReliability,
+    QosTime,
+)
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+
+from agv_nodes.core_node import spin_main
+from agv_nodes.params import Parameters
+
+SKIP = {'/parameter_events'}
+
+
+def message_class(type_name: str) -> Any:
+    """'std_msgs/msg/UInt8MultiArray' -> the rclpy message class."""
+    package, kind, name = type_name.split('/')
+    return getattr(importlib.import_module(f'{package}.{kind}'), name)
+
+
+def _time(duration: Any) -> QosTime:
+    ns = duration.nanoseconds if hasattr(duration, 'nanoseconds') else 0
+    if ns >= 2**63 - 1 or ns < 0:  # "infinite"
+        return QosTime(sec=2147483647, nsec=4294967295)
+    return QosTime(sec=ns // 1_000_000_000, nsec=ns % 1_000_000_000)
+
+
+def to_bag_qos(profile: QoSProfile) -> Qos:
+    """An rclpy QoS profile as rosbags metadata."""
+    return Qos(history=QosHistory(int(profile.history)), depth=int(profile.depth),
+               reliability=QosReliability(int(profile.reliability)),
+               durability=QosDurability(int(profile.durability)),
+               deadline=_time(profile.deadline), lifespan=_time(profile.lifespan),
+               liveliness=QosLiveliness(int(profile.liveliness)),
+               liveliness_lease_duration=_time(profile.liveliness_lease_duration),
+               avoid_ros_namespace_conventions=bool(profile.avoid_ros_namespace_conventions))
+
+
+class Recorder(Node):
+    """See the module docstring."""
+
+    def __init__(self) -> None:
+        super().__init__('recorder')
+        p = Parameters(self)
+        self.bag_path = Path(p.text('bag', 'agv_bag', 'bag directory to create (must not '
+                                    'exist)'))
+        self.topics = p.texts('topics', [], 'topics to record (empty = every topic found)')
+        self.max_size = p.integer('max_bag_size', 0, 'bytes per bag before continuing in a new '
+                                  'one (0 = no splitting)', 0, 2**62)
+        self.all_namespaces = p.flag('all_namespaces', False, 'record other namespaces too '
+                                     '(default: this namespace plus global topics)')
+        if self.bag_path.exists():
+            p.fail('bag', str(self.bag_path), 'exists already (a bag is never overwritten)')
+        self.typestore = get_typestore(Stores.ROS2_JAZZY)
+        self.part = 0
+        self.writer: Writer | None = None
+        self.connections: dict[str, Any] = {}
+        self.types: dict[str, str] = {}
+        self.subs: dict[str, Any] = {}
+        self.counts: dict[str, int] = {}
+        self._offered: dict[str, list[Qos]] = {}
+        self.bytes = 0
+        self.paths: list[Path] = []
+        self._open()
+        self.create_timer(0.5, self._discover, clock=self._wall_clock())
+        self._discover()
+
+    def _wall_clock(self):
+        from rclpy.clock import Clock, ClockType
+
+        return Clock(clock_type=ClockType.STEADY_TIME)
+
+    def _open(self) -> None:
+        path = self.bag_path if self.part == 0 else \
+            self.bag_path.with_name(f'{self.bag_path.name}_{self.part}')
+        self.writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
+        self.writer.set_custom_data('recorded_by', 'agv_nodes recorder')
+        self.writer.open()
+        self.paths.append(path)
+        self.connections = {}
+        self.bytes = 0
+
+    def _wanted(self, topic: str) -> bool:
+        if topic in SKIP:
+            return False
+        if self.topics:
+            return topic in self.topics or topic.lstrip('/') in self.topics
+        ns = self.get_namespace().rstrip('/')
+        if self.all_namespaces or not ns:
+            return True
+        return topic.startswith(ns + '/') or topic.count('/') == 1  # own namespace or global
+
+    def _discover(self) -> None:
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self.subs or not types or not self._wanted(topic):
+                continue
+            infos = self.get_publishers_info_by_topic(topic)
+            if not infos:
+                continue
+            type_name = types[0]
+            try:
+                cls = message_class(type_name)
+                self.typestore.types[type_name]  # noqa: B018 - the bag needs its definition
+            except (ImportError, AttributeError, KeyError, ValueError):
+                self.get_logger().warn(f'not recording {topic}: type {type_name} unknown')
+                self.subs[topic] = None
+                continue
+            offered = [i.qos_profile for i in infos]
+            reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
+            latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
+            qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                             reliability=ReliabilityPolicy.RELIABLE if reliable
+                             else ReliabilityPolicy.BEST_EFFORT,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL if latched
+                             else DurabilityPolicy.VOLATILE)
+            self.types[topic] = type_name
+            self._offered[topic] = [to_bag_qos(q) for q in offered]
+            self.subs[topic] = self.create_subscription(
+                cls, topic, self._callback(topic), qos, raw=True)
+            self.counts[topic] = 0
+
+    def _connection(self, topic: str) -> Any:
+        conn = self.connections.get(topic)
+        if conn is None:
+            conn = self.writer.add_connection(topic, self.types[topic], typestore=self.typestore,
+                                              offered_qos_profiles=self._offered[topic])
+            self.connections[topic] = conn
+        return conn
+
+    def _callback(self, topic: str):
+        def write(raw: bytes) -> None:
+            self._write(topic, raw)
+            # Drain what else is queued on this topic now: one executor wake-up (and one
+            # wait-set rebuild) then serves a whole burst instead of a single message.
+            sub = self.subs[topic]
+            for _ in range(200):
+                with sub.handle:
+                    taken = sub.handle.take_message(sub.msg_type, True)
+                if taken is None:
+                    break
+                self._write(topic, taken[0])
+        return write
+
+    def _write(self, topic: str, raw: bytes) -> None:
+        if self.writer is None:
+            return
+        if self.max_size and self.bytes > self.max_size:
+            self.writer.close()
+            self.part += 1
+            self._open()
+        stamp = self.get_clock().now().nanoseconds
+        self.writer.write(self._connection(topic), stamp, raw)
+        self.bytes += len(raw)
+        self.counts[topic] += 1
+
+    def close(self) -> None:
+        """Write the metadata and close the bag (idempotent)."""
+        if self.writer is not None:
+            self.writer.close()
+            self.writer = None
+            total = sum(self.counts.values())
+            # print, not the logger: at shutdown the context (and /rosout) may be gone
+            print(f'bag closed: {total} messages on {len(self.counts)} topics in '
+                  f'{", ".join(map(str, self.paths))}', flush=True)
+
+    def destroy_node(self) -> None:
+        """Close the bag before the node goes."""
+        self.close()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point: ros2 run agv_nodes recorder [--ros-args -p bag:=DIR ...]."""
+    return spin_main(Recorder, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,270 @@
+"""agv-report BAG: what happened in a recorded run, in numbers and pictures.
+
+Reads the bag with rosbags, decodes every 16-byte record through the codec, and writes into the
+output directory: report.json (every decoded record count, stops, markers, faults, tasks),
+summary.md, and PNG plots - speed against time with the marker events (thesis fig 6.12), the
+path against the route (plan view), the stop errors per stop (fig 7.15 style), a timeline of
+records per sub-system, and the faults.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections import Counter, defaultdict
+import json
+import math
+from pathlib import Path
+import sys
+from typing import Any
+
+from agv_nodes.records import RecordError, codec
+
+SUBSYSTEM_OF = {'navigation': 'navigation', 'position_sensor': 'position sensor',
+                'traction': 'traction', 'route': 'route following', 'load': 'load handling',
+                'comms': 'communications', 'hw': 'hardware', 'world': 'world'}
+
+
+def _record_for(topic: str, by_topic: dict[str, Any]) -> Any:
+    """The schema of a record topic, whatever namespace it was recorded under."""
+    for name, schema in by_topic.items():
+        if topic == '/' + name or topic.endswith('/' + name):
+            return schema
+    return None
+
+
+def read_bag(bag: Path) -> dict[str, Any]:
+    """Decode a bag: records per topic (time, fields), poses, route, strings, diagnostics."""
+    from rosbags.highlevel import AnyReader
+
+    c = codec()
+    by_topic = {s.topic: s for s in c}
+    data: dict[str, Any] = {'records': defaultdict(list), 'pose': [], 'route': [],
+                            'strings': defaultdict(list), 'diagnostics': [], 'counts': Counter(),
+                            'types': {}, 'rejected': Counter(), 'start': None, 'end': None}
+    paths = [bag] + sorted(bag.parent.glob(f'{bag.name}_[0-9]*'))
+    with AnyReader(paths) as reader:
+        for conn, stamp, raw in reader.messages():
+            t = stamp * 1e-9
+            data['start'] = t if data['start'] is None else min(data['start'], t)
+            data['end'] = t if data['end'] is None else max(data['end'], t)
+            data['counts'][conn.topic] += 1
+            data['types'][conn.topic] = conn.msgtype
+            if conn.msgtype == 'std_msgs/msg/UInt8MultiArray':
+                schema = _record_for(conn.topic, by_topic)
+                if schema is None:
+                    continue
+                msg = reader.deserialize(raw, conn.msgtype)
+                try:
+                    fields = schema.decode(bytes(msg.data), integrity='none' if not
+                                           schema.protected else _integrity(bytes(msg.data)))
+                except RecordError:
+                    data['rejected'][schema.name] += 1
+                    continue
+                data['records'][schema.name].append((t, fields))
+            elif conn.msgtype == 'geometry_msgs/msg/PoseStamped':
+                msg = reader.deserialize(raw, conn.msgtype)
+                q = msg.pose.orientation
+                data['pose'].append((t, msg.pose.position.x, msg.pose.position.y,
+                                     2 * math.atan2(q.z, q.w)))
+            elif conn.msgtype == 'nav_msgs/msg/Path' and not data['route']:
+                msg = reader.deserialize(raw, conn.msgtype)
+                data['route'] = [(p.pose.position.x, p.pose.position.y) for p in msg.poses]
+            elif conn.msgtype == 'std_msgs/msg/String':
+                msg = reader.deserialize(raw, conn.msgtype)
+                data['strings'][conn.topic.rsplit('/', 1)[-1]].append((t, msg.data))
+            elif conn.msgtype == 'diagnostic_msgs/msg/DiagnosticArray':
+                msg = reader.deserialize(raw, conn.msgtype)
+                for st in msg.status:
+                    level = st.level if isinstance(st.level, int) else int.from_bytes(
+                        bytes(st.level), 'little')
+                    if level >= 2:
+                        data['diagnostics'].append((t, st.name, st.message))
+    return data
+
+
+def _integrity(raw: bytes) -> str:
+    """Protected records in a bag: e2e when bytes 15-16 are set, else a plain (none) peer."""
+    return 'e2e' if raw[14] or raw[15] else 'none'
+
+
+def analyse(data: dict[str, Any]) -> dict[str, Any]:
+    """The numbers of the report."""
+    events = [f | {'time': t} for t, f in data['records'].get('world_event', [])]
+    stops = [{'time': e['time'], 'marker': _marker_name(e), 'error_mm': e['error'],
+              'speed_mm_s': e['speed']} for e in events if e['event'] == 'stopped']
+    markers = [{'time': e['time'], 'marker': _marker_name(e), 'speed_mm_s': e['speed'],
+                'range_error_mm': e['error']} for e in events if e['event'] == 'marker_passed']
+    loads = [{'time': e['time'], 'marker': _marker_name(e)} for e in events
+             if e['event'] == 'load_moved']
+    reports = data['strings'].get('report', [])
+    tasks = [{'time': t, 'text': line} for t, line in reports
+             if ': completed' in line or ': FAILED' in line or ': rejected' in line]
+    faults = [f'{t:.1f} s: {line}' for t, line in reports if 'FAILED' in line]
+    for t, f in data['records'].get('traction_status', []):
+        if f['tripped'] and f['trip_cause'] not in ('startup', 'none'):
+            faults.append(f'{t:.1f} s: traction tripped ({f["trip_cause"]})')
+            break
+    diag = sorted({(name, msg) for _t, name, msg in data['diagnostics']})
+    faults += [f'diagnostics ERROR {name}: {msg}' for name, msg in diag[:20]]
+    errors = [s['error_mm'] for s in stops if s['marker'] != '-']
+    mean = sum(errors) / len(errors) if errors else 0.0
+    spread = (max(errors) - min(errors)) / 2 if errors else 0.0
+    return {
+        'duration_s': (data['end'] or 0) - (data['start'] or 0),
+        'messages': sum(data['counts'].values()),
+        'topics': {t: {'type': data['types'][t], 'count': n}
+                   for t, n in sorted(data['counts'].items())},
+        'records_decoded': {k: len(v) for k, v in sorted(data['records'].items())},
+        'records_rejected': dict(data['rejected']),
+        'stops': stops, 'stop_error_mean_mm': mean, 'stop_error_half_range_mm': spread,
+        'markers': markers, 'loads': loads, 'tasks': tasks, 'faults': faults,
+    }
+
+
+def _marker_name(e: dict[str, Any]) -> str:
+    if e['marker_kind'] == 'location':
+        return f'L{e["identity"]}'
+    if e['marker_kind'] == 'stop':
+        station = f'W{e["station"]}' if e['station'] != 0xFF else 'S'
+        return f'{station}.{e["identity"]}'
+    return '-'
+
+
+def plots(data: dict[str, Any], result: dict[str, Any], out: Path) -> list[str]:
+    """Write the PNG plots; return their file names."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    written = []
+    t0 = data['start'] or 0.0
+    odo = data['records'].get('wheel_odometry', [])
+    fig, ax = plt.subplots(figsize=(12, 4))
+    if odo:
+        ax.plot([t - t0 for t, _f in odo],
+                [(f['left_speed'] + f['right_speed']) / 2000 for _t, f in odo], lw=0.8,
+                label='speed (wheel odometry)')
+    for m in result['markers']:
+        ax.axvline(m['time'] - t0, color='tab:green' if m['marker'].startswith('L')
+                   else 'tab:red', lw=0.5, alpha=0.6)
+        ax.text(m['time'] - t0, 1.05, m['marker'], fontsize=6, rotation=90, va='bottom')
+    for s in result['stops']:
+        ax.plot(s['time'] - t0, 0, 'kv', ms=5)
+    ax.set_xlabel('time (s)')
+    ax.set_ylabel('speed (m/s)')
+    ax.set_ylim(-0.05, 1.2)
+    ax.set_title('Speed with marker passages (green: location, red: stop) and stops (thesis '
+                 'fig 6.12)')
+    ax.legend(loc='upper right')
+    fig.tight_layout()
+    fig.savefig(out / 'speed.png', dpi=110)
+    plt.close(fig)
+    written.append('speed.png')
+
+    fig, ax = plt.subplots(figsize=(8, 7))
+    if data['route']:
+        ax.plot(*zip(*data['route'], strict=True), '.', ms=1, color='0.6', label='wires')
+    if data['pose']:
+        ax.plot([p[1] for p in data['pose']], [p[2] for p in data['pose']], lw=0.7,
+                color='tab:blue', label='truck (rear axle)')
+    ax.set_aspect('equal')
+    ax.set_title('Path against the route (plan view)')
+    ax.set_xlabel('x (m)')
+    ax.set_ylabel('y (m)')
+    ax.legend(loc='best')
+    fig.tight_layout()
+    fig.savefig(out / 'path.png', dpi=110)
+    plt.close(fig)
+    written.append('path.png')
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    stops = result['stops']
+    if stops:
+        ax.bar(range(1, len(stops) + 1), [s['error_mm'] for s in stops], color='tab:orange')
+        ax.set_xticks(range(1, len(stops) + 1), [s['marker'] for s in stops], rotation=45,
+                      fontsize=7)
+    ax.axhline(0, color='k', lw=0.8)
+    ax.axhspan(-40, 40, color='tab:green', alpha=0.1, label='thesis +-4 cm')
+    ax.set_ylabel('stop error (mm, + = past the marker centre)')
+    ax.set_title('Stop errors per stop (fig 7.15 style)')
+    ax.legend(loc='best')
+    fig.tight_layout()
+    fig.savefig(out / 'stops.png', dpi=110)
+    plt.close(fig)
+    written.append('stops.png')
+
+    fig, ax = plt.subplots(figsize=(12, 4))
+    names = sorted(data['records'])
+    for i, name in enumerate(names):
+        times = [t - t0 for t, _f in data['records'][name]][::5]
+        ax.plot(times, [i] * len(times), '|', ms=4)
+    ax.set_yticks(range(len(names)), names, fontsize=7)
+    ax.set_xlabel('time (s)')
+    ax.set_title('Records per sub-system over time (every 5th shown)')
+    fig.tight_layout()
+    fig.savefig(out / 'records.png', dpi=110)
+    plt.close(fig)
+    written.append('records.png')
+
+    fig, ax = plt.subplots(figsize=(10, 3))
+    faults = result['faults'] or ['no faults']
+    ax.axis('off')
+    ax.text(0, 1, '\n'.join(faults[:25]), va='top', family='monospace', fontsize=8)
+    ax.set_title('Faults')
+    fig.tight_layout()
+    fig.savefig(out / 'faults.png', dpi=110)
+    plt.close(fig)
+    written.append('faults.png')
+    return written
+
+
+def summary_markdown(result: dict[str, Any], pictures: list[str]) -> str:
+    """summary.md."""
+    lines = ['# Run summary', '',
+             f'- duration {result["duration_s"]:.1f} s (sim time), {result["messages"]} '
+             f'messages on {len(result["topics"])} topics',
+             f'- stops: {len(result["stops"])}, mean error {result["stop_error_mean_mm"]:+.1f} '
+             f'mm, +-{result["stop_error_half_range_mm"]:.1f} mm about the mean',
+             f'- loads moved: {len(result["loads"])}; marker passages: {len(result["markers"])}',
+             f'- records rejected while decoding the bag: '
+             f'{sum(result["records_rejected"].values())}', '',
+             '## Tasks', '']
+    lines += [f'- {t["time"]:.1f} s: {t["text"]}' for t in result['tasks']] or ['- none']
+    lines += ['', '## Stops', '', '| # | marker | error (mm) | speed before (mm/s) |',
+              '|---|---|---|---|']
+    lines += [f'| {i} | {s["marker"]} | {s["error_mm"]:+d} | {s["speed_mm_s"]} |'
+              for i, s in enumerate(result['stops'], 1)]
+    lines += ['', '## Faults', ''] + ([f'- {f}' for f in result['faults']] or ['- none'])
+    lines += ['', '## Plots', ''] + [f'![{p}]({p})' for p in pictures]
+    return '\n'.join(lines) + '\n'
+
+
+def make_report(bag: Path, out: Path) -> dict[str, Any]:
+    """Write report.json, summary.md and the plots for `bag` into `out`."""
+    out.mkdir(parents=True, exist_ok=True)
+    data = read_bag(Path(bag))
+    result = analyse(data)
+    pictures = plots(data, result, out)
+    (out / 'report.json').write_text(json.dumps(result, indent=2))
+    (out / 'summary.md').write_text(summary_markdown(result, pictures))
+    return result
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of agv-report."""
+    ap = argparse.ArgumentParser(prog='agv-report', description=__doc__.splitlines()[0])
+    ap.add_argument('bag', type=Path)
+    ap.add_argument('--out', type=Path, help='output directory (default: <bag>_report)')
+    args = ap.parse_args(argv)
+    if not (args.bag / 'metadata.yaml').is_file():
+        print(f'agv-report: {args.bag} is not a rosbag2 bag (no metadata.yaml)', file=sys.stderr)
+        return 2
+    out = args.out or args.bag.with_name(args.bag.name + '_report')
+    result = make_report(args.bag, out)
+    print(f'{len(result["stops"])} stops, {len(result["faults"])} faults; wrote {out}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
