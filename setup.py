@@ -49,6 +49,7 @@ setup(
             'world = agv_nodes.world.node:main',
             # tools
             'agv-demo = agv_nodes.demo:main',
+            'agv-diag = agv_nodes.executive.diag_view:main',
             'agv-launch = agv_nodes.launcher:main',
             'agv-records = agv_nodes.records.cli:main',
             'agv-report = agv_nodes.report:main',

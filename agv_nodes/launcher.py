@@ -103,6 +103,34 @@ def wait_lists(graph: Graph, world: bool, recording: bool) -> tuple[list[str], l
     return sorted(set(subs)), sorted(set(pubs))
 
 
+def node_parameters(graph: Graph, spec: NodeSpec, options: Options) -> dict[str, object]:
+    """The parameters the launch sets for one node on top of the parameter file.
+
+    The one source for both agv-launch and launch/agv_demo.launch.py (a test compares them).
+    """
+    out: dict[str, object] = {'use_sim_time': options.use_sim_time}
+    if spec.role == 'node':
+        out['record_integrity'] = options.record_integrity
+    if spec.role == 'world':
+        subs, pubs = wait_lists(graph, True, options.bag is not None)
+        out.update(time_factor=float(options.time_factor), publish_clock=options.use_sim_time,
+                   wait_for_subscribers=subs, wait_for_publishers=pubs)
+        if options.layout:
+            out['layout'] = options.layout
+    if spec.role == 'recorder':
+        out['bag'] = str(options.bag)
+    return out
+
+
+def ros_arg(value: object) -> str:
+    """A parameter value as a --ros-args -p argument (YAML)."""
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, list):
+        return '[' + ','.join(f"'{v}'" for v in value) + ']'
+    return str(value)
+
+
 def claim_domain(explicit: int | None = None) -> tuple[int, TextIO | None]:
     """A ROS domain id for this graph: explicit, ROS_DOMAIN_ID, or a free one by lock file."""
     if explicit is None and os.environ.get('ROS_DOMAIN_ID'):
@@ -184,21 +212,9 @@ class Launch:
         cmd += ['--ros-args', '-r', f'__node:={spec.name}']
         if self.o.namespace:
             cmd += ['-r', f'__ns:={self.o.namespace}']
-        cmd += ['--params-file', str(self.params),
-                '-p', f'use_sim_time:={"true" if self.o.use_sim_time else "false"}']
-        if spec.role == 'node':
-            cmd += ['-p', f'record_integrity:={self.o.record_integrity}']
-        if spec.role == 'world':
-            subs, pubs = wait_lists(self.graph, True, self.o.bag is not None)
-            quoted = (lambda topics: ','.join(f"'{t}'" for t in topics))  # noqa: E731
-            cmd += ['-p', f'time_factor:={self.o.time_factor}',
-                    '-p', f'publish_clock:={"true" if self.o.use_sim_time else "false"}',
-                    '-p', f'wait_for_subscribers:=[{quoted(subs)}]',
-                    '-p', f'wait_for_publishers:=[{quoted(pubs)}]']
-            if self.o.layout:
-                cmd += ['-p', f'layout:={self.o.layout}']
-        if spec.role == 'recorder':
-            cmd += ['-p', f'bag:={self.o.bag}']
+        cmd += ['--params-file', str(self.params)]
+        for name, value in node_parameters(self.graph, spec, self.o).items():
+            cmd += ['-p', f'{name}:={ros_arg(value)}']
         for arg in self.o.extra.get(spec.name, []):
             cmd += ['-p', arg]
         return cmd
@@ -264,27 +280,29 @@ class Launch:
         proc = self.procs.get('world')
         return proc is not None and proc.poll() is not None
 
-    def stop(self, timeout: float = 15.0) -> None:
-        """Shut the graph down in order: world, nodes, recorder."""
+    def stop(self, timeout: float = 5.0) -> None:
+        """Shut the graph down in order: world, nodes, recorder (SIGINT, then SIGTERM, KILL)."""
         self.stopping = True
-        order = sorted(self.procs, key=lambda n: {'world': 0, 'node': 1, 'recorder': 2}[
-            self.graph.node(n).role])
         for group in ('world', 'node', 'recorder'):
-            names = [n for n in order if self.graph.node(n).role == group]
+            names = [n for n in self.procs if self.graph.node(n).role == group]
+            for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 3.0),
+                              (signal.SIGKILL, 3.0)):
+                alive = [n for n in names if self.procs[n].poll() is None]
+                if not alive:
+                    break
+                if sig != signal.SIGINT:
+                    print(f'agv-launch: {", ".join(alive)} still running: sending '
+                          f'{signal.Signals(sig).name}', file=sys.stderr, flush=True)
+                for name in alive:
+                    self.procs[name].send_signal(sig)
+                deadline = time.monotonic() + wait
+                for name in alive:
+                    try:
+                        self.procs[name].wait(timeout=max(0.05, deadline - time.monotonic()))
+                    except subprocess.TimeoutExpired:
+                        pass
             for name in names:
-                proc = self.procs[name]
-                if proc.poll() is None:
-                    proc.send_signal(signal.SIGINT)
-            deadline = time.monotonic() + timeout
-            for name in names:
-                proc = self.procs[name]
-                try:
-                    proc.wait(timeout=max(0.1, deadline - time.monotonic()))
-                except subprocess.TimeoutExpired:
-                    print(f'agv-launch: {name} ignored SIGINT; killing it', file=sys.stderr)
-                    proc.kill()
-                    proc.wait()
-                self.exits.setdefault(name, proc.returncode)
+                self.exits.setdefault(name, self.procs[name].poll())
         for thread in self._threads:
             thread.join(timeout=2.0)
         for log in self._logs.values():

@@ -67,6 +67,8 @@ class TractionParams:
     v_per_percent: float = 1.0 / 75.0  # m/s per % above the 5 % dead band (spec 6.1 map)
     dead_band: float = 5.0  # %
     flip_hysteresis: float = 8.0  # %: smaller demands against the field coast instead
+    stop_decel: float = 0.30  # m/s^2 of the controlled-stop profile v = sqrt(2 a d)
+    coast_decel: float = 0.50  # m/s^2 the truck loses coasting: the drive is cut this far out
 
     def check(self) -> list[tuple[str, Any, str]]:
         """Problems as (name, value, reason); empty when the settings are usable."""
@@ -122,6 +124,8 @@ class TractionCore:
         self._v_demand = 0.0
         self._a_demand = 0.0
         self._integral = 0.0
+        self.odometer = 0.0  # m, integrated wheel odometry
+        self.stop_target: float | None = None  # odometer reading of a requested stop
 
     # -- inputs -----------------------------------------------------------------------------
     def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
@@ -132,6 +136,12 @@ class TractionCore:
                 self._advance_reset(fields)
         elif record == 'traction_link':
             self.link, self.link_time = fields, now
+            stop_in = fields.get('stop_in', 0)
+            if stop_in:  # a controlled stop: `stop_in` mm from here, in the link's direction
+                way = -1.0 if fields['reverse'] else 1.0
+                self.stop_target = self.odometer + way * stop_in / 1000.0
+            else:
+                self.stop_target = None
         elif record == 'wheel_odometry':
             self.measured_speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
         return None
@@ -177,6 +187,7 @@ class TractionCore:
             self._trip('stalled_loop')
         dt = self.p.loop_period if self._last_tick is None else now - self._last_tick
         self._last_tick = now
+        self.odometer += self.measured_speed * dt
         self.watchdog = (self.watchdog + 1) & 0xFF  # MONO, also inside every WAIT1
         if not self.tripped:
             if now - self.command_time > self.p.command_timeout:
@@ -308,6 +319,21 @@ class TractionCore:
         else:
             target = max(0.0, abs(self.ref) - p.dead_band) * p.v_per_percent
             target = target if self.ref >= 0 else -target
+        if self.source == 'position' and self.stop_target is not None and target != 0.0:
+            # Controlled stop (thesis 8.5 F4): follow v = sqrt(2 a d) down to the stop point and
+            # cut the drive once the coast-down distance covers what is left.
+            way = 1.0 if target > 0 else -1.0
+            remaining = way * (self.stop_target - self.odometer)
+            speed = abs(self.measured_speed)
+            if remaining <= speed * speed / (2.0 * p.coast_decel) or remaining <= 0.0005:
+                self._v_demand = self._a_demand = self._integral = 0.0
+                self.dcycle = self.dcdem = 0
+                self.armature_off = True
+                return
+            profile = (2.0 * p.stop_decel * remaining) ** 0.5
+            if profile < abs(target):
+                target = way * profile
+                self._v_demand = target  # the profile is the demand (no extra ramp)
         # Jerk- and acceleration-limited ramp of the speed demand toward the target.
         gap = target - self._v_demand
         stop_dist_a = self._a_demand * abs(self._a_demand) / (2 * p.max_jerk)

@@ -39,6 +39,7 @@ from agv_nodes.world.layout import LayoutError, layout_path, load_layout
 from agv_nodes.world.vehicles import Concic2Params, ElectrukParams
 
 NODE = 'world'
+PACED = ('traction_drive', 'steering_command')  # the world waits for these when they lag
 
 
 class WorldNode(Node):
@@ -91,6 +92,13 @@ class WorldNode(Node):
         self.duration = p.number('duration', 0.0, 'stop after this many simulated seconds '
                                  '(0 = run until shut down)', 0.0, 1e6)
         self.paused = p.flag('start_paused', False, 'wait for ~/resume before moving')
+        self.max_lag = p.number('max_lag', 0.05, 'simulated seconds the drive and steering '
+                                'records may lag the world before it waits for them (0 = never '
+                                'wait)', 0.0, 10.0)
+        self.lag_patience = p.number('lag_patience', 0.5, 'real seconds the world waits for a '
+                                     'lagging input before it carries on without it', 0.0, 60.0)
+        self._input_time: dict[str, float] = {}  # record -> sim time of its last arrival
+        self._gave_up: set[str] = set()
         self.core = WorldCore(self.layout, wp)
         c = codec()
         self.out = {}
@@ -119,8 +127,18 @@ class WorldNode(Node):
     def _input(self, name: str):
         def on_record(fields: dict) -> None:
             self._work += 1
+            self._input_time[name] = self.core.time
+            self._gave_up.discard(name)
             self.core.on_record(name, fields)
         return on_record
+
+    def lagging(self) -> list[str]:
+        """Inputs whose last record is more than max_lag behind the world's clock."""
+        if not self.max_lag:
+            return []
+        return [name for name, t in self._input_time.items()
+                if name in PACED and name not in self._gave_up
+                and self.core.time - t > self.max_lag]
 
     def _radio_stop(self, msg: Bool) -> None:
         self._work += 1
@@ -270,6 +288,17 @@ class WorldNode(Node):
                 continue
             if self._step_requests:
                 self._step_requests -= 1
+            late = self.lagging()
+            if late:  # the graph has fallen behind: let it catch up before time moves on
+                waited = time.monotonic()
+                while late and rclpy.ok() and time.monotonic() - waited < self.lag_patience:
+                    executor.spin_once(timeout_sec=0.002)
+                    late = self.lagging()
+                if late:
+                    self._gave_up.update(late)
+                    self.get_logger().warn(f'carrying on without {", ".join(late)} (no record '
+                                           f'for {self.lag_patience:g} s)')
+                wall0, sim0 = time.monotonic(), self.core.time
             self.publish_step(self.core.step())
             if self.duration and self.core.time >= self.duration:
                 self.get_logger().info(f'duration {self.duration:g} s reached')

@@ -1,0 +1,88 @@
+"""agv-diag: the maintenance display in a terminal - a live table of /diagnostics.
+
+One row per sub-system: level, the reason, record rate, age and rejects; `--detail NAME` adds
+the 32 bytes in and out (hex and decoded) of one sub-system, the "key in the sub-system number"
+display of thesis 8.2.2. `--once` prints one table and exits (scripts and tests).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from diagnostic_msgs.msg import DiagnosticArray
+import rclpy
+
+from agv_nodes import qos
+
+LEVELS = {0: 'OK', 1: 'WARN', 2: 'ERROR', 3: 'STALE'}
+COLOURS = {0: '\033[32m', 1: '\033[33m', 2: '\033[31m', 3: '\033[35m'}
+
+
+def level_of(status) -> int:
+    """DiagnosticStatus.level is a bytes object in rclpy."""
+    return status.level[0] if isinstance(status.level, (bytes, bytearray)) else int(status.level)
+
+
+def render(msg: DiagnosticArray, detail: str | None = None, colour: bool = True) -> str:
+    """The table for one DiagnosticArray."""
+    lines = [f'{"sub-system":16s} {"level":6s} {"rate Hz":>8s} {"age s":>7s} {"rejects":>8s}  '
+             'reason']
+    for st in msg.status:
+        values = {kv.key: kv.value for kv in st.values}
+        lvl = level_of(st)
+        name = LEVELS.get(lvl, str(lvl))
+        if colour:
+            name = f'{COLOURS.get(lvl, "")}{name:6s}\033[0m'
+        lines.append(f'{st.hardware_id:16s} {name:6s} {values.get("rate (Hz)", "-"):>8s} '
+                     f'{values.get("age (s)", "-"):>7s} {values.get("rejected", "-"):>8s}  '
+                     f'{st.message}')
+        if detail and st.hardware_id == detail:
+            for key in ('in (hex)', 'in', 'out (hex)', 'out', 'rejects by reason',
+                        'last rejection'):
+                if key in values:
+                    lines.append(f'    {key:18s} {values[key]}')
+    return '\n'.join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of agv-diag."""
+    ap = argparse.ArgumentParser(prog='agv-diag', description=__doc__.splitlines()[0])
+    ap.add_argument('--detail', help='sub-system whose 32 bytes to show')
+    ap.add_argument('--once', action='store_true', help='print one table and exit')
+    ap.add_argument('--timeout', type=float, default=30.0, help='with --once: give up after')
+    args, ros_args = ap.parse_known_args(argv)
+    rclpy.init(args=['agv-diag', *ros_args])
+    node = rclpy.create_node('agv_diag')
+    got: list[DiagnosticArray] = []
+    node.create_subscription(DiagnosticArray, '/diagnostics', got.append, qos.EVENTS)
+    code = 0
+    try:
+        if args.once:
+            import time
+
+            deadline = time.monotonic() + args.timeout
+            while not got and time.monotonic() < deadline:
+                rclpy.spin_once(node, timeout_sec=0.1)
+            if not got:
+                print('agv-diag: no /diagnostics received', file=sys.stderr)
+                code = 1
+            else:
+                print(render(got[-1], args.detail, colour=False))
+        else:
+            while rclpy.ok():
+                rclpy.spin_once(node, timeout_sec=0.2)
+                if got:
+                    sys.stdout.write('\033[2J\033[H' + render(got[-1], args.detail) + '\n')
+                    sys.stdout.flush()
+                    got.clear()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,148 @@
+"""Route-following benchmark (issue 6): guide wire on demo_1983, SRM landings, camera guidance.
+
+- Guide wire: lateral error of the sensor point along the demo route (straights and the
+  R = 2.5 m arc) at 0.7 and 1.0 m/s (thesis: +-1 cm).
+- SRM: landing offset on wire B 10 s after leaving wire A at L1, by angle and speed.
+- Camera (Rajagopalan 1991, CONCIC-II on tape): steady error on the R = 2.95 m circle, and a
+  0.065 m lateral step of a straight tape at 0.31-0.79 m/s: overshoot, 5 mm settling time,
+  steady error (thesis: ~10 % overshoot, back within 5 mm in ~3 s at 0.63 m/s, 5 mm steady).
+
+Run: .venv/bin/python bench/route_bench.py
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+from agv_nodes.harness import Harness
+from agv_nodes.route_following.camera_guidance import SteeringParams
+from agv_nodes.route_following.core import RouteCore, RouteParams
+from agv_nodes.traction.core import TractionCore
+from agv_nodes.world.core import WorldCore, WorldParams
+from agv_nodes.world.layout import build_path, layout_path, load_layout
+
+
+class Executive:
+    node, period = 'executive', 0.05
+
+    def __init__(self, demand: int = 0, mode: str = 'follow_wire') -> None:
+        self.demand, self.mode, self.manoeuvre, self.angle = demand, mode, 0, 0
+
+    def on_record(self, *args):
+        return None
+
+    def tick(self, now):
+        out = {'route_command': dict(mode=self.mode, srm_angle=self.angle, junction='straight',
+                                     manoeuvre=self.manoeuvre)}
+        if self.mode != 'camera':
+            out['traction_command'] = dict(manual=0, manual_speed=0, reverse=0,
+                                           demand=self.demand if now > 0.3 else 0,
+                                           executive_priority=0)
+        return out
+
+
+def wire_errors(demand: int) -> tuple[float, float, float]:
+    world = WorldCore(load_layout(layout_path('demo_1983')), WorldParams(seed=3))
+    route = RouteCore()
+    h = Harness(world, [Executive(demand), TractionCore(), route])
+    worst = rms = n = 0.0
+    while route.state != 'lost' and h.now < 60:
+        h.step()
+        if h.now > 3 and world.sample % 17 == 0:
+            e = abs(world.nearest_path_offset(*world.vehicle.sensor_point))
+            worst, rms, n = max(worst, e), rms + e * e, n + 1
+    return worst * 1000, math.sqrt(rms / n) * 1000, world.vehicle.state.speed
+
+
+def srm(angle: int, demand: int) -> tuple[str, float]:
+    world = WorldCore(load_layout(layout_path('demo_1983')), WorldParams(seed=3))
+    ex, route = Executive(demand), RouteCore()
+    h = Harness(world, [ex, TractionCore(), route])
+    start = None
+    while h.now < 150:
+        h.step()
+        sx, sy = world.vehicle.sensor_point
+        if start is None and sy > 4.5 and sx < 8.5:
+            ex.mode, ex.manoeuvre, ex.angle, start = 'srm', 1, angle, h.now
+        if start is not None and h.now > start + 10:
+            break
+    _sx, sy = world.vehicle.sensor_point
+    return route.state, (sy - 4.0) * 1000
+
+
+def camera_circle(law: str, gain_i: float, speed: float) -> float:
+    world = WorldCore(load_layout(layout_path('tape_1991')), WorldParams(seed=2))
+    route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed,
+                                  steering=SteeringParams(law=law, gain_i=gain_i)))
+    h = Harness(world, [Executive(mode='camera'), route])
+    h.run(20.0)
+    errors = []
+    for _ in range(20):
+        h.run(0.5)
+        s = world.vehicle.state
+        errors.append(world.nearest_path_offset(s.x + 0.64 * math.cos(s.heading),
+                                                s.y + 0.64 * math.sin(s.heading)))
+    return 1000 * sum(abs(e) for e in errors) / len(errors)
+
+
+def camera_step(law: str, gain_i: float, speed: float) -> tuple[float, float, float]:
+    """A straight tape that jumps 0.065 m sideways: overshoot %, 5 mm settle (s), steady mm."""
+    lay = load_layout(layout_path('tape_1991'))
+    step_at = 6.0
+    a = build_path('a', [-1.0, 0.0, 0.0], [{'straight': step_at + 1.0}], 0.02, lay.file, 'a',
+                   width=0.03)
+    b = build_path('b', [step_at + 1.0, 0.065, 0.0], [{'straight': 30.0}], 0.02, lay.file,
+                   'b', width=0.03)
+    lay.paths = {'a': a, 'b': b}
+    lay.start_path, lay.start_at = 'a', 1.0
+    world = WorldCore(lay, WorldParams(seed=2))
+    route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed,
+                                  steering=SteeringParams(law=law, gain_i=gain_i)))
+    h = Harness(world, [Executive(mode='camera'), route])
+    trace = []
+    while h.now < 40:
+        h.step()
+        if world.sample % 17 == 0:
+            s = world.vehicle.state
+            cx = s.x + 0.64 * math.cos(s.heading)
+            cy = s.y + 0.64 * math.sin(s.heading)
+            if cx > step_at + 1.0:
+                trace.append((h.now, cy - 0.065))
+    t0 = trace[0][0]
+    overshoot = 100 * max(0.0, max(e for _t, e in trace)) / 0.065
+    outside = [t for t, e in trace if abs(e) > 0.005]
+    settle = (outside[-1] - t0) if outside else 0.0
+    steady = 1000 * sum(abs(e) for _t, e in trace[-50:]) / 50
+    return overshoot, settle, steady
+
+
+def main() -> int:
+    print('Guide wire on demo_1983 (sensor point to the wire)\n')
+    print('| demand (%) | speed (m/s) | max error (mm) | rms error (mm) |\n|---|---|---|---|')
+    for demand in (55, 80):
+        worst, rms, speed = wire_errors(demand)
+        print(f'| {demand} | {speed:.2f} | {worst:.1f} | {rms:.1f} |', flush=True)
+    print('\nSRM from wire A at L1 onto wire B (10 s after leaving)\n')
+    print('| angle (deg) | speed | state | offset on B (mm) |\n|---|---|---|---|')
+    for angle in (10, 15, 20):
+        for demand, label in ((27, '0.3 m/s'), (55, '0.7 m/s')):
+            state, offset = srm(angle, demand)
+            print(f'| {angle} | {label} | {state} | {offset:+.1f} |', flush=True)
+    print('\nCamera guidance, circle R = 2.95 m (mean |eps| at the camera, after 20 s)\n')
+    print('| law | speed (m/s) | mean error (mm) |\n|---|---|---|')
+    for law, gain_i in (('p', 0.0), ('pi', 0.07)):
+        for speed in (0.31, 0.63):
+            print(f'| {law} | {speed} | {camera_circle(law, gain_i, speed):.1f} |', flush=True)
+    print('\nCamera guidance, 0.065 m step of a straight tape\n')
+    print('| law | speed (m/s) | overshoot (%) | within 5 mm after (s) | steady error (mm) |\n'
+          '|---|---|---|---|---|')
+    for law, gain_i in (('p', 0.0), ('pi', 0.07)):
+        for speed in (0.31, 0.47, 0.63, 0.79):
+            o, t, e = camera_step(law, gain_i, speed)
+            print(f'| {law} | {speed} | {o:.1f} | {t:.2f} | {e:.1f} |', flush=True)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

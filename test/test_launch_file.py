@@ -1,0 +1,93 @@
+"""launch/agv_demo.launch.py starts exactly what agv-launch starts (launch is not on PyPI, so
+the launch API is stubbed to record what the file asks for)."""
+
+from __future__ import annotations
+
+import runpy
+import sys
+import types
+
+import pytest
+
+from agv_nodes.launcher import Launch, Options, load_graph, node_parameters
+
+from conftest import REPO
+
+
+class Recorded:
+    def __init__(self, *args, **kwargs) -> None:
+        self.args, self.kwargs = args, kwargs
+
+
+class LaunchConfiguration:
+    values: dict[str, str] = {}
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+
+    def perform(self, context) -> str:
+        return self.values[self.name]
+
+
+@pytest.fixture
+def launch_api(monkeypatch):
+    modules = {
+        'launch': types.SimpleNamespace(LaunchDescription=Recorded),
+        'launch.actions': types.SimpleNamespace(DeclareLaunchArgument=Recorded,
+                                                OpaqueFunction=Recorded),
+        'launch.substitutions': types.SimpleNamespace(LaunchConfiguration=LaunchConfiguration),
+        'launch_ros': types.SimpleNamespace(),
+        'launch_ros.actions': types.SimpleNamespace(Node=Recorded),
+    }
+    for name, module in modules.items():
+        monkeypatch.setitem(sys.modules, name, module)
+    return modules
+
+
+def nodes_from_launch_file(**overrides) -> list[Recorded]:
+    ns = runpy.run_path(str(REPO / 'launch' / 'agv_demo.launch.py'))
+    description = ns['generate_launch_description']()
+    actions = description.args[0]
+    declared = {a.args[0]: a.kwargs['default_value'] for a in actions
+                if a.kwargs.get('default_value') is not None}
+    LaunchConfiguration.values = {**declared, **overrides}
+    opaque = next(a for a in actions if 'function' in a.kwargs)
+    return opaque.kwargs['function'](None)
+
+
+@pytest.mark.parametrize('overrides, options', [
+    ({}, Options()),
+    ({'namespace': '/agv2', 'world': 'none', 'record_integrity': 'none', 'time_factor': '3.0'},
+     Options(namespace='/agv2', world='none', record_integrity='none', time_factor=3.0)),
+    ({'bag': '/tmp/agv_launch_file_test_bag'},
+     Options(bag=__import__('pathlib').Path('/tmp/agv_launch_file_test_bag'))),
+])
+def test_launch_file_matches_agv_launch(launch_api, overrides, options):
+    nodes = nodes_from_launch_file(**overrides)
+    launch = Launch(options)
+    expected = launch.specs()
+    assert [n.kwargs['name'] for n in nodes] == [s.name for s in expected]
+    graph = load_graph()
+    for node, spec in zip(nodes, expected, strict=True):
+        assert node.kwargs['package'] == 'agv_nodes'
+        assert node.kwargs['executable'] == spec.executable
+        assert node.kwargs['namespace'] == options.namespace
+        params_file, params = node.kwargs['parameters']
+        assert params_file == str(graph.parameters)
+        assert params == node_parameters(graph, spec, options)
+        # and agv-launch puts the same values on the command line
+        cmd = launch.command(spec)
+        for name in params:
+            assert any(c.startswith(f'{name}:=') for c in cmd), (spec.name, name)
+
+
+def test_every_node_script_is_in_the_graph():
+    import ast
+
+    tree = ast.parse((REPO / 'setup.py').read_text())
+    call = next(n for n in ast.walk(tree) if isinstance(n, ast.Call)
+                and getattr(n.func, 'id', '') == 'setup')
+    kw = {k.arg: k.value for k in call.keywords}
+    scripts = [e.split('=')[0].strip() for e in ast.literal_eval(kw['entry_points'])[
+        'console_scripts'] if not e.startswith('agv-')]
+    assert sorted(scripts) == sorted(n.executable for n in load_graph().nodes)
