@@ -47,7 +47,7 @@ def test_quick_demo_tasks_and_stops(quick):
     assert all(-20 <= s['error_mm'] <= 80 for s in report['stops'])
     assert [x['marker'] for x in report['loads']] == ['W0.1', 'W2.1']
     for png in ('speed.png', 'path.png', 'stops.png', 'records.png', 'faults.png'):
-        assert (quick / 'report' / png).stat().st_size > 5000
+        assert (quick / 'report' / png).stat().st_size > 1000  # a real PNG, drawn
     assert 'Stops' in (quick / 'report' / 'summary.md').read_text()
 
 

@@ -168,3 +168,37 @@ def test_camera_guidance_follows_the_circle(law, gain_i, limit_mm):
     cx, cy = s.x + 0.64 * math.cos(s.heading), s.y + 0.64 * math.sin(s.heading)
     assert abs(world.nearest_path_offset(cx, cy)) * 1000 < limit_mm
     assert route.state == 'following' and s.speed > 0.4
+
+
+class SignWatcher(CameraExec):
+    """Collects the branch flags route_status carries when a road sign has been passed."""
+
+    def __init__(self) -> None:
+        self.signs: list[str | None] = []
+        self._in_sign = False
+
+    def on_record(self, record, fields, now):
+        from agv_nodes.route_following.camera_guidance import sign_name
+
+        if record != 'route_status':
+            return None
+        if fields['state'] == 'sign':
+            self._in_sign = True
+        elif self._in_sign:
+            self._in_sign = False
+            self.signs.append(sign_name(fields['sign_left'], fields['sign_right'],
+                                        fields['sign_straight']))
+        return None
+
+
+@pytest.mark.parametrize('speed', [0.16, 0.47, 0.79])
+def test_road_signs_decoded_at_every_junction(speed):
+    """Thesis 4.3: the width jump flags a sign, edge columns give the branches (100 %)."""
+    lay = load_layout(layout_path('tape_1991'))
+    world = WorldCore(lay, WorldParams(seed=5))
+    watcher = SignWatcher()
+    route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed))
+    h = Harness(world, [watcher, route])
+    h.run(lay.paths['circle'].length / speed + 2.0)
+    assert watcher.signs == [s['type'] for s in lay.signs]
+    assert route.state == 'following'

@@ -33,3 +33,53 @@ def test_world_node_publishes_adc_at_340_hz_of_sim_time():
     rate = state['adc'] / elapsed
     assert rate == pytest.approx(340.0, rel=0.01), state
     assert state['speed'] > 300  # the test publisher's drive record moved the truck (mm/s)
+
+
+def test_world_pause_step_resume_services():
+    """~/pause freezes /clock, ~/step advances one sample, ~/resume lets time run again."""
+    import rclpy
+    from rosgraph_msgs.msg import Clock
+    from std_srvs.srv import Trigger
+
+    world = subprocess.Popen([WORLD, '--ros-args', '-p', 'layout:=straight_track',
+                              '-p', 'time_factor:=1.0', '-p', 'duration:=60.0'],
+                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    rclpy.init()
+    node = rclpy.create_node('world_service_probe')
+    clock = {'t': 0.0}
+    node.create_subscription(Clock, '/clock', lambda m: clock.__setitem__(
+        't', m.clock.sec + m.clock.nanosec * 1e-9), 10)
+    clients = {name: node.create_client(Trigger, f'/world/{name}')
+               for name in ('pause', 'step', 'resume')}
+
+    def call(name: str) -> Trigger.Response:
+        future = clients[name].call_async(Trigger.Request())
+        rclpy.spin_until_future_complete(node, future, timeout_sec=10.0)
+        return future.result()
+
+    def spin(seconds: float) -> None:
+        end = __import__('time').monotonic() + seconds
+        while __import__('time').monotonic() < end:
+            rclpy.spin_once(node, timeout_sec=0.02)
+
+    try:
+        for client in clients.values():
+            assert client.wait_for_service(timeout_sec=30.0)
+        spin(0.5)
+        assert clock['t'] > 0.0
+        assert call('pause').success
+        spin(0.3)
+        frozen = clock['t']
+        spin(0.5)
+        assert clock['t'] == frozen  # paused: time stands still
+        assert call('step').success
+        spin(0.3)
+        assert clock['t'] == pytest.approx(frozen + 1 / 340, abs=1e-6)  # exactly one sample
+        assert call('resume').success
+        spin(0.5)
+        assert clock['t'] > frozen + 0.2
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+        world.terminate()
+        world.wait(timeout=20)

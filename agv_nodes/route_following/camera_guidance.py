@@ -51,6 +51,15 @@ class ImageParams:
     saturated_fraction: float = 0.7  # dark pixels beyond this fraction: a saturated frame
 
 
+SIGNS = {(1, 0, 0): 'P11', (0, 1, 0): 'P12', (1, 0, 1): 'P21', (0, 1, 1): 'P22',
+         (1, 1, 0): 'R1', (1, 1, 1): 'R2'}  # (left, right, straight): digest 1.6 table
+
+
+def sign_name(left: int, right: int, straight: int) -> str | None:
+    """The road sign a set of branch flags decodes to (thesis fig 4.3), or None."""
+    return SIGNS.get((int(left), int(right), int(straight)))
+
+
 def runs_of(row: np.ndarray) -> list[tuple[int, int]]:
     """Pass 1 (run-length table): (start column, length) of each dark run in a row."""
     padded = np.concatenate(([0], row.astype(np.int8), [0]))

@@ -181,10 +181,15 @@ class Layout:
     rig: dict[str, Any] = field(default_factory=dict)
     route_limit: float = 0.0  # m of travel per task before the world reports a limit (0 = none)
     description: str = ''
+    signs: list[dict[str, Any]] = field(default_factory=list)  # junction road signs (tape)
 
 
 _TOP_KEYS = {'layout', 'description', 'vehicle', 'kind', 'wires', 'tapes', 'markers',
-             'stations', 'start', 'sensor', 'rig', 'route_limit', 'step'}
+             'stations', 'start', 'sensor', 'rig', 'route_limit', 'step', 'signs'}
+# Road-sign primitives (Rajagopalan 4.3, digest 1.6): which branches a junction offers.
+SIGN_BRANCHES = {'P11': ('left',), 'P12': ('right',), 'P21': ('left', 'straight'),
+                 'P22': ('right', 'straight'), 'R1': ('left', 'right'),
+                 'R2': ('left', 'right', 'straight')}
 
 
 def _num(value: Any, file: Path, key: str, lo: float | None = None,
@@ -254,6 +259,8 @@ def load_layout(file: Path | str) -> Layout:
         card['yaw'] = rig.get('angle', 0.0)
     markers = [_load_marker(m, i, file, paths, stations, card, sensor_lateral)
                for i, m in enumerate(doc.get('markers') or [])]
+    signs = [_add_sign(spec, i, file, paths, step) for i, spec in enumerate(doc.get('signs')
+                                                                              or [])]
     start = doc.get('start') or {}
     start_path = str(start.get('path', next(iter(paths))))
     if start_path not in paths:
@@ -267,7 +274,7 @@ def load_layout(file: Path | str) -> Layout:
                                         -90.0, 90.0)),
         sensor_lateral=sensor_lateral, kind=kind, rig=rig,
         route_limit=_num(doc.get('route_limit', 0.0), file, 'route_limit', 0.0, 1e4),
-        description=' '.join(str(doc.get('description', '')).split()))
+        description=' '.join(str(doc.get('description', '')).split()), signs=signs)
     if kind == 'rig':
         _check_rig(layout, file)
     return layout
@@ -318,6 +325,37 @@ def _load_marker(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
     m.normal = np.array([-math.sin(h + m.yaw), math.cos(h + m.yaw)])
     m.along = np.array([math.cos(h + m.yaw), math.sin(h + m.yaw)])
     return m
+
+
+def _add_sign(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
+              step: float) -> dict[str, Any]:
+    """A road sign on a tape: a wider patch before the junction, and a short tape stub for
+    each turning branch (the camera sees the width jump, then the stub at column 0 or 127)."""
+    key = f'signs[{i}]'
+    if not isinstance(spec, dict):
+        raise LayoutError(f'{file}: key {key}: {spec!r} must be a mapping')
+    kind = spec.get('type')
+    if kind not in SIGN_BRANCHES:
+        raise LayoutError(f'{file}: key {key}.type: {kind!r} not one of {list(SIGN_BRANCHES)}')
+    pid = str(spec.get('path', ''))
+    if pid not in paths or paths[pid].width == 0.0:
+        raise LayoutError(f'{file}: key {key}.path: {pid!r} is no tape')
+    tape = paths[pid]
+    at = _num(spec.get('at'), file, f'{key}.at', 0.3, tape.length)
+    patch = _num(spec.get('patch', 0.15), file, f'{key}.patch', 0.05, 0.5)
+    x, y, h = tape.pose_at(at - patch)
+    paths[f'sign{i}_patch'] = build_path(f'sign{i}_patch', [x, y, math.degrees(h)],
+                                         [{'straight': patch}], step, file, key,
+                                         width=tape.width * 1.6)
+    jx, jy, jh = tape.pose_at(at)
+    for branch in SIGN_BRANCHES[kind]:
+        if branch == 'straight':
+            continue
+        turn = math.pi / 2 if branch == 'left' else -math.pi / 2
+        paths[f'sign{i}_{branch}'] = build_path(
+            f'sign{i}_{branch}', [jx, jy, math.degrees(jh + turn)], [{'straight': 0.35}], step,
+            file, key, width=tape.width)
+    return {'type': kind, 'path': pid, 'at': at, 'branches': SIGN_BRANCHES[kind]}
 
 
 def _check_rig(layout: Layout, file: Path) -> None:

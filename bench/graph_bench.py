@@ -1,0 +1,119 @@
+"""Live-graph benchmark (issue 8): the nine processes over DDS at a given time factor.
+
+Runs the demo graph with the recorder for a while with the truck cruising (task
+"srm at 1 angle 15" keeps it moving), samples each process's CPU from /proc, then reads the
+bag: the ADC rate held at the position sensor (its own sample counter in
+position_sensor_status, against the world's 340 Hz), snapshots lost (counter gaps), and the
+worst gaps of the records that carry the control loop. Also times the lock-step harness on
+the whole demonstration programme (real-time factor without DDS).
+
+Run: .venv/bin/python bench/graph_bench.py [--seconds 30] [--time-factor 1.0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+import statistics
+import sys
+import tempfile
+import time
+
+from agv_nodes.harness import DEMO_PROGRAMME, submit, truck
+from agv_nodes.launcher import Launch, Options
+
+
+def cpu_seconds(pid: int) -> float:
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def live(seconds: float, time_factor: float) -> None:
+    out = Path(tempfile.mkdtemp(prefix='agv_graph_bench_'))
+    launch = Launch(Options(time_factor=time_factor, bag=out / 'bag', quiet=True))
+    os.environ.update(ROS_DOMAIN_ID=str(launch.domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    import rclpy
+    from std_msgs.msg import String
+
+    from agv_nodes import qos
+
+    rclpy.init()
+    node = rclpy.create_node('graph_bench')
+    pub = node.create_publisher(String, 'comms/task', qos.EVENTS)
+    launch.start()
+    while not launch.moving.is_set() or pub.get_subscription_count() == 0:
+        rclpy.spin_once(node, timeout_sec=0.1)
+    pub.publish(String(data='srm at 1 angle 15'))
+    time.sleep(3.0)
+    c0 = {n: cpu_seconds(p.pid) for n, p in launch.procs.items()}
+    t0 = time.monotonic()
+    time.sleep(seconds)
+    c1 = {n: cpu_seconds(p.pid) for n, p in launch.procs.items()}
+    wall = time.monotonic() - t0
+    node.destroy_node()
+    rclpy.try_shutdown()
+    launch.stop()
+    print(f'Live graph, time_factor {time_factor:g}, {seconds:.0f} s measured\n')
+    print('| process | CPU (% of one core) |\n|---|---|')
+    for name in sorted(c0, key=lambda n: c0[n] - c1[n]):
+        print(f'| {name} | {100 * (c1[name] - c0[name]) / wall:.1f} |')
+    print(f'| all | {100 * sum(c1[n] - c0[n] for n in c0) / wall:.1f} |')
+    from agv_nodes.report import read_bag
+
+    data = read_bag(out / 'bag')
+    status = data['records']['position_sensor_status']
+    counts = [f['sample_count'] for _t, f in status]
+    times = [t for t, _f in status]
+    processed = (counts[-1] - counts[0]) % 65536
+    adc = data['records']['adc_snapshot']
+    sim_span = adc[-1][0] - adc[0][0]
+    published = len(adc)
+    print('\n| measure | value |\n|---|---|')
+    print(f'| simulated seconds recorded | {sim_span:.1f} |')
+    print(f'| achieved real-time factor | {sim_span / (wall + 3.0):.2f} (asked {time_factor:g})'
+          ' |')
+    print(f'| ADC snapshots published (bag) per sim s | {published / sim_span:.1f} |')
+    rate = processed / (times[-1] - times[0])
+    print(f'| ADC snapshots processed by position_sensor per sim s | {rate:.1f} |')
+    lost = max(0, round(published * (times[-1] - times[0]) / sim_span) - processed)
+    print(f'| snapshots not processed (lost) | {lost} ({100 * lost / max(published, 1):.2f} %)'
+          ' |')
+    for record in ('traction_drive', 'traction_link', 'position_sensor_status',
+                   'navigation_status', 'steering_command'):
+        ts = [t for t, _f in data['records'][record]]
+        gaps = sorted(b - a for a, b in zip(ts, ts[1:], strict=False))
+        p99 = gaps[int(0.99 * (len(gaps) - 1))]
+        print(f'| {record} interval p50 / p99 / max (ms, sim) | '
+              f'{1000 * statistics.median(gaps):.1f} / {1000 * p99:.1f} / '
+              f'{1000 * gaps[-1]:.1f} |')
+
+
+def lockstep() -> None:
+    h = truck('demo_1983', seed=1)
+    for text in DEMO_PROGRAMME:
+        submit(h, text)
+    comms, ex = h.cores['communications'], h.cores['executive']
+    t0 = time.perf_counter()
+    while comms.queue or ex.mode == 'running':
+        h.step()
+    wall = time.perf_counter() - t0
+    print('\n| lock-step harness, whole demonstration programme | value |\n|---|---|')
+    print(f'| simulated | {h.now:.1f} s |\n| wall | {wall:.1f} s |\n'
+          f'| real-time factor | {h.now / wall:.1f}x |')
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--seconds', type=float, default=30.0)
+    ap.add_argument('--time-factor', type=float, default=1.0)
+    ap.add_argument('--no-live', action='store_true')
+    args = ap.parse_args()
+    if not args.no_live:
+        live(args.seconds, args.time_factor)
+    lockstep()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
