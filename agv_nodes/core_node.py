@@ -20,7 +20,7 @@ from rclpy.node import Node
 from std_msgs.msg import Bool
 
 from agv_nodes import qos
-from agv_nodes.params import ParameterError
+from agv_nodes.params import ParameterError, Parameters
 from agv_nodes.records import codec
 from agv_nodes.ros_ports import RecordPublisher, RecordSubscription
 
@@ -28,8 +28,11 @@ from agv_nodes.ros_ports import RecordPublisher, RecordSubscription
 class CoreNode(Node):
     """A node around one core; subclasses declare parameters and build the core."""
 
-    def attach(self, core: Any, integrity: str) -> None:
-        """Create the core's ports and timer."""
+    def attach(self, core: Any, params: Parameters) -> None:
+        """Declare record_integrity, then create the core's ports and timer."""
+        integrity = params.choice('record_integrity', 'e2e', 'end-to-end protection of the '
+                                  'inter-processor records (none: a legacy peer sending plain '
+                                  'thesis records)', ('e2e', 'none'))
         self.core = core
         reads, writes = codec().for_node(core.node)
         self.writers = {s.name: RecordPublisher(self, s, integrity) for s in writes}
@@ -91,11 +94,13 @@ def make_executor() -> Any:
 
 
 def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
-              executor: Callable[[], Any] | None = None) -> int:
+              executor: Callable[[], Any] | None = None,
+              run: Callable[[Any, Any], int] | None = None) -> int:
     """The rclpy main() idiom for one node: init, spin, clean shutdown, exit status.
 
     A ParameterError (bad value or parameter file) ends start-up with its one-line message
-    and exit status 2; SIGINT and SIGTERM end the spin cleanly.
+    and exit status 2; SIGINT and SIGTERM end the spin cleanly. `run(node, executor)` replaces
+    the plain spin for a node with a loop of its own (the world).
     """
     rclpy.init(args=args)
     node = None
@@ -104,7 +109,10 @@ def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
         node = make_node()
         spinner = executor() if executor is not None else make_executor()
         spinner.add_node(node)
-        spinner.spin()
+        if run is not None:
+            code = run(node, spinner)
+        else:
+            spinner.spin()
     except ParameterError as exc:
         print(exc, file=sys.stderr)
         code = 2

@@ -28,10 +28,8 @@ class CommunicationsNode(CoreNode):
                               'identities on the floor')
         if not all(v.is_integer() and 0 <= v <= 31 for v in locations):
             p.fail('locations', locations, 'identities must be integers 0-31')
-        integrity = p.choice('record_integrity', 'e2e', 'end-to-end protection of the '
-                             'inter-processor records', ('e2e', 'none'))
         self.attach(CommunicationsCore(CommsParams(locations=tuple(int(v) for v in locations))),
-                    integrity)
+                    p)
         self.report_pub = self.create_publisher(String, 'comms/report', qos.EVENTS)
         self.create_subscription(String, 'comms/task', self._task, qos.EVENTS)
 

@@ -65,10 +65,8 @@ class ExecutiveNode(CoreNode):
                                         'direct link carry it', ('direct_link',
                                                                  'via_executive')),
         )
-        integrity = p.choice('record_integrity', 'e2e', 'end-to-end protection of the '
-                             'inter-processor records', ('e2e', 'none'))
         self.health = HealthMonitor(ep.status_timeout)
-        self.attach(ExecutiveCore(ep), integrity)
+        self.attach(ExecutiveCore(ep), p)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos.EVENTS)
         self.create_timer(1.0, self._diagnostics)
         self._logged = 0

@@ -21,9 +21,7 @@ class LoadHandlingNode(CoreNode):
         p = Parameters(self)
         lp = LoadParams(align_wait=p.number('align_wait', LoadParams().align_wait, 'seconds '
                                             'for the truck to come to rest aligned', 0.1, 60.0))
-        integrity = p.choice('record_integrity', 'e2e', 'end-to-end protection of the '
-                             'inter-processor records', ('e2e', 'none'))
-        self.attach(LoadHandlingCore(lp), integrity)
+        self.attach(LoadHandlingCore(lp), p)
 
 
 def main(args: list[str] | None = None) -> int:

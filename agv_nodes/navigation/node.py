@@ -41,9 +41,7 @@ class NavigationNode(CoreNode):
         )
         for name, value, reason in np_.check():
             p.fail(name, value, reason)
-        integrity = p.choice('record_integrity', 'e2e', 'end-to-end protection of the '
-                             'inter-processor records', ('e2e', 'none'))
-        self.attach(NavigationCore(np_), integrity)
+        self.attach(NavigationCore(np_), p)
 
 
 def main(args: list[str] | None = None) -> int:

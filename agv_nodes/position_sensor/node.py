@@ -44,9 +44,7 @@ class PositionSensorNode(CoreNode):
         )
         for name, value, reason in sp.check():
             p.fail(name, value, reason)
-        integrity = p.choice('record_integrity', 'e2e', 'end-to-end protection of the '
-                             'inter-processor records', ('e2e', 'none'))
-        self.attach(PositionSensorCore(sp), integrity)
+        self.attach(PositionSensorCore(sp), p)
 
 
 def main(args: list[str] | None = None) -> int:

@@ -63,9 +63,7 @@ class RouteFollowingNode(CoreNode):
             camera_speed=p.number('camera_speed', RouteParams().camera_speed, 'cruise speed in '
                                   'camera mode, m/s', 0.0, 1.2),
             wire=wire, image=image, steering=steering)
-        integrity = p.choice('record_integrity', 'e2e', 'end-to-end protection of the '
-                             'inter-processor records', ('e2e', 'none'))
-        self.attach(RouteCore(rp), integrity)
+        self.attach(RouteCore(rp), p)
         self.create_subscription(Image, 'hw/camera/front', self._frame, qos.STREAM_READER)
 
     def _frame(self, msg: Image) -> None:

@@ -49,9 +49,7 @@ class TractionNode(CoreNode):
                                5.0),
             max_jerk=p.number('max_jerk', d.max_jerk, 'closed loop: m/s^3 limit', 0.01, 50.0),
         )
-        integrity = p.choice('record_integrity', 'e2e', 'end-to-end protection of the '
-                             'inter-processor records', ('e2e', 'none'))
-        self.attach(TractionCore(tp), integrity)
+        self.attach(TractionCore(tp), p)
 
 
 def main(args: list[str] | None = None) -> int:

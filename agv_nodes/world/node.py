@@ -22,7 +22,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, PoseStamped
 from nav_msgs.msg import Path
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image
@@ -31,7 +31,8 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker, MarkerArray
 
 from agv_nodes import qos
-from agv_nodes.params import ParameterError, Parameters
+from agv_nodes.core_node import spin_main
+from agv_nodes.params import Parameters
 from agv_nodes.records import codec
 from agv_nodes.ros_ports import RecordPublisher, RecordSubscription
 from agv_nodes.world.core import WorldCore, WorldParams
@@ -312,24 +313,8 @@ class WorldNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Entry point: ros2 run agv_nodes world [--ros-args ...]."""
-    rclpy.init(args=args)
-    node = None
-    code = 0
-    try:
-        node = WorldNode()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        code = node.run(executor)
-    except ParameterError as exc:
-        print(exc, file=sys.stderr)
-        code = 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    return spin_main(WorldNode, args, executor=SingleThreadedExecutor,
+                     run=lambda node, executor: node.run(executor))
 
 
 if __name__ == '__main__':
