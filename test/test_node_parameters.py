@@ -1,0 +1,61 @@
+"""A bad parameter value or file stops a node at start-up with one line naming file, key, value."""
+
+from __future__ import annotations
+
+from pathlib import Path
+import subprocess
+
+import pytest
+
+from conftest import PYTHON, REPO
+
+BIN = Path(PYTHON).parent
+
+
+@pytest.mark.parametrize('node, key, value, words', [
+    ('traction', 'record_integrity', 'maybe', "not one of ['e2e', 'none']"),
+    ('traction', 'command_timeout', '-1.0', 'outside'),
+    ('traction', 'control', 'fuzzy_logic', 'not one of'),
+    ('position_sensor', 'white_thresholds', '[1.0, 2.0]', 'needs exactly 8 values'),
+    ('position_sensor', 'min_consecutive_matches', '0', 'out of range'),  # rclpy's range check
+    ('navigation', 'stopping', 'anchor', 'not one of'),
+    ('route_following', 'wire_kp', 'fast', 'must be a number'),
+    ('executive', 'srm_map', "['1:99']", 'location:angle'),
+    ('communications', 'locations', '[0.5]', 'integers 0-31'),
+    ('world', 'layout', 'atlantis', 'atlantis.yaml'),
+    ('world', 'time_factor', '-2.0', 'outside 0.0..1000.0'),
+    ('recorder', 'bag', str(REPO), 'exists already'),
+])
+def test_bad_parameter_file_stops_start_up(tmp_path, node, key, value, words):
+    params = tmp_path / 'bad_params.yaml'
+    params.write_text(f'/**/{node}:\n  ros__parameters:\n    {key}: {value}\n')
+    res = subprocess.run([str(BIN / node), '--ros-args', '--params-file', str(params)],
+                         capture_output=True, text=True, timeout=60)
+    assert res.returncode == 2, res.stdout + res.stderr
+    line = res.stderr.strip().splitlines()[-1]
+    assert str(params) in line and repr(key) in line and words in line
+    assert 'Traceback' not in res.stderr
+
+
+def test_shipped_parameter_file_is_valid_for_every_node(tmp_path):
+    """Every node starts with config/agv_demo.yaml (and stops at once: duration / SIGINT)."""
+    import signal
+    import time
+
+    from agv_nodes.launcher import load_graph
+
+    graph = load_graph()
+    procs = []
+    for spec in graph.nodes:
+        extra = ['-p', f'bag:={tmp_path / "bag"}'] if spec.role == 'recorder' else []
+        procs.append((spec.name, subprocess.Popen(
+            [str(BIN / spec.executable), '--ros-args', '--params-file', str(graph.parameters),
+             '-p', 'use_sim_time:=true', *extra], stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT, text=True)))
+    time.sleep(4.0)
+    for name, proc in procs:
+        assert proc.poll() is None, f'{name} exited: {proc.stdout.read()}'
+        proc.send_signal(signal.SIGINT)
+    for name, proc in procs:
+        out, _ = proc.communicate(timeout=30)
+        assert proc.returncode == 0, f'{name}: {out[-2000:]}'
