@@ -265,7 +265,9 @@ class NavigationCore:
         self.stop_view = view
         if self.p.stopping == 'controlled':
             _code, _speed, to_go = STOP_VIEWS[view - 1]
-            self._target = self._odometer + (to_go - self.p.centre_lead) / 1000.0
+            # A view is first matched centre_lead mm before it is aligned (the snapshot turns
+            # valid ~6 mm early), so the stop point is that much further on.
+            self._target = self._odometer + (to_go + self.p.centre_lead) / 1000.0
             self._rest_since = None
             self._controlled(now)
             return

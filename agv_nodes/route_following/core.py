@@ -195,6 +195,12 @@ class RouteCore:
             if self._weak >= w.lost_samples:
                 self.state = 'lost'
                 self.steer = 0.0
+            elif self.speed < -0.01:
+                # Reversing (the slow overshoot correction of thesis 8.5 F5): the front-axle
+                # law would steer the wrong way with the front wheels trailing, so hold the
+                # wheels straight for these few centimetres.
+                self.steer = 0.0
+                self._prev_lateral = None
             elif self.state != 'lost':
                 self._steer_wire()
         elif self.mode == 'srm':

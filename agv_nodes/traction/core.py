@@ -62,11 +62,14 @@ class TractionParams:
     # closed loop
     kp: float = 40.0  # % duty per m/s of speed error
     ki: float = 60.0  # % duty per m of integrated speed error
-    max_accel: float = 0.5  # m/s^2 of the speed demand ramp
+    max_accel: float = 0.5  # m/s^2 of the speed demand ramp, speeding up
+    max_decel: float = 1.0  # m/s^2 of the ramp slowing down (plug braking helps friction)
     max_jerk: float = 2.0  # m/s^3
     v_per_percent: float = 1.0 / 75.0  # m/s per % above the 5 % dead band (spec 6.1 map)
     dead_band: float = 5.0  # %
     flip_hysteresis: float = 8.0  # %: smaller demands against the field coast instead
+    brake_margin: float = 0.08  # m/s over the demand before plug braking starts
+    brake_gain: float = 60.0  # % reverse duty per m/s of overspeed
     stop_decel: float = 0.30  # m/s^2 of the controlled-stop profile v = sqrt(2 a d)
     coast_decel: float = 0.50  # m/s^2 the truck loses coasting: the drive is cut this far out
 
@@ -125,6 +128,7 @@ class TractionCore:
         self._a_demand = 0.0
         self._integral = 0.0
         self.odometer = 0.0  # m, integrated wheel odometry
+        self._braking = False
         self.stop_target: float | None = None  # odometer reading of a requested stop
 
     # -- inputs -----------------------------------------------------------------------------
@@ -310,6 +314,13 @@ class TractionCore:
             self.state = 'run'
             self.wait_until = now + self.p.field_wait
             return
+        if self.state == 'flip_decay':  # FLIP, as in the listing: toggle, field on, wait
+            self.field_forward = not self.field_forward
+            self.field_off = False
+            self.state = 'flip_build'
+            self.wait_until = now + self.p.field_wait
+            return
+        self.state = 'run'
         if not self._getref():
             self._v_demand = self._a_demand = self._integral = 0.0
             return
@@ -337,16 +348,34 @@ class TractionCore:
         # Jerk- and acceleration-limited ramp of the speed demand toward the target.
         gap = target - self._v_demand
         stop_dist_a = self._a_demand * abs(self._a_demand) / (2 * p.max_jerk)
-        want_a = max(-p.max_accel, min(p.max_accel, (gap - stop_dist_a) * 4.0))
+        slowing = abs(target) < abs(self._v_demand)
+        limit = p.max_decel if slowing else p.max_accel
+        want_a = max(-limit, min(limit, (gap - stop_dist_a) * 4.0))
         da = max(-p.max_jerk * dt, min(p.max_jerk * dt, want_a - self._a_demand))
         self._a_demand += da
         step = self._a_demand * dt
         self._v_demand = (min(self._v_demand + step, target) if gap > 0
                           else max(self._v_demand + step, target))
         error = self._v_demand - self.measured_speed
-        self._integral = max(-1.0, min(1.0, self._integral + error * dt))
-        feed = (p.dead_band + abs(self._v_demand) / p.v_per_percent) if self._v_demand else 0.0
-        duty = (feed if self._v_demand >= 0 else -feed) + p.kp * error + p.ki * self._integral
+        way = 1.0 if (self._v_demand or self.measured_speed) >= 0 else -1.0
+        overspeed = -way * error  # how much faster than asked, in the direction of travel
+        # Braking latch: enter above brake_margin, leave once at (or below) the demand, so the
+        # field is not flipped back and forth (each FLIP costs two field waits).
+        if overspeed > p.brake_margin and abs(self.measured_speed) > 0.05:
+            self._braking = True
+        elif overspeed <= 0.0 or abs(self.measured_speed) <= 0.05:
+            self._braking = False
+        if self._braking:
+            # Braking mode: plug braking (reverse field) in proportion to the overspeed; the
+            # 1983 truck had only friction and this reverse-field hold (thesis 8.5).
+            self._integral = 0.0
+            duty = -way * min(p.max_duty, p.brake_gain * overspeed)
+        else:
+            self._integral = max(-1.0, min(1.0, self._integral + error * dt))
+            feed = (p.dead_band + abs(self._v_demand) / p.v_per_percent) if self._v_demand \
+                else 0.0
+            duty = (feed if self._v_demand >= 0 else -feed) + p.kp * error + \
+                p.ki * self._integral
         if target == 0.0 and abs(self._v_demand) < 1e-3 and abs(self.measured_speed) < 0.02:
             duty, self._integral = 0.0, 0.0  # at rest: no hold current
         duty = max(-p.max_duty, min(p.max_duty, round(duty)))
