@@ -1,5 +1,8 @@
 """Route-following benchmark (issue 6): guide wire on demo_1983, SRM landings, camera guidance.
 
+Run: .venv/bin/python bench/route_bench.py [wire] [srm] [circle] [step]
+
+
 - Guide wire: lateral error of the sensor point along the demo route (straights and the
   R = 2.5 m arc) at 0.7 and 1.0 m/s (thesis: +-1 cm).
 - SRM: landing offset on wire B 10 s after leaving wire A at L1, by angle and speed.
@@ -7,7 +10,6 @@
   0.065 m lateral step of a straight tape at 0.31-0.79 m/s: overshoot, 5 mm settling time,
   steady error (thesis: ~10 % overshoot, back within 5 mm in ~3 s at 0.63 m/s, 5 mm steady).
 
-Run: .venv/bin/python bench/route_bench.py
 """
 
 from __future__ import annotations
@@ -55,20 +57,26 @@ def wire_errors(demand: int) -> tuple[float, float, float]:
     return worst * 1000, math.sqrt(rms / n) * 1000, world.vehicle.state.speed
 
 
-def srm(angle: int, demand: int) -> tuple[str, float]:
+def srm(angle: int, demand: int) -> tuple[str, float, float]:
     world = WorldCore(load_layout(layout_path('demo_1983')), WorldParams(seed=3))
     ex, route = Executive(demand), RouteCore()
     h = Harness(world, [ex, TractionCore(), route])
-    start = None
+    start = landed = None
+    started = False
     while h.now < 150:
         h.step()
         sx, sy = world.vehicle.sensor_point
         if start is None and sy > 4.5 and sx < 8.5:
             ex.mode, ex.manoeuvre, ex.angle, start = 'srm', 1, angle, h.now
-        if start is not None and h.now > start + 10:
+        if start is not None and route.state in ('srm_running', 'wire_found'):
+            started = True
+        if started and route.mode == 'follow_wire' and landed is None:
+            landed = h.now
+        if landed is not None and h.now > landed + 5:
             break
     _sx, sy = world.vehicle.sensor_point
-    return route.state, (sy - 4.0) * 1000
+    took = (landed - start) if landed is not None and start is not None else float('nan')
+    return route.state, took, (sy - 4.0) * 1000
 
 
 def camera_circle(law: str, gain_i: float, speed: float) -> float:
@@ -86,19 +94,23 @@ def camera_circle(law: str, gain_i: float, speed: float) -> float:
     return 1000 * sum(abs(e) for e in errors) / len(errors)
 
 
-def camera_step(law: str, gain_i: float, speed: float) -> tuple[float, float, float]:
+def camera_step(law: str, gain_i: float, speed: float,
+                gain_theta: float = 0.0) -> tuple[float, float, float]:
     """A straight tape that jumps 0.065 m sideways: overshoot %, 5 mm settle (s), steady mm."""
     lay = load_layout(layout_path('tape_1991'))
     step_at = 6.0
-    a = build_path('a', [-1.0, 0.0, 0.0], [{'straight': step_at + 1.0}], 0.02, lay.file, 'a',
-                   width=0.03)
+    width = lay.paths['circle'].width
+    a = build_path('a', [-1.0, 0.0, 0.0], [{'straight': step_at + 2.0}], 0.02, lay.file, 'a',
+                   width=width)
     b = build_path('b', [step_at + 1.0, 0.065, 0.0], [{'straight': 30.0}], 0.02, lay.file,
-                   'b', width=0.03)
+                   'b', width=width)
     lay.paths = {'a': a, 'b': b}
+    lay.signs = []
     lay.start_path, lay.start_at = 'a', 1.0
     world = WorldCore(lay, WorldParams(seed=2))
     route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed,
-                                  steering=SteeringParams(law=law, gain_i=gain_i)))
+                                  steering=SteeringParams(law=law, gain_i=gain_i,
+                                                          gain_theta=gain_theta)))
     h = Harness(world, [Executive(mode='camera'), route])
     trace = []
     while h.now < 40:
@@ -118,29 +130,39 @@ def camera_step(law: str, gain_i: float, speed: float) -> tuple[float, float, fl
 
 
 def main() -> int:
-    print('Guide wire on demo_1983 (sensor point to the wire)\n')
-    print('| demand (%) | speed (m/s) | max error (mm) | rms error (mm) |\n|---|---|---|---|')
-    for demand in (55, 80):
-        worst, rms, speed = wire_errors(demand)
-        print(f'| {demand} | {speed:.2f} | {worst:.1f} | {rms:.1f} |', flush=True)
-    print('\nSRM from wire A at L1 onto wire B (10 s after leaving)\n')
-    print('| angle (deg) | speed | state | offset on B (mm) |\n|---|---|---|---|')
-    for angle in (10, 15, 20):
-        for demand, label in ((27, '0.3 m/s'), (55, '0.7 m/s')):
-            state, offset = srm(angle, demand)
-            print(f'| {angle} | {label} | {state} | {offset:+.1f} |', flush=True)
-    print('\nCamera guidance, circle R = 2.95 m (mean |eps| at the camera, after 20 s)\n')
-    print('| law | speed (m/s) | mean error (mm) |\n|---|---|---|')
-    for law, gain_i in (('p', 0.0), ('pi', 0.07)):
-        for speed in (0.31, 0.63):
-            print(f'| {law} | {speed} | {camera_circle(law, gain_i, speed):.1f} |', flush=True)
-    print('\nCamera guidance, 0.065 m step of a straight tape\n')
-    print('| law | speed (m/s) | overshoot (%) | within 5 mm after (s) | steady error (mm) |\n'
-          '|---|---|---|---|---|')
-    for law, gain_i in (('p', 0.0), ('pi', 0.07)):
-        for speed in (0.31, 0.47, 0.63, 0.79):
-            o, t, e = camera_step(law, gain_i, speed)
-            print(f'| {law} | {speed} | {o:.1f} | {t:.2f} | {e:.1f} |', flush=True)
+    only = sys.argv[1:] or ['wire', 'srm', 'circle', 'step']
+    if 'wire' in only:
+        print('Guide wire on demo_1983 (sensor point to the wire)\n')
+        print('| demand (%) | speed (m/s) | max error (mm) | rms error (mm) |\n|---|---|---|---|')
+        for demand in (55, 80):
+            worst, rms, speed = wire_errors(demand)
+            print(f'| {demand} | {speed:.2f} | {worst:.1f} | {rms:.1f} |', flush=True)
+    if 'srm' in only:
+        print('\nSRM from wire A at L1 onto wire B (offset 5 s after the capture ends)\n')
+        print('| angle (deg) | speed | state | leave to following (s) | offset on B (mm) |\n'
+              '|---|---|---|---|---|')
+        for angle in (10, 15, 20):
+            for demand, label in ((27, '0.3 m/s'), (55, '0.7 m/s')):
+                state, took, offset = srm(angle, demand)
+                print(f'| {angle} | {label} | {state} | {took:.1f} | {offset:+.1f} |',
+                      flush=True)
+    if 'circle' in only:
+        print('\nCamera guidance, circle R = 2.95 m (mean |eps| at the camera, after 20 s)\n')
+        print('| law | speed (m/s) | mean error (mm) |\n|---|---|---|')
+        for law, gain_i in (('p', 0.0), ('pi', 0.07)):
+            for speed in (0.31, 0.63):
+                print(f'| {law} | {speed} | {camera_circle(law, gain_i, speed):.1f} |',
+                      flush=True)
+    if 'step' in only:
+        print('\nCamera guidance, 0.065 m step of a straight tape (G_theta: orientation gain; '
+              'the thesis fed none back)\n')
+        print('| law | G_theta | speed (m/s) | overshoot (%) | within 5 mm after (s) | '
+              'steady error (mm) |\n|---|---|---|---|---|---|')
+        for law, gain_i, gain_theta in (('p', 0.0, 0.0), ('pi', 0.07, 0.0), ('p', 0.0, 0.3)):
+            for speed in (0.31, 0.47, 0.63, 0.79):
+                o, t, e = camera_step(law, gain_i, speed, gain_theta)
+                print(f'| {law} | {gain_theta} | {speed} | {o:.1f} | {t:.2f} | {e:.1f} |',
+                      flush=True)
     return 0
 
 
