@@ -190,7 +190,10 @@ class WorldCore:
 
     # -- sensors --------------------------------------------------------------------------
     def lens_pose(self) -> tuple[tuple[float, float], float]:
-        """Marker-sensor lens position and truck heading."""
+        """Marker-sensor lens position and truck heading (on the rig: the belt position)."""
+        if self.layout.kind == 'rig':
+            s = self.vehicle.state
+            return (s.x, s.y), s.heading
         sx, sy = self.vehicle.sensor_point
         h = self.vehicle.state.heading
         lat = self.layout.sensor_lateral
