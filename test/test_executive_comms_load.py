@@ -242,3 +242,28 @@ def test_diagnostics_rows_for_a_healthy_truck():
     assert nav['in (hex)'].startswith('0B00') and len(nav['in (hex)']) == 32
     assert len(nav['out (hex)']) == 32 and 'task_location=0' in nav['out']
     assert float(rows['traction'].values['rate (Hz)']) == pytest.approx(20, abs=2)
+
+
+def test_agv_diag_renders_the_32_byte_display():
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+    from agv_nodes.executive.diag_view import render
+
+    h = run_programme(['stop at 0 first'], limit=60)
+    ex = h.cores['executive']
+    member = next(m for m in h.members if m.core is ex)
+    monitor = HealthMonitor()
+    monitor.update(h.now, member.readers, member.writers, ex)
+    h.run(1.0)
+    msg = DiagnosticArray()
+    for row in monitor.update(h.now, member.readers, member.writers, ex):
+        msg.status.append(DiagnosticStatus(level=bytes([row.level]), name=f'agv/{row.name}',
+                                           message=row.message, hardware_id=row.name,
+                                           values=[KeyValue(key=k, value=v)
+                                                   for k, v in row.values.items()]))
+    table = render(msg, detail='navigation', colour=False)
+    lines = table.splitlines()
+    assert lines[0].split()[:2] == ['sub-system', 'level']
+    assert any(line.startswith('navigation') and ' OK ' in line for line in lines)
+    assert any('in (hex)' in line and '0B00' in line for line in lines)  # the 16 bytes in
+    assert any('out (hex)' in line for line in lines)
