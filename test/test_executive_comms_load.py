@@ -227,14 +227,19 @@ def test_missing_stop_marker_stops_at_the_positioning_limit():
     assert h.world.vehicle.state.speed == 0.0
 
 
-def test_diagnostics_rows_for_a_healthy_truck():
+def healthy_display() -> list:
+    """The executive's display after 'stop at 0 first' and one more second at rest."""
     h = run_programme(['stop at 0 first'], limit=60)
     ex = h.cores['executive']
     member = next(m for m in h.members if m.core is ex)
     monitor = HealthMonitor()
     monitor.update(h.now, member.readers, member.writers, ex)
     h.run(1.0)
-    rows = {r.name: r for r in monitor.update(h.now, member.readers, member.writers, ex)}
+    return monitor.update(h.now, member.readers, member.writers, ex)
+
+
+def test_diagnostics_rows_for_a_healthy_truck():
+    rows = {r.name: r for r in healthy_display()}
     assert set(rows) == {'navigation', 'traction', 'route', 'load', 'communications',
                          'executive'}
     assert all(r.level == OK for r in rows.values()), {n: r.message for n, r in rows.items()}
@@ -249,14 +254,8 @@ def test_agv_diag_renders_the_32_byte_display():
 
     from agv_nodes.executive.diag_view import render
 
-    h = run_programme(['stop at 0 first'], limit=60)
-    ex = h.cores['executive']
-    member = next(m for m in h.members if m.core is ex)
-    monitor = HealthMonitor()
-    monitor.update(h.now, member.readers, member.writers, ex)
-    h.run(1.0)
     msg = DiagnosticArray()
-    for row in monitor.update(h.now, member.readers, member.writers, ex):
+    for row in healthy_display():
         msg.status.append(DiagnosticStatus(level=bytes([row.level]), name=f'agv/{row.name}',
                                            message=row.message, hardware_id=row.name,
                                            values=[KeyValue(key=k, value=v)
