@@ -2,7 +2,12 @@
 
 It reads the graph description (config/graph.yaml) and the parameter file, and starts every
 node as its own process with the venv's python: `--ros-args -r __ns:=<namespace>
---params-file <file> -p use_sim_time:=... -p record_integrity:=...`. Output is prefixed with
+--params-file <file> --params-file <overrides>`, where the second file holds what the launch
+sets on top (use_sim_time, record_integrity, the world's wait lists, `-p NODE:NAME:=VALUE`).
+A second file, not `-p`: with rclpy 7.1 a node-specific entry of the parameter file
+(`/**/executive:`) beats a plain `-p name:=value`, so `-p` could not override the file; a later
+file's entry for the same node does, which is also how `ros2 launch` passes dict parameters
+(measured: test_launch_file.py). Output is prefixed with
 the node's name; SIGINT/SIGTERM are forwarded and the graph is shut down in order (world first,
 so time stops, recorder last, so the bag sees the end); a node that dies is reported with its
 exit status and ends the launch with a non-zero status (or is restarted with --respawn).
@@ -19,9 +24,11 @@ from dataclasses import dataclass, field
 import fcntl
 import os
 from pathlib import Path
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from typing import TextIO
@@ -122,13 +129,16 @@ def node_parameters(graph: Graph, spec: NodeSpec, options: Options) -> dict[str,
     return out
 
 
-def ros_arg(value: object) -> str:
-    """A parameter value as a --ros-args -p argument (YAML)."""
-    if isinstance(value, bool):
-        return 'true' if value else 'false'
-    if isinstance(value, list):
-        return '[' + ','.join(f"'{v}'" for v in value) + ']'
-    return str(value)
+def override_parameters(graph: Graph, spec: NodeSpec, options: Options) -> dict[str, object]:
+    """node_parameters() plus the node's `-p NAME:=VALUE` extras (values parsed as YAML)."""
+    out = node_parameters(graph, spec, options)
+    for arg in options.extra.get(spec.name, []):
+        name, _sep, text = arg.partition(':=')
+        try:
+            out[name] = yaml.safe_load(text) if text else ''
+        except yaml.YAMLError as exc:
+            raise GraphError(f'-p {spec.name}:{arg}: value is not YAML ({exc})') from exc
+    return out
 
 
 def claim_domain(explicit: int | None = None) -> tuple[int, TextIO | None]:
@@ -193,6 +203,7 @@ class Launch:
         self.lines: list[str] = []
         self._threads: list[threading.Thread] = []
         self._logs: dict[str, TextIO] = {}
+        self._overrides = Path(tempfile.mkdtemp(prefix='agv_launch_'))
 
     def specs(self) -> list[NodeSpec]:
         """Nodes to start, in order."""
@@ -212,12 +223,10 @@ class Launch:
         cmd += ['--ros-args', '-r', f'__node:={spec.name}']
         if self.o.namespace:
             cmd += ['-r', f'__ns:={self.o.namespace}']
-        cmd += ['--params-file', str(self.params)]
-        for name, value in node_parameters(self.graph, spec, self.o).items():
-            cmd += ['-p', f'{name}:={ros_arg(value)}']
-        for arg in self.o.extra.get(spec.name, []):
-            cmd += ['-p', arg]
-        return cmd
+        overrides = self._overrides / f'{spec.name}.yaml'
+        overrides.write_text(yaml.safe_dump({f'/**/{spec.name}': {'ros__parameters': (
+            override_parameters(self.graph, spec, self.o))}}))
+        return cmd + ['--params-file', str(self.params), '--params-file', str(overrides)]
 
     def _pump(self, name: str, stream) -> None:
         width = max(len(s.name) for s in self.graph.nodes)
@@ -307,6 +316,7 @@ class Launch:
             thread.join(timeout=2.0)
         for log in self._logs.values():
             log.close()
+        shutil.rmtree(self._overrides, ignore_errors=True)
 
     def run(self, duration: float | None = None) -> int:
         """Start, wait for a signal, a dead node or the world's end, stop; exit status."""

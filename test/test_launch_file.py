@@ -3,11 +3,13 @@ the launch API is stubbed to record what the file asks for)."""
 
 from __future__ import annotations
 
+from pathlib import Path
 import runpy
 import sys
 import types
 
 import pytest
+import yaml
 
 from agv_nodes.launcher import Launch, Options, load_graph, node_parameters
 
@@ -75,10 +77,13 @@ def test_launch_file_matches_agv_launch(launch_api, overrides, options):
         params_file, params = node.kwargs['parameters']
         assert params_file == str(graph.parameters)
         assert params == node_parameters(graph, spec, options)
-        # and agv-launch puts the same values on the command line
+        # and agv-launch passes the same values, in a second parameter file after the first
         cmd = launch.command(spec)
-        for name in params:
-            assert any(c.startswith(f'{name}:=') for c in cmd), (spec.name, name)
+        files = [cmd[i + 1] for i, c in enumerate(cmd) if c == '--params-file']
+        assert files[0] == str(graph.parameters)
+        second = yaml.safe_load(Path(files[1]).read_text())
+        assert second == {f'/**/{spec.name}': {'ros__parameters': params}}
+    launch.stop()
 
 
 def test_every_node_script_is_in_the_graph():
@@ -91,3 +96,32 @@ def test_every_node_script_is_in_the_graph():
     scripts = [e.split('=')[0].strip() for e in ast.literal_eval(kw['entry_points'])[
         'console_scripts'] if not e.startswith('agv-')]
     assert sorted(scripts) == sorted(n.executable for n in load_graph().nodes)
+
+
+def test_launch_overrides_beat_the_parameter_file():
+    """`agv-launch -p executive:status_timeout:=9.0` wins over the file's `/**/executive:` entry.
+
+    Checked with the real rcl argument parser: a node built from the exact command line.
+    (A plain `-p status_timeout:=9.0` loses to the node-specific file entry with rclpy 7.1.)
+    """
+    import rclpy
+    from rclpy.context import Context
+
+    graph = load_graph()
+    filed = yaml.safe_load(graph.parameters.read_text())['/**/executive']['ros__parameters']
+    assert filed['status_timeout'] != 9.0  # the file sets its own value
+    launch = Launch(Options(extra={'executive': ['status_timeout:=9.0', "srm_map:=['2:10']"]}))
+    cmd = launch.command(graph.node('executive'))
+    context = Context()
+    rclpy.init(args=['executive', *cmd[cmd.index('--ros-args'):]], context=context)
+    try:
+        node = rclpy.create_node('executive', context=context)
+        node.declare_parameter('status_timeout', 0.3)
+        node.declare_parameter('srm_map', [''])
+        assert node.get_parameter('status_timeout').value == 9.0
+        assert node.get_parameter('srm_map').value == ['2:10']
+        assert node.get_parameter('use_sim_time').value is True
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+        launch.stop()
