@@ -10,7 +10,8 @@ between two executor turns are both seen. Stream readers keep 0.3 s of the 340 H
 (100 samples): a Python node on a loaded two-core machine can stall for tens of milliseconds,
 and a best-effort reader with a 10-deep queue (29 ms) then drops samples, breaking the
 run-length patterns a marker passage is recognised by (a location marker was missed this way
-in a full-programme run at 1.25x); the 1983 sensor never lost a sample, so neither should we.
+in a full-programme run on a saturated machine); the 1983 sensor never lost a sample, so
+neither should we.
 """
 
 from __future__ import annotations
