@@ -137,7 +137,14 @@ def plots(data: dict[str, Any], result: dict[str, Any], out: Path) -> list[str]:
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    written = []
+    written: list[str] = []
+
+    def save(fig, name: str) -> None:
+        fig.tight_layout()
+        fig.savefig(out / name, dpi=110)
+        plt.close(fig)
+        written.append(name)
+
     t0 = data['start'] or 0.0
     odo = data['records'].get('wheel_odometry', [])
     fig, ax = plt.subplots(figsize=(12, 4))
@@ -157,10 +164,7 @@ def plots(data: dict[str, Any], result: dict[str, Any], out: Path) -> list[str]:
     ax.set_title('Speed with marker passages (green: location, red: stop) and stops (thesis '
                  'fig 6.12)')
     ax.legend(loc='upper right')
-    fig.tight_layout()
-    fig.savefig(out / 'speed.png', dpi=110)
-    plt.close(fig)
-    written.append('speed.png')
+    save(fig, 'speed.png')
 
     fig, ax = plt.subplots(figsize=(8, 7))
     if data['route']:
@@ -173,10 +177,7 @@ def plots(data: dict[str, Any], result: dict[str, Any], out: Path) -> list[str]:
     ax.set_xlabel('x (m)')
     ax.set_ylabel('y (m)')
     ax.legend(loc='best')
-    fig.tight_layout()
-    fig.savefig(out / 'path.png', dpi=110)
-    plt.close(fig)
-    written.append('path.png')
+    save(fig, 'path.png')
 
     fig, ax = plt.subplots(figsize=(8, 4))
     stops = result['stops']
@@ -189,10 +190,7 @@ def plots(data: dict[str, Any], result: dict[str, Any], out: Path) -> list[str]:
     ax.set_ylabel('stop error (mm, + = past the marker centre)')
     ax.set_title('Stop errors per stop (fig 7.15 style)')
     ax.legend(loc='best')
-    fig.tight_layout()
-    fig.savefig(out / 'stops.png', dpi=110)
-    plt.close(fig)
-    written.append('stops.png')
+    save(fig, 'stops.png')
 
     fig, ax = plt.subplots(figsize=(12, 4))
     names = sorted(data['records'])
@@ -202,20 +200,14 @@ def plots(data: dict[str, Any], result: dict[str, Any], out: Path) -> list[str]:
     ax.set_yticks(range(len(names)), names, fontsize=7)
     ax.set_xlabel('time (s)')
     ax.set_title('Records per sub-system over time (every 5th shown)')
-    fig.tight_layout()
-    fig.savefig(out / 'records.png', dpi=110)
-    plt.close(fig)
-    written.append('records.png')
+    save(fig, 'records.png')
 
     fig, ax = plt.subplots(figsize=(10, 3))
     faults = result['faults'] or ['no faults']
     ax.axis('off')
     ax.text(0, 1, '\n'.join(faults[:25]), va='top', family='monospace', fontsize=8)
     ax.set_title('Faults')
-    fig.tight_layout()
-    fig.savefig(out / 'faults.png', dpi=110)
-    plt.close(fig)
-    written.append('faults.png')
+    save(fig, 'faults.png')
     return written
 
 
