@@ -91,6 +91,16 @@ class VehicleState:
     distance: float = 0.0  # odometer, m (signed travel summed)
 
 
+def advance_pose(s: VehicleState, v: float, yaw_rate: float, dt: float) -> None:
+    """Move the pose by one step at speed `v` and `yaw_rate` (midpoint heading)."""
+    s.yaw_rate = yaw_rate
+    h_mid = s.heading + 0.5 * yaw_rate * dt
+    s.x += v * math.cos(h_mid) * dt
+    s.y += v * math.sin(h_mid) * dt
+    s.heading += yaw_rate * dt
+    s.distance += v * dt
+
+
 class Electruk:
     """The tug: DC drive + Ackermann kinematics (bicycle model about the rear axle)."""
 
@@ -180,12 +190,7 @@ class Electruk:
             delta = min(max(demand - self.steer, -p.steer_rate * dt), p.steer_rate * dt)
             self.steer += delta
         v_mid = 0.5 * (v + v_new)
-        s.yaw_rate = v_mid * math.tan(self.steer) / p.wheelbase
-        h_mid = s.heading + 0.5 * s.yaw_rate * dt
-        s.x += v_mid * math.cos(h_mid) * dt
-        s.y += v_mid * math.sin(h_mid) * dt
-        s.heading += s.yaw_rate * dt
-        s.distance += v_mid * dt
+        advance_pose(s, v_mid, v_mid * math.tan(self.steer) / p.wheelbase, dt)
         s.speed = v_new
 
     def wheel_speeds(self) -> tuple[float, float]:
@@ -243,12 +248,7 @@ class Concic2:
             self.right *= scale
             self.left_profile, self.right_profile = self.left, self.right
         v = 0.5 * (self.left + self.right)
-        s.yaw_rate = (self.right - self.left) / p.wheel_span
-        h_mid = s.heading + 0.5 * s.yaw_rate * dt
-        s.x += v * math.cos(h_mid) * dt
-        s.y += v * math.sin(h_mid) * dt
-        s.heading += s.yaw_rate * dt
-        s.distance += v * dt
+        advance_pose(s, v, (self.right - self.left) / p.wheel_span, dt)
         s.speed = v
 
     def wheel_speeds(self) -> tuple[float, float]:
