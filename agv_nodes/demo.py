@@ -139,12 +139,14 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of agv-demo."""
     ap = argparse.ArgumentParser(prog='agv-demo', description=__doc__.splitlines()[0])
     ap.add_argument('--quick', action='store_true', help='tasks 1-2 only (the CI variant)')
-    # 1.0, not faster: the 9 processes need ~1.6 of the reference machine's 2 cores at 1x, and
-    # at 1.25x a loaded machine saturated - the position sensor fell behind the 340 Hz stream,
-    # so markers were seen late (stops at +54/+70 mm, a transfer out of alignment) or missed.
-    ap.add_argument('--time-factor', type=float, default=1.0,
-                    help='simulated seconds per real second the world aims for (the 9 '
-                    'processes need ~1.6 cores at 1x on the 2-core reference machine)')
+    # 0 = as fast as the machine holds. Safe because the world paces itself on the slowest
+    # node (world/pacing.py): before pacing, a fixed 1.25x saturated the 2-core reference
+    # machine, the position sensor fell behind the 340 Hz stream and markers were seen late
+    # (stops at +54/+70 mm) or missed. Paced, the programme runs at ~1.2x with stops as in
+    # lock step.
+    ap.add_argument('--time-factor', type=float, default=0.0,
+                    help='simulated seconds per real second the world aims for (default 0: as '
+                    'fast as the slowest node keeps up)')
     ap.add_argument('--out', help='output directory (default runs/demo-<time>)')
     ap.add_argument('--domain-id', type=int, help='ROS_DOMAIN_ID (default: a free one)')
     ap.add_argument('--sim-limit', type=float, default=1500.0,

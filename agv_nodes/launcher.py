@@ -110,6 +110,12 @@ def wait_lists(graph: Graph, world: bool, recording: bool) -> tuple[list[str], l
     return sorted(set(subs)), sorted(set(pubs))
 
 
+def paced_records(graph: Graph) -> list[str]:
+    """Every record a node of the graph writes: the world waits for the slowest (pacing.py)."""
+    running = {n.name for n in graph.nodes if n.role == 'node'}
+    return sorted(s.name for s in codec() if s.writer in running)
+
+
 def node_parameters(graph: Graph, spec: NodeSpec, options: Options) -> dict[str, object]:
     """The parameters the launch sets for one node on top of the parameter file.
 
@@ -121,7 +127,8 @@ def node_parameters(graph: Graph, spec: NodeSpec, options: Options) -> dict[str,
     if spec.role == 'world':
         subs, pubs = wait_lists(graph, True, options.bag is not None)
         out.update(time_factor=float(options.time_factor), publish_clock=options.use_sim_time,
-                   wait_for_subscribers=subs, wait_for_publishers=pubs)
+                   wait_for_subscribers=subs, wait_for_publishers=pubs,
+                   pace_on=paced_records(graph))
         if options.layout:
             out['layout'] = options.layout
     if spec.role == 'recorder':

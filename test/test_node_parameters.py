@@ -24,6 +24,7 @@ BIN = Path(PYTHON).parent
     ('communications', 'locations', '[0.5]', 'integers 0-31'),
     ('world', 'layout', 'atlantis', 'atlantis.yaml'),
     ('world', 'time_factor', '-2.0', 'outside 0.0..1000.0'),
+    ('world', 'pace_on', "['adc_snapshot']", 'not a record another node writes'),
     ('recorder', 'bag', str(REPO), 'exists already'),
 ])
 def test_bad_parameter_file_stops_start_up(tmp_path, node, key, value, words):

@@ -133,6 +133,21 @@ def test_heartbeat_reports_stale_and_saturated_adc():
     assert core.tick(1.2)['position_sensor_status']['adc_stale'] == 1
 
 
+def test_heartbeat_counts_snapshots_while_they_arrive_and_the_timer_covers_silence():
+    core = PositionSensorCore()
+    lit, dark = snapshot_for(0x00)
+    adc = {**{f'lit_{d}': v for d, v in enumerate(lit, 1)},
+           **{f'dark_{d}': v for d, v in enumerate(dark, 1)}}
+    beats = []
+    for _ in range(60):  # a frozen clock (a pacing world) must not stop the heartbeat
+        out = core.on_record('adc_snapshot', adc, 1.0)
+        if out:
+            beats.append(out['position_sensor_status']['sample_count'])
+    assert beats == list(range(6, 61, 6))
+    assert core.tick(1.01) is None  # a status went out within the heartbeat period
+    assert core.tick(1.03)['position_sensor_status']['sample_count'] == 60
+
+
 # -- navigation ----------------------------------------------------------------------------
 class Nav:
     """Drives a NavigationCore with records; keeps every status and link it sends."""

@@ -37,6 +37,11 @@ class SensorProcessing:
     variant: str = 'intended'  # or 'as_listed'
     run_length: int = 4  # running-sum filter length (thesis 5.2.2.2, fig 5.21)
     heartbeat: float = 0.020  # s between heartbeat status records
+    # While snapshots arrive the heartbeat is counted in snapshots (6 at 340 Hz = 17.6 ms, just
+    # inside the 20 ms period so the timer stays quiet), so its sample_count keeps reaching the
+    # world even when a paced world has stopped the clock to let this node catch up
+    # (world/pacing.py); the timer covers a silent ADC.
+    heartbeat_samples: int = 6
     adc_timeout: float = 0.050  # s without a snapshot -> adc_stale
     saturation: int = 255  # a dark reading at this level means the sensor is blinded
     extra: dict = field(default_factory=dict)
@@ -82,6 +87,8 @@ class PositionSensorCore:
         self._streak_key: int | None = None
         self._streak = 0
         self._last_adc: float | None = None
+        self._last_status: float | None = None  # sim time of the last status record
+        self._since_status = 0  # snapshots since the last status record
         self._templates = self._table()
 
     # -- tables -----------------------------------------------------------------------------
@@ -112,7 +119,11 @@ class PositionSensorCore:
         lit = [fields[f'lit_{d}'] for d in range(1, 9)]
         dark = [fields[f'dark_{d}'] for d in range(1, 9)]
         self._last_adc = now
-        return self.sample(lit, dark, now)
+        self._since_status += 1
+        out = self.sample(lit, dark, now)
+        if out is None and self._since_status >= self.p.heartbeat_samples:
+            out = {'position_sensor_status': self.status(recognised=False, now=now)}
+        return out
 
     def sample(self, lit: list[int], dark: list[int], now: float) -> dict | None:
         """One SAMPLE + DECODE; returns a status record when a recognition is made."""
@@ -160,7 +171,8 @@ class PositionSensorCore:
 
     # -- outputs ----------------------------------------------------------------------------
     def status(self, recognised: bool = False, now: float = 0.0) -> dict[str, Any]:
-        """The position_sensor_status record."""
+        """The position_sensor_status record (restarts the heartbeat count)."""
+        self._last_status, self._since_status = now, 0
         stale = self._last_adc is None or now - self._last_adc > self.p.adc_timeout
         return {
             'recognised': int(recognised),
@@ -177,5 +189,7 @@ class PositionSensorCore:
         }
 
     def tick(self, now: float) -> dict | None:
-        """The heartbeat: the latest state, recognised = 0."""
+        """The timer heartbeat, when no status went out for a heartbeat period."""
+        if self._last_status is not None and now - self._last_status < self.p.heartbeat:
+            return None
         return {'position_sensor_status': self.status(recognised=False, now=now)}

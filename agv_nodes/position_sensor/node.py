@@ -37,8 +37,11 @@ class PositionSensorNode(CoreNode):
             variant=p.choice('variant', d.variant, "intended design, or the printed listing's "
                              'defects (black-test compare, EDGE search length 5)',
                              ('intended', 'as_listed')),
-            heartbeat=p.number('heartbeat', d.heartbeat, 'seconds between status heartbeats',
+            heartbeat=p.number('heartbeat', d.heartbeat, 'longest time between status records',
                                0.005, 1.0),
+            heartbeat_samples=p.integer('heartbeat_samples', d.heartbeat_samples, 'snapshots '
+                                        'between status heartbeats while snapshots arrive',
+                                        1, 1000),
             adc_timeout=p.number('adc_timeout', d.adc_timeout, 'seconds without a snapshot '
                                  'before adc_stale is reported', 0.005, 5.0),
         )

@@ -96,6 +96,7 @@ class WorldCore:
         self._odo_time = 0.0
         self.events: list[dict[str, Any]] = []
         self._event_count = 0
+        self._pushing = False
         self._card_side: dict[int, float] = {}
         self._moving = False
         self._peak_speed = 0.0
@@ -174,6 +175,7 @@ class WorldCore:
         if self.camera is not None and self._cam_every.due(self.sample):
             frames = self._frames()
         self._detect_stop()
+        self._detect_drive_off()
         return {'records': records, 'frames': frames, 'events': self.events}
 
     def _apply_safety(self) -> None:
@@ -332,6 +334,15 @@ class WorldCore:
             self._event('stopped', marker=nearest, error=err * 1000 if nearest else 0.0,
                         speed=self._peak_speed)
             self._peak_speed = 0.0
+
+    def _detect_drive_off(self) -> None:
+        """Ground truth for the fault tests: the moment a moving Electruk stops being driven."""
+        pushing = getattr(self.vehicle, 'pushing', None)
+        if pushing is None:
+            return
+        if self._pushing and not pushing and abs(self.vehicle.state.speed) > 0.01:
+            self._event('drive_off')
+        self._pushing = pushing
 
     def _nearest_stop_marker(self) -> tuple[Marker | None, float]:
         lens, heading = self.lens_pose()

@@ -26,7 +26,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image
-from std_msgs.msg import Bool
+from std_msgs.msg import Bool, UInt8MultiArray
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -34,13 +34,20 @@ from agv_nodes import qos
 from agv_nodes.core_node import spin_main
 from agv_nodes.params import Parameters
 from agv_nodes.records import codec
+from agv_nodes.records.codec import RecordError, RecordSchema
 from agv_nodes.ros_ports import RecordPublisher, RecordSubscription
 from agv_nodes.world.core import WorldCore, WorldParams
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
+from agv_nodes.world.pacing import GraphPacer
 from agv_nodes.world.vehicles import Concic2Params, ElectrukParams
 
 NODE = 'world'
-PACED = ('traction_drive', 'steering_command')  # the world waits for these when they lag
+INPUTS = ('traction_drive', 'steering_command', 'conveyor_command')
+
+
+def _counts_samples(schema: RecordSchema) -> bool:
+    """A record that reports how many world samples its writer has consumed."""
+    return any(f.name == 'sample_count' for f in schema.fields)
 
 
 class WorldNode(Node):
@@ -93,21 +100,33 @@ class WorldNode(Node):
         self.duration = p.number('duration', 0.0, 'stop after this many simulated seconds '
                                  '(0 = run until shut down)', 0.0, 1e6)
         self.paused = p.flag('start_paused', False, 'wait for ~/resume before moving')
-        self.max_lag = p.number('max_lag', 0.05, 'simulated seconds the drive and steering '
-                                'records may lag the world before it waits for them (0 = never '
-                                'wait)', 0.0, 10.0)
-        self.lag_patience = p.number('lag_patience', 0.5, 'real seconds the world waits for a '
-                                     'lagging input before it carries on without it', 0.0, 60.0)
-        self._input_time: dict[str, float] = {}  # record -> sim time of its last arrival
-        self._gave_up: set[str] = set()
-        self.core = WorldCore(self.layout, wp)
         c = codec()
+        pace_on = p.texts('pace_on', ['traction_drive', 'steering_command'], 'records whose '
+                          'writers the world waits for when they lag (world/pacing.py; '
+                          'agv-launch names every node of the graph)')
+        for name in pace_on:
+            if name not in c or c[name].writer == NODE:
+                p.fail('pace_on', pace_on, f'{name!r} is not a record another node writes')
+        max_lag = p.number('max_lag', 0.05, 'simulated seconds a paced record may lag the '
+                           'world beyond its period before the world waits (0 = never wait)',
+                           0.0, 10.0)
+        self.lag_patience = p.number('lag_patience', 0.5, 'real seconds the world waits for a '
+                                     'lagging writer before it carries on without it', 0.0, 60.0)
+        self.pacer = GraphPacer(
+            max_lag, {name: c[name].period_ms / 1000.0 for name in pace_on}, wp.sample_rate,
+            clock_step=self.clock_every / wp.sample_rate,
+            consumers=tuple(n for n in pace_on if _counts_samples(c[n])))
+        self.core = WorldCore(self.layout, wp)
         self.out = {}
         for schema in c:
             if schema.writer == NODE:
                 self.out[schema.name] = RecordPublisher(self, schema)
         self.inputs = [RecordSubscription(self, c[name], callback=self._input(name))
-                       for name in ('traction_drive', 'steering_command', 'conveyor_command')]
+                       for name in INPUTS]
+        for name in pace_on:  # only the arrival (and a sample count) matter: read raw
+            if name not in INPUTS:
+                self.create_subscription(UInt8MultiArray, c[name].topic, self._paced(c[name]),
+                                         qos.reader_qos(c[name]))
         self.create_subscription(Bool, 'hw/radio_stop', self._radio_stop, qos.RECORD_READER)
         self.clock_pub = self.create_publisher(Clock, '/clock', qos.STREAM_WRITER)
         self.pose_pub = self.create_publisher(PoseStamped, 'world/pose', qos.STREAM_WRITER)
@@ -128,18 +147,29 @@ class WorldNode(Node):
     def _input(self, name: str):
         def on_record(fields: dict) -> None:
             self._work += 1
-            self._input_time[name] = self.core.time
-            self._gave_up.discard(name)
+            self.pacer.arrived(name, self.core.time)
             self.core.on_record(name, fields)
         return on_record
 
+    def _paced(self, schema: RecordSchema):
+        counted = _counts_samples(schema)
+
+        def on_msg(msg: UInt8MultiArray) -> None:
+            self._work += 1
+            count = None
+            if counted:  # pacing only: a record that does not decode just counts as heard
+                for integrity in ('e2e', 'none'):
+                    try:
+                        count = schema.decode(msg.data, integrity=integrity)['sample_count']
+                        break
+                    except RecordError:
+                        continue
+            self.pacer.arrived(schema.name, self.core.time, count, self.core.sample)
+        return on_msg
+
     def lagging(self) -> list[str]:
-        """Inputs whose last record is more than max_lag behind the world's clock."""
-        if not self.max_lag:
-            return []
-        return [name for name, t in self._input_time.items()
-                if name in PACED and name not in self._gave_up
-                and self.core.time - t > self.max_lag]
+        """Paced writers that have fallen behind the world's clock."""
+        return self.pacer.lagging(self.core.time)
 
     def _radio_stop(self, msg: Bool) -> None:
         self._work += 1
@@ -180,9 +210,9 @@ class WorldNode(Node):
         for name, fields in out['records'].items():
             self.out[name].publish(fields)
         for event in out['events']:
-            self.out['world_event'].publish({k: event[k] for k in (
+            self.out['world_event'].publish({**{k: event[k] for k in (
                 'event', 'marker_kind', 'identity', 'error', 'speed', 'lateral', 'count',
-                'station')})
+                'station')}, 'time_ms': round(event['time'] * 1000) & 0xFFFF})
         for name, frame in out['frames'].items():
             img = Image()
             img.header.stamp = stamp
@@ -296,9 +326,12 @@ class WorldNode(Node):
                     executor.spin_once(timeout_sec=0.002)
                     late = self.lagging()
                 if late:
-                    self._gave_up.update(late)
-                    self.get_logger().warn(f'carrying on without {", ".join(late)} (no record '
-                                           f'for {self.lag_patience:g} s)')
+                    lost = self.pacer.give_up(late)
+                    self.get_logger().warn(
+                        f'carrying on without {", ".join(late)} (behind for '
+                        f'{self.lag_patience:g} s' + (f'; {lost} samples accepted as lost, '
+                                                      f'{self.pacer.lost_samples} in all)'
+                                                      if lost else ')'))
                 wall0, sim0 = time.monotonic(), self.core.time
             self.publish_step(self.core.step())
             if self.duration and self.core.time >= self.duration:

@@ -146,6 +146,14 @@ class Electruk:
         self.field_enable = field_enable
         self.contactor = contactor
 
+    @property
+    def pushing(self) -> bool:
+        """The drive is pushing the truck along its motion (ground truth for `drive_off`)."""
+        powered = self.contactor and self.relay_closed and not self.radio_stop
+        forward = self.state.speed >= 0.0
+        return (powered and self.armature_enable and self.armature_duty > 0.0
+                and self.field_enable and self.field_forward == forward)
+
     def step(self, dt: float) -> None:
         """Advance by dt seconds."""
         p, s = self.p, self.state
