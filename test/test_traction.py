@@ -138,6 +138,28 @@ def test_emergency_stop_is_minus_5_percent_plug_braking():
     assert b.core.status()['source'] == 'emergency_stop'
 
 
+@pytest.mark.parametrize('mode, armature_off_within', [('immediate', 0.061),  # 1 command
+                                                       ('as_listed', 0.5)])
+def test_emergency_stop_cuts_the_armature_at_once_unless_as_listed(mode, armature_off_within):
+    b = Bench(emergency_stop=mode)
+    b.arm()
+    b.command = cmd(55)
+    b.run(3.0)
+    assert b.log[-1][1]['armature_duty'] == 55
+    t0 = b.t
+    b.command = cmd(0)
+    b.run(1.5)
+    forward = [t for t, d in b.log if t >= t0 and d['field_forward'] and
+               d['armature_enable'] and d['armature_duty'] > 0]
+    pushing_for = (max(forward) - t0 + DT) if forward else 0.0
+    if mode == 'immediate':
+        assert pushing_for <= armature_off_within
+    else:  # 55 -> 39 -> 23 -> 7 with a 200 ms runout after each limited step
+        assert pushing_for >= armature_off_within
+    last = b.log[-1][1]
+    assert last['field_forward'] == 0 and last['armature_duty'] == 5  # then plug braking
+
+
 def test_manual_bypasses_emergency_and_radio_stop():
     b = Bench()
     b.arm()

@@ -55,6 +55,12 @@ class TractionParams:
     max_duty: int = 80  # % (COMP CP 80)
     estop_ref: int = -5  # % (0FBH)
     arithmetic: str = 'saturating'  # or 'faithful_8bit'
+    # The listing reaches the -5 % e-stop through SUM's 16 %-per-pass slew, each step followed
+    # by the 200 ms runout: from 55 % the drive pushes for ~0.6 s after the e-stop. `immediate`
+    # (modern, the default) cuts the armature on the first pass that sees byte 2 = 00H and
+    # abandons any wait, then FLIPs and plug-brakes as the listing does; `as_listed` keeps
+    # the slew. Issue 9 wants the drive off within 200 ms of a fault.
+    emergency_stop: str = 'immediate'
     command_timeout: float = 0.200  # s
     link_timeout: float = 0.200  # s
     stall_limit: float = 0.200  # s: a gap between loop passes this long trips
@@ -78,6 +84,8 @@ class TractionParams:
         bad = []
         if self.arithmetic not in ('saturating', 'faithful_8bit'):
             bad.append(('arithmetic', self.arithmetic, 'not saturating or faithful_8bit'))
+        if self.emergency_stop not in ('immediate', 'as_listed'):
+            bad.append(('emergency_stop', self.emergency_stop, 'not immediate or as_listed'))
         if self.control not in ('open_loop_1983', 'closed_loop'):
             bad.append(('control', self.control, 'not open_loop_1983 or closed_loop'))
         if not 0 < self.field_duty <= 100:
@@ -198,6 +206,12 @@ class TractionCore:
                 self._trip('stale_command')
             elif (self._position_has_priority() and now - self.link_time > self.p.link_timeout):
                 self._trip('stale_link')
+        if (not self.tripped and self.p.control == 'open_loop_1983'
+                and self.p.emergency_stop == 'immediate' and self._estop_demanded()
+                and self.dcycle > 0):  # the armature off now, not after the slew
+            self.armature_off = True
+            self.dcycle = self.dcdem = self.speed = 0
+            self.state, self.wait_until = 'run', now
         if not self.tripped and now >= self.wait_until:
             if self.p.control == 'closed_loop':
                 self._closed_loop(now, dt)
@@ -208,6 +222,10 @@ class TractionCore:
             self._next_status = now + self.p.status_period
             out['traction_status'] = self.status()
         return out
+
+    def _estop_demanded(self) -> bool:
+        cmd = self.command
+        return cmd is not None and not cmd['manual'] and cmd['demand'] == 0
 
     def _position_has_priority(self) -> bool:
         cmd = self.command

@@ -34,6 +34,10 @@ class TractionNode(CoreNode):
             arithmetic=p.choice('arithmetic', d.arithmetic, 'SUM arithmetic: the intended '
                                 "saturating difference, or the listing's 8-bit wrap",
                                 ('saturating', 'faithful_8bit')),
+            emergency_stop=p.choice('emergency_stop', d.emergency_stop, 'on byte 2 = 00H: '
+                                    'cut the armature at once, then plug-brake (immediate), or '
+                                    "slew down 16 % per pass with the runout waits as the "
+                                    'listing does (as_listed)', ('immediate', 'as_listed')),
             command_timeout=p.number('command_timeout', d.command_timeout, 'trip when the '
                                      "executive's command is older than this, s", 0.02, 5.0),
             link_timeout=p.number('link_timeout', d.link_timeout, 'trip when the Position link '
