@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 import os
+import random
 import sys
 from typing import Any
 
@@ -22,7 +23,7 @@ from std_msgs.msg import Bool
 from agv_nodes import qos
 from agv_nodes.params import ParameterError, Parameters
 from agv_nodes.records import codec
-from agv_nodes.ros_ports import RecordPublisher, RecordSubscription
+from agv_nodes.ros_ports import InputDiagnostics, RecordPublisher, RecordSubscription
 
 
 class CoreNode(Node):
@@ -46,6 +47,24 @@ class CoreNode(Node):
                                      qos.RECORD_READER)
         if core.period:
             self.timer = self.create_timer(core.period, self._tick)
+        self.input_diagnostics = InputDiagnostics(self, self.readers)
+        # Fault injection (agv-launch --fault; issue 9): one of this node's records is lost
+        # or delayed on its way out, as a bad link would. The E2E counter still advances for a
+        # lost record, so readers see the gap (counted as lost in /diagnostics).
+        self.fault_record = params.choice('fault_record', '', 'inject faults into this '
+                                          'record on its way out (empty: none)',
+                                          ('', *self.writers))
+        self.fault_loss = params.number('fault_loss', 0.0, 'fraction of fault_record records '
+                                        'dropped', 0.0, 1.0)
+        self.fault_delay = params.number('fault_delay', 0.0, 'extra delay of fault_record '
+                                         'records, s (released on the next /clock step)',
+                                         0.0, 1.0)
+        self._fault_rng = random.Random(params.integer('fault_seed', 1, 'seed of the losses',
+                                                       0, 2**31 - 1))
+        self._held: list[tuple[float, bytes]] = []
+        self.fault_dropped = 0
+        if self.fault_record and self.fault_delay:
+            self.create_timer(0.001, self._release)  # fires once per /clock step
 
     def now_s(self) -> float:
         """ROS time in seconds (sim time when use_sim_time is set)."""
@@ -72,7 +91,24 @@ class CoreNode(Node):
     def publish(self, outputs: dict[str, dict[str, Any]] | None) -> None:
         """Publish the records a core returned."""
         for record, fields in (outputs or {}).items():
-            self.writers[record].publish(fields)
+            if record == getattr(self, 'fault_record', ''):
+                self._faulty(record, fields)
+            else:
+                self.writers[record].publish(fields)
+
+    def _faulty(self, record: str, fields: dict[str, Any]) -> None:
+        raw = self.writers[record].pack(fields)
+        if self._fault_rng.random() < self.fault_loss:
+            self.fault_dropped += 1
+        elif self.fault_delay:
+            self._held.append((self.now_s() + self.fault_delay, raw))
+        else:
+            self.writers[record].publish_raw(raw)
+
+    def _release(self) -> None:
+        now = self.now_s()
+        while self._held and self._held[0][0] <= now:
+            self.writers[self.fault_record].publish_raw(self._held.pop(0)[1])
 
 
 def make_executor() -> Any:

@@ -20,6 +20,7 @@ readers (and the recorder, when recording): the graph is complete before time st
 from __future__ import annotations
 
 import argparse
+import atexit
 from dataclasses import dataclass, field
 import fcntl
 import os
@@ -116,6 +117,42 @@ def paced_records(graph: Graph) -> list[str]:
     return sorted(s.name for s in codec() if s.writer in running)
 
 
+def pace_slack(faults: dict[str, dict[str, float]]) -> list[str]:
+    """World `pace_slack` entries for injected faults: the world must not wait for a record
+    that is late by design (delay, plus a /clock step of release) or lost (three periods: a
+    run of four losses at 10 % is 1 in 10,000)."""
+    out = []
+    for record, fault in sorted(faults.items()):
+        slack = fault.get('delay', 0.0) + (0.01 if fault.get('delay') else 0.0)
+        if fault.get('loss'):
+            slack += 3 * codec()[record].period_ms / 1000.0
+        out.append(f'{record}:{slack:g}')
+    return out
+
+
+def parse_fault(text: str, graph: Graph) -> tuple[str, dict[str, float]]:
+    """'RECORD:loss=0.1,delay=0.02' -> (record, {'loss': 0.1, 'delay': 0.02})."""
+    record, _, spec = text.partition(':')
+    c = codec()
+    writers = {n.name for n in graph.nodes if n.role == 'node'}
+    if record not in c or c[record].writer not in writers:
+        raise GraphError(f'--fault {text!r}: {record!r} is not a record a node of the graph '
+                         f'writes ({", ".join(s.name for s in c if s.writer in writers)})')
+    out: dict[str, float] = {}
+    for item in filter(None, spec.split(',')):
+        key, _, value = item.partition('=')
+        try:
+            number = float(value)
+        except ValueError:
+            number = -1.0
+        if key not in ('loss', 'delay', 'seed') or number < 0 or (key == 'loss' and number > 1):
+            raise GraphError(f'--fault {text!r}: {item!r} (expected loss=0..1, delay=S, seed=N)')
+        out[key] = number
+    if not out:
+        raise GraphError(f'--fault {text!r}: nothing to inject (loss=..., delay=...)')
+    return record, out
+
+
 def node_parameters(graph: Graph, spec: NodeSpec, options: Options) -> dict[str, object]:
     """The parameters the launch sets for one node on top of the parameter file.
 
@@ -124,11 +161,16 @@ def node_parameters(graph: Graph, spec: NodeSpec, options: Options) -> dict[str,
     out: dict[str, object] = {'use_sim_time': options.use_sim_time}
     if spec.role == 'node':
         out['record_integrity'] = options.record_integrity
+        for record, fault in options.faults.items():
+            if codec()[record].writer == spec.name:
+                out.update(fault_record=record, fault_loss=fault.get('loss', 0.0),
+                           fault_delay=fault.get('delay', 0.0),
+                           fault_seed=int(fault.get('seed', 1)))
     if spec.role == 'world':
         subs, pubs = wait_lists(graph, True, options.bag is not None)
         out.update(time_factor=float(options.time_factor), publish_clock=options.use_sim_time,
                    wait_for_subscribers=subs, wait_for_publishers=pubs,
-                   pace_on=paced_records(graph))
+                   pace_on=paced_records(graph), pace_slack=pace_slack(options.faults))
         if options.layout:
             out['layout'] = options.layout
     if spec.role == 'recorder':
@@ -185,6 +227,8 @@ class Options:
     respawn: bool = False
     layout: str | None = None
     extra: dict[str, list[str]] = field(default_factory=dict)  # node -> extra -p args
+    # record -> {'loss': fraction, 'delay': s}: injected at its writer (--fault; issue 9)
+    faults: dict[str, dict[str, float]] = field(default_factory=dict)
     quiet: bool = False
     log_dir: Path | None = None
 
@@ -263,8 +307,13 @@ class Launch:
             self.o.log_dir.mkdir(parents=True, exist_ok=True)
             self._logs = {s.name: open(self.o.log_dir / f'{s.name}.log', 'w')  # noqa: SIM115
                           for s in self.specs()}
+        atexit.register(self._stop_at_exit)  # never leave a graph behind on the domain
         for spec in self.specs():
             self._start(spec)
+
+    def _stop_at_exit(self) -> None:
+        if not self.stopping:
+            self.stop(timeout=2.0)
 
     def poll(self) -> list[str]:
         """Check the processes; return the names of those that died unexpectedly."""
@@ -368,6 +417,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--respawn', action='store_true', help='restart nodes that die')
     ap.add_argument('--duration', type=float, help='stop after this many real seconds')
     ap.add_argument('--log-dir', type=Path, help="also write each node's output here")
+    ap.add_argument('--fault', action='append', default=[], metavar='RECORD:loss=P,delay=S',
+                    help='lose a fraction of one record and/or delay it (sim s) at its writer, '
+                    'e.g. navigation_status:loss=0.1 or traction_link:delay=0.02')
     ap.add_argument('-p', '--param', action='append', default=[], metavar='NODE:NAME:=VALUE',
                     help='extra parameter for one node, e.g. traction:control:=closed_loop')
     return ap
@@ -381,7 +433,9 @@ def options_from(args: argparse.Namespace) -> Options:
         if not sep or ':=' not in rest:
             raise GraphError(f'-p {item!r}: expected NODE:NAME:=VALUE')
         extra.setdefault(node, []).append(rest)
-    return Options(graph=args.graph, params=args.params, namespace=args.namespace,
+    graph = load_graph(args.graph)
+    faults = dict(parse_fault(text, graph) for text in args.fault)
+    return Options(faults=faults, graph=args.graph, params=args.params, namespace=args.namespace,
                    use_sim_time=args.use_sim_time == 'true', time_factor=args.time_factor,
                    record_integrity=args.record_integrity, world=args.world,
                    domain_id=args.domain_id, bag=args.bag, respawn=args.respawn,

@@ -9,12 +9,13 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 from std_msgs.msg import UInt8MultiArray
 
 from agv_nodes import qos
 from agv_nodes.records.codec import RecordSchema
-from agv_nodes.records.ports import RecordReader, RecordWriter
+from agv_nodes.records.ports import RecordReader, RecordWriter, inputs_report
 
 
 class RecordPublisher(RecordWriter):
@@ -62,3 +63,34 @@ class RecordSubscription(RecordReader):
                 self.on_reject()
         elif self._callback is not None:
             self._callback(fields)
+
+
+class InputDiagnostics:
+    """Publishes a node's record inputs on /diagnostics once a (ROS-clock) second.
+
+    One DiagnosticStatus `agv[/ns]/<node>/inputs` (hardware_id `<node>`): accepted, rejected
+    by reason, counter gaps and the last rejection per record, WARN while records are being
+    rejected. Every node that reads records has it, so a malformed record is counted and shown
+    wherever it arrives, not only at the executive.
+    """
+
+    def __init__(self, node: Node, readers: Mapping[str, RecordReader], period: float = 1.0):
+        self._node = node
+        self._readers = readers
+        self._before = 0
+        self._pub = node.create_publisher(DiagnosticArray, '/diagnostics', qos.EVENTS)
+        node.create_timer(period, self.publish)
+
+    def publish(self) -> None:
+        """Send the current counts."""
+        level, message, values = inputs_report(self._readers, self._before)
+        self._before = int(values['rejected'])
+        ns = self._node.get_namespace().strip('/')
+        status = DiagnosticStatus(name=f'agv{"/" + ns if ns else ""}/{self._node.get_name()}'
+                                  '/inputs', message=message,
+                                  hardware_id=self._node.get_name())
+        status.level = bytes([level])
+        status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = self._node.get_clock().now().to_msg()
+        self._pub.publish(msg)

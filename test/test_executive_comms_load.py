@@ -120,7 +120,11 @@ def running_executive() -> ExecutiveCore:
 ])
 def test_faults_give_an_emergency_stop_and_a_named_failure(sub, change, cause):
     ex = running_executive()
-    t = 1.5  # past the start-up grace for traction's own trip
+    for k in range(10, 30):  # healthy records until past the start-up grace for traction's trip
+        for name, fields in status_records(k * 0.05).items():
+            ex.on_record(f'{name}_status', fields, k * 0.05)
+        ex.tick(k * 0.05)
+    t = 1.5
     records = status_records(t)
     records[sub] = {**records[sub], **change}
     for name, fields in records.items():
@@ -146,6 +150,28 @@ def test_stale_status_names_the_silent_subsystem():
     assert out['comms_command']['subsystem'] == 'traction'
     rows = HealthMonitor().update(t, {}, {}, ex)
     assert rows[-1].level == ERROR and 'traction' in rows[-1].message
+
+
+def test_a_silent_subsystem_is_noticed_between_ticks_when_others_report():
+    ex = running_executive()  # last records and tick at 0.45 s; status_timeout 0.3 s
+    out = None
+    t = 0.45
+    while out is None:  # route, navigation, load keep reporting every 10 ms; traction is silent
+        t = round(t + 0.01, 3)
+        for name, fields in status_records(t).items():
+            if name != 'traction' and out is None:
+                out = ex.on_record(f'{name}_status', fields, t)
+    assert t == pytest.approx(0.45 + ExecutiveParams().status_timeout + 0.01)
+    assert out['traction_command']['demand'] == 0 and ex.fault == ('stale_status', 'traction')
+
+
+def test_a_starved_executive_does_not_blame_a_record_still_in_its_queue():
+    ex = running_executive()  # last records and tick at 0.45 s; status_timeout 0.3 s
+    t = 0.45 + 0.35  # its clock jumps: it was starved, four records wait in its queues
+    for name, fields in status_records(t).items():  # taken one topic after another
+        assert ex.on_record(f'{name}_status', fields, t) is None
+    assert ex.fault is None and ex.mode == 'running'
+    assert ex.tick(t)['traction_command']['demand'] == 55
 
 
 def test_reject_burst_is_a_fault():

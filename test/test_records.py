@@ -202,3 +202,21 @@ def test_port_declarations_from_schemas():
                                        'wheel_odometry'}
     assert {s.name for s in writes} == {'navigation_status', 'traction_link',
                                         'position_sensor_command'}
+
+
+def test_inputs_report_counts_rejections_by_reason_and_warns_while_they_arrive():
+    from agv_nodes.records.ports import RecordReader, RecordWriter, inputs_report
+
+    schema = codec()['traction_command']
+    reader, writer = RecordReader(schema), RecordWriter(schema)
+    good = writer.pack({'demand': 20})
+    assert reader.accept(good, 0) is not None
+    level, message, values = inputs_report({'traction_command': reader})
+    assert level == 0 and values['rejected'] == '0' and 'inputs valid' in message
+    assert reader.accept(good[:15], 1) is None  # wrong length
+    assert reader.accept(good, 2) is None  # the same counter again
+    level, message, values = inputs_report({'traction_command': reader})
+    assert level == 1 and values['traction_command rejected'] == '2'
+    assert values['traction_command rejects by reason'] == 'repeated_counter=1, wrong_length=1'
+    level, message, _ = inputs_report({'traction_command': reader}, rejected_before=2)
+    assert level == 0 and '2 rejected in all' in message

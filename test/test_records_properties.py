@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 import pytest
+from record_fuzz import apply, recipes, rejected
 
 from agv_nodes.records import RecordError, RecordReader, RecordWriter, codec
 from agv_nodes.records.codec import Field, RecordSchema
@@ -108,3 +109,24 @@ def test_reader_none_mode_accepts_plain_thesis_records():
     assert reader.accept(bytes([0x14]) + bytes(15), 0) == {
         'executive_priority': 0, 'reverse': 0, 'speed': 20, 'stop_in': 0}
     assert reader.accept(bytes([0x14]) + bytes(15), 1) is not None  # no counter to repeat
+
+
+# -- the generator itself (no DDS): every recipe is a record a port must reject ----------------
+FUZZED = [s for s in SCHEMAS if s.kind != 'ground_truth']
+
+
+@pytest.mark.parametrize('schema', FUZZED, ids=[s.name for s in FUZZED])
+def test_every_recipe_is_rejected_by_a_port(schema):
+    @settings(max_examples=100, derandomize=True, database=None)
+    @given(recipe=recipes(schema), demand=st.integers(0, 3))
+    def check(recipe, demand):
+        reader = RecordReader(schema)
+        genuine = schema.encode(integrity='e2e', counter=demand) if schema.protected \
+            else schema.encode(integrity='none')
+        assert reader.accept(genuine, 0) is not None
+        bad = apply(schema, recipe, genuine)
+        if recipe.kind in ('repeated_counter', 'skipped_counter'):
+            assert not rejected(schema, bad)  # only the sequence check can catch these
+        assert reader.accept(bad, 1) is None, (recipe, bad.hex())
+
+    check()

@@ -249,6 +249,26 @@ def test_stale_command_trips_within_command_timeout():
     assert_tripped(b, 'stale_command')
 
 
+def test_stale_confirm_waits_for_odometry_so_a_clock_jump_alone_does_not_trip():
+    core = TractionCore(TractionParams(stale_confirm=5, command_timeout=0.15))
+    odo = {'left_speed': 500, 'right_speed': 500, 'left_distance': 0, 'right_distance': 0,
+           'sample': 0}
+    t = 0.0
+    for k in range(200):  # armed and running, odometry at 100 Hz
+        t = k * 0.01
+        core.on_record('wheel_odometry', odo, t)
+        if k % 5 == 0:
+            core.on_record('traction_command', cmd(0 if k < 10 else 40), t)
+        core.tick(t)
+    assert not core.tripped
+    core.tick(t + 0.17)  # starved: the clock jumped 170 ms, the queued records not yet taken
+    assert not core.tripped
+    for k in range(5):  # odometry arrives, the command does not: the executive is silent
+        core.on_record('wheel_odometry', odo, t + 0.17 + k * 0.01)
+    core.tick(t + 0.21)
+    assert core.tripped and core.trip_cause == 'stale_command'
+
+
 def test_stalled_loop_trips():
     b = running()
     b.core.on_record('traction_command', b.command, b.t + 0.3)

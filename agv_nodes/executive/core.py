@@ -21,6 +21,13 @@ more than `reject_limit` rejected records in a second, a sub-system reporting a 
 tripped, radio stop, load failed), the distance travelled in one step beyond `route_limit` -
 give an emergency stop (traction byte 2 = 00H), the task is reported failed with the named
 cause and sub-system, and the truck stays stopped until a new task.
+
+A status is stale when it is older than `status_timeout` *and* at least `stale_confirm` status
+records from the other sub-systems have arrived since (or when it is twice that old). The
+executive supervises on every arrival, so a silent sub-system is noticed within a few ms of
+the timeout; the count keeps a starved executive from blaming a sub-system whose record is
+still waiting in its queue: after a stall its clock jumps ahead at once (the /clock reader
+keeps only the latest) while the records queued behind it are taken one per topic per turn.
 """
 
 from __future__ import annotations
@@ -44,6 +51,7 @@ class ExecutiveParams:
     srm_demand: int = 27  # % duty, about 0.3 m/s for wire changes (thesis 6.2)
     srm_map: dict[int, int] = field(default_factory=dict)  # location -> SRM angle, degrees
     status_timeout: float = 0.300  # s: a status record older than this is a fault
+    stale_confirm: int = 6  # other sub-systems' records since, before age alone is believed
     reject_limit: int = 5  # rejected records per second before it is a fault
     route_limit: float = 80.0  # m travelled within one step before it is a fault
     positioning_limit: float = 4.0  # m creeping toward a stop marker before it is a fault
@@ -103,6 +111,9 @@ class ExecutiveCore:
         self.period = self.p.period
         self.status: dict[str, dict[str, Any]] = {}  # latest status record per sub-system
         self.status_time: dict[str, float] = {}
+        self.max_age: dict[str, float] = {}  # oldest status seen while supervising (diagnostics)
+        self.arrivals = 0  # status records received, all sub-systems
+        self.arrivals_at: dict[str, int] = {}  # the count when each sub-system last reported
         self.rejects: list[float] = []  # times of rejected records
         self.mode = 'idle'  # idle | running | cruising | failed
         self.task: dict[str, Any] | None = None
@@ -141,10 +152,20 @@ class ExecutiveCore:
                 previous = self.status.get(sub)
                 self.status[sub] = fields
                 self.status_time[sub] = now
+                self.arrivals += 1
+                self.arrivals_at[sub] = self.arrivals
                 if sub == 'communications':
                     self._task_record(fields, now)
                 elif sub == 'navigation':
                     self._navigation(previous, fields, now)
+        if self.mode in ('running', 'cruising'):
+            # Supervise on every arrival too, not only at the 50 ms tick: a silent sub-system
+            # is then noticed within ~10 ms of its status_timeout (the other sub-systems'
+            # records keep arriving), and the e-stop goes out at once (issue 9: drive off
+            # within 200 ms of a fault).
+            self._supervise(now)
+            if self.mode == 'failed':
+                return self._commands(now)
         return None
 
     def on_reject(self, record: str, reason: str, now: float) -> dict | None:
@@ -346,8 +367,12 @@ class ExecutiveCore:
                 if now - self.task_start > 1.0:
                     return self._fail(now, 'stale_status', sub, 'never heard from')
                 continue
-            if now - t > self.p.status_timeout:
-                return self._fail(now, 'stale_status', sub, f'{now - t:.2f} s old')
+            age = now - t
+            self.max_age[sub] = max(self.max_age.get(sub, 0.0), age)
+            others = self.arrivals - self.arrivals_at.get(sub, 0)
+            if age > self.p.status_timeout and (others >= self.p.stale_confirm
+                                                or age > 2 * self.p.status_timeout):
+                return self._fail(now, 'stale_status', sub, f'{age:.2f} s old')
         self.rejects = [t for t in self.rejects if now - t <= 1.0]
         if len(self.rejects) > self.p.reject_limit:
             return self._fail(now, 'rejected_records', 'none', f'{len(self.rejects)} in 1 s')
@@ -407,6 +432,10 @@ class ExecutiveCore:
         if self.route['mode'] == 'srm' and route.get('manoeuvre') == self.route['manoeuvre'] \
                 and route.get('state') == 'following':
             self.route = {**self.route, 'mode': 'follow_wire'}  # the SRM has landed
+        return self._commands(now)
+
+    def _commands(self, now: float) -> dict[str, dict[str, Any]]:
+        """Every command record as things stand (the pigeon-holes)."""
         demand = self.demand if now >= self.arm_until else 0
         if demand and (self.slow or self.route['mode'] == 'srm'):
             demand = min(demand, self.p.srm_demand)

@@ -1,8 +1,10 @@
 """agv-diag: the maintenance display in a terminal - a live table of /diagnostics.
 
-One row per sub-system: level, the reason, record rate, age and rejects; `--detail NAME` adds
+One row per sub-system (the executive's view) and one per node's record inputs (each node's own
+`<node>/inputs` status): level, the reason, record rate, age and rejects; `--detail NAME` adds
 the 32 bytes in and out (hex and decoded) of one sub-system, the "key in the sub-system number"
-display of thesis 8.2.2. `--once` prints one table and exits (scripts and tests).
+display of thesis 8.2.2. Statuses from every publisher are merged by name. `--once` prints one
+table and exits (scripts and tests).
 """
 
 from __future__ import annotations
@@ -24,9 +26,32 @@ def level_of(status) -> int:
     return status.level[0] if isinstance(status.level, (bytes, bytearray)) else int(status.level)
 
 
+def label(status) -> str:
+    """A row's name: the status name without its 'agv/' prefix (e.g. traction/inputs)."""
+    name = status.name
+    return name.split('/', 1)[1] if name.startswith('agv/') else status.hardware_id
+
+
+class Merged:
+    """The latest status of each name, from every /diagnostics publisher."""
+
+    def __init__(self) -> None:
+        self.by_name: dict = {}
+        self.fresh = False
+
+    def __call__(self, msg: DiagnosticArray) -> None:
+        for st in msg.status:
+            self.by_name[st.name] = st
+        self.fresh = True
+
+    def array(self) -> DiagnosticArray:
+        """Every status so far, sorted by name."""
+        return DiagnosticArray(status=[self.by_name[k] for k in sorted(self.by_name)])
+
+
 def render(msg: DiagnosticArray, detail: str | None = None, colour: bool = True) -> str:
     """The table for one DiagnosticArray."""
-    lines = [f'{"sub-system":16s} {"level":6s} {"rate Hz":>8s} {"age s":>7s} {"rejects":>8s}  '
+    lines = [f'{"sub-system":20s} {"level":6s} {"rate Hz":>8s} {"age s":>7s} {"rejects":>8s}  '
              'reason']
     for st in msg.status:
         values = {kv.key: kv.value for kv in st.values}
@@ -34,10 +59,10 @@ def render(msg: DiagnosticArray, detail: str | None = None, colour: bool = True)
         name = LEVELS.get(lvl, str(lvl))
         if colour:
             name = f'{COLOURS.get(lvl, "")}{name:6s}\033[0m'
-        lines.append(f'{st.hardware_id:16s} {name:6s} {values.get("rate (Hz)", "-"):>8s} '
+        lines.append(f'{label(st):20s} {name:6s} {values.get("rate (Hz)", "-"):>8s} '
                      f'{values.get("age (s)", "-"):>7s} {values.get("rejected", "-"):>8s}  '
                      f'{st.message}')
-        if detail and st.hardware_id == detail:
+        if detail and detail in (st.hardware_id, label(st)):
             for key in ('in (hex)', 'in', 'out (hex)', 'out', 'rejects by reason',
                         'last rejection'):
                 if key in values:
@@ -54,28 +79,31 @@ def main(argv: list[str] | None = None) -> int:
     args, ros_args = ap.parse_known_args(argv)
     rclpy.init(args=['agv-diag', *ros_args])
     node = rclpy.create_node('agv_diag')
-    got: list[DiagnosticArray] = []
-    node.create_subscription(DiagnosticArray, '/diagnostics', got.append, qos.EVENTS)
+    got = Merged()
+    node.create_subscription(DiagnosticArray, '/diagnostics', got, qos.EVENTS)
     code = 0
     try:
         if args.once:
             import time
 
             deadline = time.monotonic() + args.timeout
-            while not got and time.monotonic() < deadline:
+            while not got.fresh and time.monotonic() < deadline:
                 rclpy.spin_once(node, timeout_sec=0.1)
-            if not got:
+            end = time.monotonic() + 1.5  # the other publishers' rows (1 Hz each)
+            while got.fresh and time.monotonic() < end:
+                rclpy.spin_once(node, timeout_sec=0.1)
+            if not got.fresh:
                 print('agv-diag: no /diagnostics received', file=sys.stderr)
                 code = 1
             else:
-                print(render(got[-1], args.detail, colour=False))
+                print(render(got.array(), args.detail, colour=False))
         else:
             while rclpy.ok():
                 rclpy.spin_once(node, timeout_sec=0.2)
-                if got:
-                    sys.stdout.write('\033[2J\033[H' + render(got[-1], args.detail) + '\n')
+                if got.fresh:
+                    sys.stdout.write('\033[2J\033[H' + render(got.array(), args.detail) + '\n')
                     sys.stdout.flush()
-                    got.clear()
+                    got.fresh = False
     except KeyboardInterrupt:
         pass
     finally:

@@ -58,7 +58,11 @@ class HealthMonitor:
         fault = getattr(executive, 'fault', None)
         for name, (in_record, out_record) in SUBSYSTEMS.items():
             reader, writer = readers.get(in_record), writers.get(out_record)
-            rows.append(self._row(now, name, reader, writer, fault))
+            row = self._row(now, name, reader, writer, fault)
+            max_age = getattr(executive, 'max_age', {}).get(name)
+            if max_age is not None:
+                row.values['max age while supervising (s)'] = f'{max_age:.3f}'
+            rows.append(row)
         rows.append(self._executive_row(executive))
         return rows
 

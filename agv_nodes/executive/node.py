@@ -51,6 +51,9 @@ class ExecutiveNode(CoreNode):
             srm_map=srm_map,
             status_timeout=p.number('status_timeout', d.status_timeout, 'a status record older '
                                     'than this is a fault, s', 0.05, 10.0),
+            stale_confirm=p.integer('stale_confirm', d.stale_confirm, 'records from the other '
+                                    'sub-systems that must arrive after a status before its '
+                                    'age alone makes it stale', 0, 1000),
             reject_limit=p.integer('reject_limit', d.reject_limit, 'rejected records per second '
                                    'tolerated', 0, 10000),
             route_limit=p.number('route_limit', d.route_limit, 'metres per step before the '

@@ -108,3 +108,31 @@ def _reason(exc: RecordError) -> str:
     if 'spare' in exc.reason:
         return 'spare_set'
     return 'bad_value'
+
+
+def inputs_report(readers: Mapping[str, RecordReader],
+                  rejected_before: int = 0) -> tuple[int, str, dict[str, str]]:
+    """One node's record inputs for /diagnostics: (level 0 OK / 1 WARN, message, values).
+
+    WARN while records are being rejected (more than `rejected_before` in all), so a foreign or
+    faulty writer shows at once; the counts themselves never reset.
+    """
+    values: dict[str, str] = {}
+    total = 0
+    by_reason: Counter[str] = Counter()
+    for name, reader in sorted(readers.items()):
+        total += reader.rejected
+        by_reason.update(reader.rejects)
+        values[f'{name} accepted'] = str(reader.accepted)
+        values[f'{name} rejected'] = str(reader.rejected)
+        values[f'{name} rejects by reason'] = ', '.join(
+            f'{k}={v}' for k, v in sorted(reader.rejects.items())) or 'none'
+        values[f'{name} lost (counter gaps)'] = str(reader.lost)
+        if reader.last_error:
+            values[f'{name} last rejection'] = reader.last_error
+    values['rejected'] = str(total)
+    reasons = ', '.join(f'{k}={v}' for k, v in sorted(by_reason.items()))
+    if total > rejected_before:
+        return 1, f'{total - rejected_before} records rejected recently ({total} in all: ' \
+                  f'{reasons})', values
+    return 0, f'inputs valid ({total} rejected in all{": " + reasons if total else ""})', values

@@ -63,6 +63,13 @@ class TractionParams:
     emergency_stop: str = 'immediate'
     command_timeout: float = 0.200  # s
     link_timeout: float = 0.200  # s
+    # A command or link older than its timeout is stale only once this many wheel_odometry
+    # records (100 Hz) have arrived since it, or at twice the timeout. For a simulated graph
+    # on sim time (config/agv_demo.yaml sets 5): a traction node that was starved of CPU sees
+    # its clock jump ahead at once (the /clock reader keeps only the latest) while the record
+    # it waits for is still queued. 0 (default) = the timeout alone, as on the hardware, whose
+    # clock never jumps (and the 1983 truck had no odometry).
+    stale_confirm: int = 0
     stall_limit: float = 0.200  # s: a gap between loop passes this long trips
     control: str = 'open_loop_1983'  # or 'closed_loop'
     # closed loop
@@ -127,6 +134,8 @@ class TractionCore:
         self._reset_stage = 0  # 0: wait for byte 2 = 00H; 1: wait for byte 2 != 00H
         self.command: dict[str, Any] | None = None
         self.command_time = -1e9
+        self._odometry_count = 0
+        self._odometry_at: dict[str, int] = {}
         self.link: dict[str, Any] | None = None
         self.link_time = -1e9
         self.measured_speed = 0.0  # m/s from wheel odometry
@@ -156,7 +165,14 @@ class TractionCore:
                 self.stop_target = None
         elif record == 'wheel_odometry':
             self.measured_speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
+            self._odometry_count += 1
+        if record in ('traction_command', 'traction_link'):
+            self._odometry_at[record] = self._odometry_count
         return None
+
+    def _stale(self, record: str, age: float, timeout: float) -> bool:
+        since = self._odometry_count - self._odometry_at.get(record, 0)
+        return age > timeout and (since >= self.p.stale_confirm or age > 2 * timeout)
 
     def on_reject(self, record: str, reason: str, now: float) -> dict | None:
         """A record the reader refused: corrupt command or link bytes trip the relay."""
@@ -202,9 +218,11 @@ class TractionCore:
         self.odometer += self.measured_speed * dt
         self.watchdog = (self.watchdog + 1) & 0xFF  # MONO, also inside every WAIT1
         if not self.tripped:
-            if now - self.command_time > self.p.command_timeout:
+            if self._stale('traction_command', now - self.command_time,
+                           self.p.command_timeout):
                 self._trip('stale_command')
-            elif (self._position_has_priority() and now - self.link_time > self.p.link_timeout):
+            elif (self._position_has_priority()
+                  and self._stale('traction_link', now - self.link_time, self.p.link_timeout)):
                 self._trip('stale_link')
         if (not self.tripped and self.p.control == 'open_loop_1983'
                 and self.p.emergency_stop == 'immediate' and self._estop_demanded()

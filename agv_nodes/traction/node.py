@@ -36,10 +36,14 @@ class TractionNode(CoreNode):
                                 ('saturating', 'faithful_8bit')),
             emergency_stop=p.choice('emergency_stop', d.emergency_stop, 'on byte 2 = 00H: '
                                     'cut the armature at once, then plug-brake (immediate), or '
-                                    "slew down 16 % per pass with the runout waits as the "
+                                    'slew down 16 % per pass with the runout waits as the '
                                     'listing does (as_listed)', ('immediate', 'as_listed')),
             command_timeout=p.number('command_timeout', d.command_timeout, 'trip when the '
                                      "executive's command is older than this, s", 0.02, 5.0),
+            stale_confirm=p.integer('stale_confirm', d.stale_confirm, 'wheel_odometry records '
+                                    'that must arrive after a command or link before its age '
+                                    'alone trips (0 = the timeout alone, as on the hardware)',
+                                    0, 1000),
             link_timeout=p.number('link_timeout', d.link_timeout, 'trip when the Position link '
                                   'being obeyed is older than this, s', 0.02, 5.0),
             stall_limit=p.number('stall_limit', d.stall_limit, 'trip when two loop passes are '
@@ -54,6 +58,17 @@ class TractionNode(CoreNode):
             max_jerk=p.number('max_jerk', d.max_jerk, 'closed loop: m/s^3 limit', 0.01, 50.0),
         )
         self.attach(TractionCore(tp), p)
+        self._was_tripped: str | None = 'startup'
+
+    def _tick(self) -> None:
+        super()._tick()
+        now = self.core.trip_cause if self.core.tripped else None
+        if now != self._was_tripped:  # the trip relay's story, for the log files
+            if now is None:
+                self.get_logger().info('trip relay reset (00H then a demand)')
+            else:
+                self.get_logger().warn(f'trip relay open: {now}')
+            self._was_tripped = now
 
 
 def main(args: list[str] | None = None) -> int:

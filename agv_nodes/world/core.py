@@ -83,6 +83,7 @@ class WorldCore:
         self._conv_every = _Every(self.p.conveyor_rate, self.p.sample_rate)
         self._cam_every = _Every(self.p.camera_rate, self.p.sample_rate)
         self.radio_stop = False
+        self.wire_powered = True  # the guide-wire generator (a fault test switches it off)
         self._last_watchdog: int | None = None
         self._watchdog_time = -1e9
         self._steer_time = -1e9
@@ -216,6 +217,8 @@ class WorldCore:
     def _guide_wire(self) -> dict[str, int]:
         sx, sy = self.vehicle.sensor_point
         left, right = self.pickup.coils(sx, sy, self.vehicle.state.heading)
+        if not self.wire_powered:  # generator off: the coils pick up nothing
+            left = right = 0
         self.counters['guide_wire'] = (self.counters['guide_wire'] + 1) & 0xFF
         on_wire = max(left, right) > 0.25 * self.p.pickup.nominal
         if on_wire != self._on_wire:

@@ -21,6 +21,7 @@ import time
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, PoseStamped
 from nav_msgs.msg import Path
+from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -35,7 +36,7 @@ from agv_nodes.core_node import spin_main
 from agv_nodes.params import Parameters
 from agv_nodes.records import codec
 from agv_nodes.records.codec import RecordError, RecordSchema
-from agv_nodes.ros_ports import RecordPublisher, RecordSubscription
+from agv_nodes.ros_ports import InputDiagnostics, RecordPublisher, RecordSubscription
 from agv_nodes.world.core import WorldCore, WorldParams
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
 from agv_nodes.world.pacing import GraphPacer
@@ -61,6 +62,14 @@ class WorldNode(Node):
             self.layout = load_layout(layout_path(layout_name))
         except (LayoutError, FileNotFoundError) as exc:
             p.fail('layout', layout_name, str(exc))
+        removed = p.texts('remove_markers', [], 'marker cards taken off their stands (fault '
+                          'tests: a missing stop marker), by name: L0-L3, W2.1, ...')
+        names = {m.name for m in self.layout.markers}
+        for name in removed:
+            if name not in names:
+                p.fail('remove_markers', removed, f'no marker {name!r} in layout '
+                       f'{self.layout.name} ({", ".join(sorted(names))})')
+        self.layout.markers = [m for m in self.layout.markers if m.name not in removed]
         wp = WorldParams(
             seed=p.integer('seed', 1, 'random seed of all noise', 0, 2**31 - 1),
             sample_rate=p.number('sample_rate', 340.0, 'marker sensor snapshots per second '
@@ -112,17 +121,30 @@ class WorldNode(Node):
                            0.0, 10.0)
         self.lag_patience = p.number('lag_patience', 0.5, 'real seconds the world waits for a '
                                      'lagging writer before it carries on without it', 0.0, 60.0)
+        slack = {}
+        entries = p.texts('pace_slack', [], 'RECORD:SECONDS: extra time a paced record may '
+                          'lag (agv-launch --fault sets it for a lossy or delayed record)')
+        for entry in entries:
+            name, _, seconds = entry.partition(':')
+            try:
+                slack[name] = float(seconds)
+            except ValueError:
+                p.fail('pace_slack', entries, f'{entry!r} is not RECORD:SECONDS')
         self.pacer = GraphPacer(
             max_lag, {name: c[name].period_ms / 1000.0 for name in pace_on}, wp.sample_rate,
             clock_step=self.clock_every / wp.sample_rate,
-            consumers=tuple(n for n in pace_on if _counts_samples(c[n])))
+            consumers=tuple(n for n in pace_on if _counts_samples(c[n])), slack=slack)
         self.core = WorldCore(self.layout, wp)
+        self.core.wire_powered = p.flag('wire_powered', True, 'guide-wire generator on (set '
+                                        'false at run time to cut the wire: a fault test)')
+        self.add_on_set_parameters_callback(self._set_at_run_time)
         self.out = {}
         for schema in c:
             if schema.writer == NODE:
                 self.out[schema.name] = RecordPublisher(self, schema)
-        self.inputs = [RecordSubscription(self, c[name], callback=self._input(name))
-                       for name in INPUTS]
+        self.inputs = {name: RecordSubscription(self, c[name], callback=self._input(name))
+                       for name in INPUTS}
+        self.input_diagnostics = InputDiagnostics(self, self.inputs)
         for name in pace_on:  # only the arrival (and a sample count) matter: read raw
             if name not in INPUTS:
                 self.create_subscription(UInt8MultiArray, c[name].topic, self._paced(c[name]),
@@ -170,6 +192,15 @@ class WorldNode(Node):
     def lagging(self) -> list[str]:
         """Paced writers that have fallen behind the world's clock."""
         return self.pacer.lagging(self.core.time)
+
+    def _set_at_run_time(self, params: list) -> SetParametersResult:
+        """Faults switched while the world runs: ambient light and the wire generator."""
+        for param in params:
+            if param.name == 'ambient':
+                self.core.sensor.p.ambient = float(param.value)
+            elif param.name == 'wire_powered':
+                self.core.wire_powered = bool(param.value)
+        return SetParametersResult(successful=True)
 
     def _radio_stop(self, msg: Bool) -> None:
         self._work += 1

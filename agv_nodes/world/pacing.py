@@ -55,13 +55,15 @@ class GraphPacer:
     sample_rate: float
     clock_step: float = 0.0  # s between /clock messages: a sim-time timer fires up to this late
     consumers: tuple[str, ...] = ()
+    slack: dict[str, float] = field(default_factory=dict)  # extra allowance (injected faults)
     lost_samples: int = 0
     _paced: dict[str, _Paced] = field(default_factory=dict)
     _consumers: dict[str, _Consumer] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for name, period in self.periods.items():
-            self._paced[name] = _Paced(self.max_lag + period + self.clock_step)
+            self._paced[name] = _Paced(self.max_lag + period + self.clock_step
+                                       + self.slack.get(name, 0.0))
         for name in self.consumers:  # measured on arrival, so its period does not count
             self._consumers[name] = _Consumer(
                 max(1, round((self.max_lag + self.clock_step) * self.sample_rate)))

@@ -1,0 +1,195 @@
+"""A test's window on the whole graph over DDS: launch it, drive it, watch the ground truth.
+
+Used by the fault tests (test_kill_dds.py, test_faults_dds.py). The probe is an rclpy node in
+the test process on the graph's own ROS domain: it sends tasks, pauses the world to do
+something at an exact simulated time, switches world faults at run time (parameters), and
+keeps the world's ground truth: speed from /world/pose, drive_off and other events from
+world/events (stamped in sim time), reports, traction trips and /diagnostics errors.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from typing import Any
+
+AT_REST = 0.005  # m/s
+CRUISE = 0.6  # m/s the truck must exceed before a fault (1983 cruise: 0.7)
+
+
+def event_time(time_ms: int, reference: float) -> float:
+    """Unwrap a world_event's 16-bit ms stamp next to a recent sim time (within 65 s)."""
+    ref_ms = round(reference * 1000) + 1000  # an event may be read just before its pose
+    return (ref_ms - (ref_ms - time_ms) % 65536) / 1000
+
+
+class GraphProbe:
+    """The launched graph plus a probe node; `close()` shuts both down."""
+
+    def __init__(self, log_dir, **options: Any) -> None:
+        from diagnostic_msgs.msg import DiagnosticArray
+        from geometry_msgs.msg import PoseStamped
+        import rclpy
+        from rclpy.context import Context
+        from std_msgs.msg import Bool, String
+        from std_srvs.srv import Trigger
+
+        from agv_nodes import qos
+        from agv_nodes.launcher import Launch, Options
+        from agv_nodes.records.codec import codec
+        from agv_nodes.ros_ports import RecordSubscription
+
+        self.launch = Launch(Options(time_factor=0.0, quiet=True, log_dir=log_dir,
+                                     domain_id=int(os.environ['ROS_DOMAIN_ID']), **options))
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=self.launch.domain)
+        self.node = rclpy.create_node('fault_probe', context=self.context)
+        self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.speed = 0.0
+        self.time = 0.0  # sim time of the last pose
+        self._last: tuple[float, float, float] | None = None
+        self.path: list[tuple[float, float, float]] = []  # (sim t, x, y) at 50 Hz
+        self.reports: list[str] = []
+        self.trips: list[str] = []
+        self.events: list[tuple[float, dict]] = []
+        self.errors: dict[str, str] = {}  # /diagnostics hardware_id -> message, level ERROR
+        self.inputs: dict[str, dict[str, str]] = {}  # node -> its /diagnostics inputs values
+        self.expected_dead: set[str] = set()
+        n = self.node
+        n.create_subscription(PoseStamped, 'world/pose', self._pose, qos.STREAM_READER)
+        n.create_subscription(String, 'comms/report', lambda m: self.reports.append(m.data),
+                              qos.EVENTS)
+        n.create_subscription(DiagnosticArray, '/diagnostics', self._diagnostics, qos.EVENTS)
+        self._subs = [
+            RecordSubscription(n, codec()['traction_status'], 'e2e', self._traction),
+            RecordSubscription(n, codec()['world_event'], 'e2e', self._event)]
+        self.task_pub = n.create_publisher(String, 'comms/task', qos.EVENTS)
+        self.radio_pub = n.create_publisher(Bool, 'hw/radio_stop', qos.RECORD_WRITER)
+        self._pause = n.create_client(Trigger, 'world/pause')
+        self._resume = n.create_client(Trigger, 'world/resume')
+        self.launch.start()
+
+    # -- callbacks --------------------------------------------------------------------------
+    def _pose(self, msg) -> None:
+        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        x, y = msg.pose.position.x, msg.pose.position.y
+        if self._last is not None and t > self._last[0]:
+            self.speed = math.hypot(x - self._last[1], y - self._last[2]) / (t - self._last[0])
+        self._last, self.time = (t, x, y), t
+        self.path.append((t, x, y))
+
+    def _traction(self, fields: dict) -> None:
+        if fields['tripped']:
+            self.trips.append(fields['trip_cause'])
+
+    def _event(self, fields: dict) -> None:
+        self.events.append((event_time(fields['time_ms'], self.time), fields))
+
+    def _diagnostics(self, msg) -> None:
+        for st in msg.status:
+            level = st.level if isinstance(st.level, int) else int.from_bytes(st.level, 'little')
+            if level == 2:
+                self.errors[st.hardware_id] = st.message
+            if st.name.endswith('/inputs'):
+                self.inputs[st.hardware_id] = {kv.key: kv.value for kv in st.values}
+
+    # -- driving ----------------------------------------------------------------------------
+    def spin_until(self, condition, wall_limit: float, what: str) -> None:
+        """Spin until `condition()`; fail on a timeout or an unexpected dead node."""
+        deadline = time.monotonic() + wall_limit
+        while not condition():
+            self.executor.spin_once(timeout_sec=0.05)
+            dead = [n for n in self.launch.poll() if n not in self.expected_dead]
+            assert not dead, f'{dead} died while waiting for {what}'
+            assert time.monotonic() < deadline, (
+                f'timed out waiting for {what}; reports {self.reports}; '
+                + '\n'.join(self.launch.lines[-40:]))
+
+    def start_task(self, text: str, cruise: float | None = CRUISE) -> None:
+        """Wait for the graph, send a task, and (optionally) wait until it runs at speed."""
+        self.spin_until(lambda: self.launch.moving.is_set()
+                        and self.task_pub.get_subscription_count() > 0, 120, 'the graph')
+        from std_msgs.msg import String
+
+        self.task_pub.publish(String(data=text))
+        if cruise is not None:
+            self.spin_until(lambda: self.speed > cruise, 90, f'the truck to exceed {cruise}')
+
+    def _call(self, client, what: str) -> str:
+        from std_srvs.srv import Trigger
+
+        assert client.wait_for_service(timeout_sec=30.0), f'no {what} service'
+        future = client.call_async(Trigger.Request())
+        deadline = time.monotonic() + 30
+        while not future.done():
+            self.executor.spin_once(timeout_sec=0.05)
+            assert time.monotonic() < deadline, f'{what} did not answer'
+        return future.result().message
+
+    def at_exact_time(self, action) -> float:
+        """Pause the world, do `action()`, resume; returns the sim time it happened at."""
+        at = float(self._call(self._pause, 'world pause').split()[2])  # 'paused at T s'
+        action()
+        self._call(self._resume, 'world resume')
+        return at
+
+    def set_world(self, **values: Any) -> None:
+        """Set world parameters at run time (fault switches)."""
+        from rcl_interfaces.srv import SetParameters
+        from rclpy.parameter import Parameter
+
+        client = self.node.create_client(SetParameters, 'world/set_parameters')
+        assert client.wait_for_service(timeout_sec=30.0)
+        req = SetParameters.Request(parameters=[Parameter(k, value=v).to_parameter_msg()
+                                                for k, v in values.items()])
+        future = client.call_async(req)
+        while not future.done():
+            self.executor.spin_once(timeout_sec=0.05)
+        assert all(r.successful for r in future.result().results), future.result()
+
+    def radio_stop(self, on: bool) -> None:
+        """The radio-control stop input."""
+        from std_msgs.msg import Bool
+
+        self.radio_pub.publish(Bool(data=on))
+
+    # -- what happened ----------------------------------------------------------------------
+    def stays_at_rest(self, hold: float = 2.0, wall_limit: float = 120, what: str = '') -> float:
+        """Wait until the truck is at rest and has stayed so for `hold` sim s; returns since."""
+        rest: dict[str, float | None] = {'since': None}
+
+        def held() -> bool:
+            if self.speed > AT_REST:
+                rest['since'] = None
+                return False
+            if rest['since'] is None:
+                rest['since'] = self.time
+            return self.time - rest['since'] >= hold
+        self.spin_until(held, wall_limit, what or 'the truck to stop and stay stopped')
+        return float(rest['since'])
+
+    def drive_off_after(self, t: float) -> float | None:
+        """Sim seconds from `t` to the first drive_off event after it (None: none)."""
+        cut = [e_t - t for e_t, e in self.events if e['event'] == 'drive_off' and e_t >= t - 0.05]
+        return cut[0] if cut else None
+
+    def travelled_since(self, t0: float) -> float:
+        """Metres along the ground-truth path since sim time `t0`."""
+        pts = [(x, y) for t, x, y in self.path if t >= t0]
+        return sum(math.dist(a, b) for a, b in zip(pts, pts[1:], strict=False))
+
+    def report_with(self, words: str, wall_limit: float = 30) -> None:
+        """Wait for a comms/report containing `words`."""
+        self.spin_until(lambda: any(words in r for r in self.reports), wall_limit,
+                        f'a report with {words!r}')
+
+    def close(self) -> None:
+        """Shut the probe and the graph down."""
+        import rclpy
+
+        self.node.destroy_node()
+        self.executor.shutdown()
+        rclpy.try_shutdown(context=self.context)
+        self.launch.stop()
