@@ -170,7 +170,9 @@ def node_parameters(graph: Graph, spec: NodeSpec, options: Options) -> dict[str,
         subs, pubs = wait_lists(graph, True, options.bag is not None)
         out.update(time_factor=float(options.time_factor), publish_clock=options.use_sim_time,
                    wait_for_subscribers=subs, wait_for_publishers=pubs,
-                   pace_on=paced_records(graph), pace_slack=pace_slack(options.faults))
+                   pace_on=paced_records(graph))
+        if options.faults:
+            out['pace_slack'] = pace_slack(options.faults)
         if options.layout:
             out['layout'] = options.layout
     if spec.role == 'recorder':

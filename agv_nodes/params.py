@@ -119,7 +119,7 @@ class Parameters:
         """A list of strings."""
         desc = ParameterDescriptor(description=description)
         value = self._declare(name, list(default) or [''], desc)
-        return [v for v in value if v]
+        return [v for v in value or () if v]  # a file's `[]` has no type: rclpy gives None
 
     def fail(self, name: str, value: Any, reason: str) -> None:
         """Refuse a value the node found unusable after reading it."""

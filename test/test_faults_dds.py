@@ -12,9 +12,9 @@ fault's sim time is exact (test/graph_probe.py). Each case asserts the expected 
   samples, the executive e-stops: `lost wire`;
 - a stop marker missing from its stand (W2.2 removed, task 'stop at 2 second'): the truck must
   not run past the end of its route: the executive's positioning limit stops it, `route limit`;
-- a lossy or slow link (agv-launch --fault, injected at the writer): 10 % of the position
-  sensor's records lost, or 20 ms more on navigation's link to traction: the task completes,
-  the stop stays in tolerance, and the reader's /diagnostics counts the gaps.
+- a lossy or slow link (agv-launch --fault, injected at the writer): 10 % of navigation's
+  commands to the position sensor lost, or 20 ms more on navigation's link to traction: the
+  task completes, the stop stays in tolerance, and the reader's /diagnostics counts the gaps.
 """
 
 from __future__ import annotations
@@ -79,11 +79,12 @@ def test_missing_stop_marker_stops_at_the_positioning_limit(tmp_path, fault_tabl
 
 
 @pytest.mark.parametrize('fault, expected', [
-    # The sensor's records carry a recognition counter, so losing one in ten costs nothing.
-    ('position_sensor_status:loss=0.1', 'task completes, stop as usual, gaps counted'),
+    # Navigation's table commands to the sensor are pigeon-holes repeated every 50 ms, so
+    # losing one in ten costs at most 50 ms of a table switch made 1 m before the stop marker.
+    ('position_sensor_command:loss=0.1', 'task completes, stop as usual, gaps counted'),
     # 20 ms more on navigation's speed link to traction: the stop comes a little later.
     ('traction_link:delay=0.02', 'task completes, the stop a few mm later'),
-], ids=['sensor_status_loss', 'link_delay'])
+], ids=['sensor_command_loss', 'link_delay'])
 def test_lossy_or_slow_link_is_tolerated_and_diagnosed(tmp_path, fault, expected, fault_table):
     from agv_nodes.launcher import load_graph, parse_fault
     from agv_nodes.records import codec

@@ -125,3 +125,32 @@ def test_launch_overrides_beat_the_parameter_file():
     finally:
         rclpy.try_shutdown(context=context)
         launch.stop()
+
+
+@pytest.mark.parametrize('text, words', [
+    ('adc_snapshot:loss=0.1', 'not a record a node of the graph writes'),
+    ('traction_link:loss=2', "'loss=2'"),
+    ('traction_link:jitter=0.1', "'jitter=0.1'"),
+    ('traction_link:', 'nothing to inject'),
+])
+def test_bad_fault_option_names_the_problem(text, words):
+    from agv_nodes.launcher import GraphError, load_graph, parse_fault
+
+    with pytest.raises(GraphError, match='--fault') as err:
+        parse_fault(text, load_graph())
+    assert words in str(err.value)
+
+
+def test_fault_option_reaches_the_writer_and_the_world():
+    from agv_nodes.launcher import Options, load_graph, node_parameters, parse_fault
+
+    graph = load_graph()
+    record, spec = parse_fault('traction_link:loss=0.1,delay=0.02', graph)
+    options = Options(faults={record: spec})
+    nav = node_parameters(graph, graph.node('navigation'), options)
+    assert (nav['fault_record'], nav['fault_loss'], nav['fault_delay']) == \
+        ('traction_link', 0.1, 0.02)
+    assert 'fault_record' not in node_parameters(graph, graph.node('traction'), options)
+    world = node_parameters(graph, graph.node('world'), options)
+    assert 'traction_link' in world['pace_on'] and world['pace_slack'] == ['traction_link:0.09']
+    assert 'pace_slack' not in node_parameters(graph, graph.node('world'), Options())
