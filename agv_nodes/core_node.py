@@ -47,7 +47,8 @@ class CoreNode(Node):
                                      qos.RECORD_READER)
         if core.period:
             self.timer = self.create_timer(core.period, self._tick)
-        self.input_diagnostics = InputDiagnostics(self, self.readers)
+        self.input_diagnostics = InputDiagnostics(self, self.readers,
+                                                  health=getattr(core, 'health', None))
         # Fault injection (agv-launch --fault; issue 9): one of this node's records is lost
         # or delayed on its way out, as a bad link would. The E2E counter still advances for a
         # lost record, so readers see the gap (counted as lost in /diagnostics).

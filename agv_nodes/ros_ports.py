@@ -70,20 +70,25 @@ class InputDiagnostics:
 
     One DiagnosticStatus `agv[/ns]/<node>/inputs` (hardware_id `<node>`): accepted, rejected
     by reason, counter gaps and the last rejection per record, WARN while records are being
-    rejected. Every node that reads records has it, so a malformed record is counted and shown
-    wherever it arrives, not only at the executive.
+    rejected, and the node's own verdict when it has one (traction: the trip relay). Every node
+    that reads records has it, so a malformed record is counted and shown wherever it arrives,
+    and a node whose executive has gone silent still says so.
     """
 
-    def __init__(self, node: Node, readers: Mapping[str, RecordReader], period: float = 1.0):
+    def __init__(self, node: Node, readers: Mapping[str, RecordReader], period: float = 1.0,
+                 health: Callable[[], tuple[int, str]] | None = None) -> None:
         self._node = node
         self._readers = readers
+        self._health = health
         self._before = 0
         self._pub = node.create_publisher(DiagnosticArray, '/diagnostics', qos.EVENTS)
         node.create_timer(period, self.publish)
 
     def publish(self) -> None:
         """Send the current counts."""
-        level, message, values = inputs_report(self._readers, self._before)
+        level, message, values = inputs_report(
+            self._readers, self._before, self._node.get_clock().now().nanoseconds,
+            self._health() if self._health else None)
         self._before = int(values['rejected'])
         ns = self._node.get_namespace().strip('/')
         status = DiagnosticStatus(name=f'agv{"/" + ns if ns else ""}/{self._node.get_name()}'

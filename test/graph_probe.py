@@ -54,7 +54,7 @@ class GraphProbe:
         self.reports: list[str] = []
         self.trips: list[str] = []
         self.events: list[tuple[float, dict]] = []
-        self.errors: dict[str, str] = {}  # /diagnostics hardware_id -> message, level ERROR
+        self.errors: dict[str, str] = {}  # /diagnostics label -> message, level ERROR
         self.inputs: dict[str, dict[str, str]] = {}  # node -> its /diagnostics inputs values
         self.expected_dead: set[str] = set()
         n = self.node
@@ -90,9 +90,10 @@ class GraphProbe:
     def _diagnostics(self, msg) -> None:
         for st in msg.status:
             level = st.level if isinstance(st.level, int) else int.from_bytes(st.level, 'little')
+            label = st.name.split('/', 1)[1]  # 'agv/traction' -> traction, traction/inputs
             if level == 2:
-                self.errors[st.hardware_id] = st.message
-            if st.name.endswith('/inputs'):
+                self.errors[label] = st.message
+            if label.endswith('/inputs'):
                 self.inputs[st.hardware_id] = {kv.key: kv.value for kv in st.values}
 
     # -- driving ----------------------------------------------------------------------------

@@ -181,7 +181,7 @@ def test_fuzz_every_record_topic(graph, batch):
     c = codec()
     for name, recipe in batch.items():
         graph.send(name, apply(c[name], recipe, graph.genuine.get(name)))
-    graph.spin(0.02)  # paced so that no reader's queue overflows: every record arrives
+    graph.spin(0.04)  # paced so that no reader's queue overflows: every record arrives
 
 
 def test_fuzzed_records_were_counted_and_never_acted_on(graph):

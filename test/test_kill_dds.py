@@ -34,13 +34,13 @@ DRIVE_OFF_WITHIN = 0.200  # simulated s from the kill to the drive no longer pus
 # kill's own loop pass; world_event stamps are whole milliseconds.
 RELAY_DROPS_WITHIN = 0.200 + 1 / 340 + 0.001
 
-CASES = [  # victim, at rest within (sim s), executive report, /diagnostics row, its words
+CASES = [  # victim, at rest within (sim s), executive report, /diagnostics ERROR row, words
     ('route_following', 3.0, 'FAILED: stale status (route)', 'route', 'old'),
     ('navigation', 3.0, 'FAILED: stale status (navigation)', 'navigation', 'old'),
     ('position_sensor', 3.0, 'FAILED: sensor lost (navigation)', 'navigation',
      'marker sensor lost'),
-    # nobody is left to report or publish /diagnostics; traction's trip record proves the cause
-    ('executive', 3.0, None, None, None),
+    # nobody is left to report; traction's own /diagnostics row names the silent executive
+    ('executive', 3.0, None, 'traction/inputs', 'stale_command (the executive is silent)'),
     ('traction', 5.0, 'FAILED: stale status (traction)', 'traction', 'old'),
 ]
 
@@ -69,10 +69,10 @@ def test_silent_node_ends_in_a_stop(tmp_path, victim, stop_within, report, diag_
         assert at_rest <= stop_within, f'{victim} {sig.name}: at rest only {at_rest:.2f} s after'
         if report:
             g.report_with(report)
-            g.spin_until(lambda: diag_words in g.errors.get(diag_row, ''), 30,
-                         f'/diagnostics naming {diag_row} ({diag_words!r}); have {g.errors}')
         else:
             assert g.trips and g.trips[-1] == 'stale_command', g.trips
+        g.spin_until(lambda: diag_words in g.errors.get(diag_row, ''), 30,
+                     f'/diagnostics naming {diag_row} ({diag_words!r}); have {g.errors}')
         if sig == signal.SIGSTOP:  # wakes up: its stale state must not move the truck
             proc[victim].send_signal(signal.SIGCONT)
             g.stays_at_rest(what='the truck to stay stopped after SIGCONT')

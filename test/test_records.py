@@ -220,3 +220,17 @@ def test_inputs_report_counts_rejections_by_reason_and_warns_while_they_arrive()
     assert values['traction_command rejects by reason'] == 'repeated_counter=1, wrong_length=1'
     level, message, _ = inputs_report({'traction_command': reader}, rejected_before=2)
     assert level == 0 and '2 rejected in all' in message
+
+
+def test_inputs_report_puts_the_nodes_own_verdict_first():
+    from agv_nodes.records.ports import RecordReader, inputs_report
+    from agv_nodes.traction.core import TractionCore
+
+    core = TractionCore()
+    core.tripped = False  # armed and running ...
+    core._trip('stale_command')  # ... until the executive fell silent
+    level, message, values = inputs_report({'traction_command': RecordReader(
+        codec()['traction_command'])}, now_ns=10**9, health=core.health())
+    assert level == 2 and message.startswith('trip relay open: stale_command (the executive')
+    assert values['traction_command age (s)'] == 'never'
+    assert TractionCore().health()[0] == 1  # tripped at start-up: a warning, not a fault

@@ -110,12 +110,14 @@ def _reason(exc: RecordError) -> str:
     return 'bad_value'
 
 
-def inputs_report(readers: Mapping[str, RecordReader],
-                  rejected_before: int = 0) -> tuple[int, str, dict[str, str]]:
-    """One node's record inputs for /diagnostics: (level 0 OK / 1 WARN, message, values).
+def inputs_report(readers: Mapping[str, RecordReader], rejected_before: int = 0,
+                  now_ns: int | None = None,
+                  health: tuple[int, str] | None = None) -> tuple[int, str, dict[str, str]]:
+    """One node's record inputs for /diagnostics: (level 0 OK / 1 WARN / 2 ERROR, message, values).
 
     WARN while records are being rejected (more than `rejected_before` in all), so a foreign or
-    faulty writer shows at once; the counts themselves never reset.
+    faulty writer shows at once; the counts themselves never reset. `health` is the node's own
+    verdict (e.g. traction's trip relay), which comes first in the message.
     """
     values: dict[str, str] = {}
     total = 0
@@ -128,11 +130,19 @@ def inputs_report(readers: Mapping[str, RecordReader],
         values[f'{name} rejects by reason'] = ', '.join(
             f'{k}={v}' for k, v in sorted(reader.rejects.items())) or 'none'
         values[f'{name} lost (counter gaps)'] = str(reader.lost)
+        if now_ns is not None:
+            age = reader.age_s(now_ns)
+            values[f'{name} age (s)'] = 'never' if age == float('inf') else f'{age:.3f}'
         if reader.last_error:
             values[f'{name} last rejection'] = reader.last_error
     values['rejected'] = str(total)
     reasons = ', '.join(f'{k}={v}' for k, v in sorted(by_reason.items()))
     if total > rejected_before:
-        return 1, f'{total - rejected_before} records rejected recently ({total} in all: ' \
-                  f'{reasons})', values
-    return 0, f'inputs valid ({total} rejected in all{": " + reasons if total else ""})', values
+        level, message = 1, (f'{total - rejected_before} records rejected recently ({total} '
+                             f'in all: {reasons})')
+    else:
+        level, message = 0, f'inputs valid ({total} rejected in all' \
+                            f'{": " + reasons if total else ""})'
+    if health is not None and health[1]:
+        level, message = max(level, health[0]), f'{health[1]}; {message}'
+    return level, message, values

@@ -241,6 +241,15 @@ class TractionCore:
             out['traction_status'] = self.status()
         return out
 
+    def health(self) -> tuple[int, str]:
+        """For /diagnostics: the trip relay (ERROR when a fault opened it, WARN at start-up)."""
+        if not self.tripped:
+            return 0, ''
+        hint = {'stale_command': ' (the executive is silent)',
+                'stale_link': ' (navigation is silent)'}.get(self.trip_cause, '')
+        return (1 if self.trip_cause == 'startup' else 2,
+                f'trip relay open: {self.trip_cause}{hint}')
+
     def _estop_demanded(self) -> bool:
         cmd = self.command
         return cmd is not None and not cmd['manual'] and cmd['demand'] == 0
