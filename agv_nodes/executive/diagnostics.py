@@ -96,7 +96,8 @@ class HealthMonitor:
             values['last rejection'] = reader.last_error
         if age == float('inf'):
             level, reasons = ERROR, ['no status record received']
-        elif age > self.status_timeout:
+        elif age > max(self.status_timeout, 3 * reader.schema.period_ms / 1000.0):
+            # (communications reports every 100 ms: three periods, not the 50 ms statuses' 150)
             level, reasons = ERROR, [f'status record {age:.2f} s old (silent?)']
         fields = reader.fields or {}
         flags = {
