@@ -86,6 +86,13 @@ def pytest_runtest_setup(item) -> None:
     _fault_table.test = f'{Path(item.fspath).name}::{item.name}'
 
 
+def _test_exists(test: str) -> bool:
+    """True while `file.py::function[...]` still names a test function in test/."""
+    file, _, name = test.partition('::')
+    path = REPO / 'test' / file
+    return path.exists() and f'def {name.split("[")[0]}(' in path.read_text()
+
+
 def pytest_sessionfinish(session, exitstatus) -> None:
     if not _fault_table.rows:
         return
@@ -93,7 +100,8 @@ def pytest_sessionfinish(session, exitstatus) -> None:
     if FAULT_TABLE.exists():
         for line in FAULT_TABLE.read_text().splitlines():
             cells = [c.strip() for c in line.strip().strip('|').split('|')]
-            if line.startswith('| ') and len(cells) == 4 and cells[0] not in ('fault', '---'):
+            if line.startswith('| ') and len(cells) == 4 and cells[0] not in ('fault', '---') \
+                    and _test_exists(cells[3]):
                 rows[cells[0]] = tuple(cells[1:])
     rows.update(_fault_table.rows)
     body = ''.join(f'| {k} | {" | ".join(v)} |\n' for k, v in sorted(rows.items()))

@@ -137,7 +137,7 @@ def start_graph(tmp_path, integrity: str = 'e2e'):
     return graph, stop
 
 
-def test_foreign_plain_traction_command_is_obeyed_by_a_legacy_graph(tmp_path):
+def test_foreign_plain_traction_command_is_obeyed_by_a_legacy_graph(tmp_path, fault_table):
     """record_integrity none (a legacy 1983 peer): the same foreign records are accepted.
 
     This is the documented risk of `none` (docs/hardware.md): any process on the domain can
@@ -160,6 +160,9 @@ def test_foreign_plain_traction_command_is_obeyed_by_a_legacy_graph(tmp_path):
             before['traction_command accepted'])
         assert after['traction_command rejected'] == before['traction_command rejected']
         assert accepted >= 40 + 2 * 20 // 2, (before, after)  # ours + the executive's own
+        fault_table.add('foreign writer: plain traction_command, record_integrity none',
+                        'accepted: the documented risk of a legacy peer (docs/hardware.md)',
+                        f'{accepted} accepted, none rejected')
     finally:
         stop()
 
@@ -184,7 +187,7 @@ def test_fuzz_every_record_topic(graph, batch):
     graph.spin(0.04)  # paced so that no reader's queue overflows: every record arrives
 
 
-def test_fuzzed_records_were_counted_and_never_acted_on(graph):
+def test_fuzzed_records_were_counted_and_never_acted_on(graph, fault_table):
     assert sum(graph.sent.values()) >= EXAMPLES * len(FUZZED)
     want = {(r, s.name): graph.sent[s.name] for s in FUZZED for r in s.readers
             if r in GRAPH_NODES}
@@ -204,9 +207,13 @@ def test_fuzzed_records_were_counted_and_never_acted_on(graph):
     assert graph.max_speed < 0.005, f'the truck moved ({graph.max_speed:.3f} m/s)'
     assert not graph.events, f'something happened in the world: {graph.events}'
     print(f'{sum(graph.sent.values())} malformed records on {len(FUZZED)} topics: all counted')
+    fault_table.add('malformed records from a foreign process on every record topic',
+                    'every one rejected and counted in /diagnostics; truck never moves; no '
+                    'node dies', f'{sum(graph.sent.values())} records on {len(FUZZED)} topics: '
+                    'all counted, truck at rest')
 
 
-def test_foreign_plain_traction_command_is_rejected_under_e2e(graph):
+def test_foreign_plain_traction_command_is_rejected_under_e2e(graph, fault_table):
     """A writer outside the graph that sends plain 1983 records (no CRC) does not drive."""
     schema = codec()['traction_command']
     before = int(graph.inputs['traction'].get('traction_command rejected', '0'))
@@ -219,3 +226,6 @@ def test_foreign_plain_traction_command_is_rejected_under_e2e(graph):
     assert after - before >= 40
     assert 'bad_crc' in graph.inputs['traction']['traction_command rejects by reason']
     assert graph.max_speed < 0.005
+    fault_table.add('foreign writer: plain traction_command (no CRC), record_integrity e2e',
+                    'rejected (bad_crc), counted, truck does not move',
+                    f'{after - before} rejected, truck at rest')

@@ -118,7 +118,7 @@ def running_executive() -> ExecutiveCore:
     ('traction', {'tripped': 1, 'trip_cause': 'stale_command'}, 'tripped'),
     ('traction', {'radio_stop': 1}, 'radio_stop'),
 ])
-def test_faults_give_an_emergency_stop_and_a_named_failure(sub, change, cause):
+def test_faults_give_an_emergency_stop_and_a_named_failure(sub, change, cause, fault_table):
     ex = running_executive()
     for k in range(10, 30):  # healthy records until past the start-up grace for traction's trip
         for name, fields in status_records(k * 0.05).items():
@@ -135,6 +135,9 @@ def test_faults_give_an_emergency_stop_and_a_named_failure(sub, change, cause):
     assert out['navigation_command']['task_location'] == 0xFF
     for k in range(20):  # it stays stopped
         assert ex.tick(t + 0.05 * (k + 1))['traction_command']['demand'] == 0
+    fault_table.add(f'executive: {sub} reports {change} (lock step)',
+                    f'e-stop (byte 2 = 00H), task FAILED: {cause}, held',
+                    'e-stop on the same tick, held for 1 s')
 
 
 def test_stale_status_names_the_silent_subsystem():

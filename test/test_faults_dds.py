@@ -51,9 +51,10 @@ def test_fault_while_cruising_stops_the_truck(tmp_path, fault, switch, report, r
         g.report_with(report)
         release(g)  # the fault clears: the truck must wait for a new task
         g.stays_at_rest(what='the truck to stay stopped once the fault cleared')
-        fault_table.add(f'{fault} at {speed:.2f} m/s',
+        fault_table.add(f'{fault} while cruising',
                         f'drive off <= 0.2 s, at rest, "{report}", no restart when it clears',
-                        f'drive off after {cut:.3f} s, at rest after {at_rest:.2f} s')
+                        f'at {speed:.2f} m/s: drive off after {cut:.3f} s, at rest after '
+                        f'{at_rest:.2f} s')
     finally:
         g.close()
 

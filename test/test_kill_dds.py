@@ -79,10 +79,11 @@ def test_silent_node_ends_in_a_stop(tmp_path, victim, stop_within, report, diag_
             assert proc[victim].poll() is None, f'{victim} died after SIGCONT'
         else:
             assert proc[victim].poll() == -signal.SIGKILL
-        fault_table.add(f'{sig.name} {victim} at {speed:.2f} m/s',
-                        'drive off <= 0.2 s (sim), at rest, cause reported, no restart',
-                        f'drive off after {cut:.3f} s, at rest after {at_rest:.2f} s; '
-                        f'{report or "traction tripped: stale_command"}')
+        fault_table.add(f'{sig.name} {victim} while cruising',
+                        f'drive off <= {limit:.3f} s (sim), at rest, cause reported, '
+                        f'{diag_row} ERROR in /diagnostics, no restart',
+                        f'at {speed:.2f} m/s: drive off after {cut:.3f} s, at rest after '
+                        f'{at_rest:.2f} s; {report or "traction tripped: stale_command"}')
     finally:
         if sig == signal.SIGSTOP and proc[victim].poll() is None:
             proc[victim].send_signal(signal.SIGCONT)  # so that it can shut down

@@ -240,13 +240,15 @@ def assert_tripped(b: Bench, cause: str) -> None:
     assert status['tripped'] == 1 and status['trip_cause'] == cause
 
 
-def test_stale_command_trips_within_command_timeout():
+def test_stale_command_trips_within_command_timeout(fault_table):
     b = running()
     t0 = b.t
     b.run(0.5, send=False)
     trip_t = next(t for t, d in b.log if t >= t0 and d['contactor'] == 0)
     assert trip_t - t0 <= 0.200 + 0.05 + DT  # last command <= 50 ms before t0
     assert_tripped(b, 'stale_command')
+    fault_table.add('traction: executive command stops (lock step)', 'contactor open, trip '
+                    'latched: stale_command', f'contactor open {trip_t - t0:.2f} s after')
 
 
 def test_stale_confirm_waits_for_odometry_so_a_clock_jump_alone_does_not_trip():
@@ -269,18 +271,20 @@ def test_stale_confirm_waits_for_odometry_so_a_clock_jump_alone_does_not_trip():
     assert core.tripped and core.trip_cause == 'stale_command'
 
 
-def test_stalled_loop_trips():
+def test_stalled_loop_trips(fault_table):
     b = running()
     b.core.on_record('traction_command', b.command, b.t + 0.3)
     b.t += 0.3  # the process was stopped for 300 ms; the next pass notices the gap
     b.run(0.02)
     assert_tripped(b, 'stalled_loop')
+    fault_table.add('traction: its own loop stalls 300 ms (lock step)', 'trip: stalled_loop',
+                    'tripped on the next pass')
 
 
 @pytest.mark.parametrize('reason, trips', [('bad_crc', True), ('spare_set', True),
                                            ('wrong_length', True), ('bad_value', True),
                                            ('repeated_counter', False)])
-def test_corrupt_record_trips(reason, trips):
+def test_corrupt_record_trips(reason, trips, fault_table):
     b = running()
     b.core.on_reject('traction_command', reason, b.t)
     b.run(0.02)
@@ -288,9 +292,12 @@ def test_corrupt_record_trips(reason, trips):
         assert_tripped(b, 'corrupt_record')
     else:
         assert not b.core.tripped
+    fault_table.add(f'traction: command rejected for {reason} (lock step)',
+                    'trip: corrupt_record' if trips else 'ignored (not new data), no trip',
+                    'tripped' if trips else 'running on')
 
 
-def test_stale_link_trips_only_when_position_has_priority():
+def test_stale_link_trips_only_when_position_has_priority(fault_table):
     b = running()
     b.link = link(executive=1)
     b.run(0.5)
@@ -302,6 +309,8 @@ def test_stale_link_trips_only_when_position_has_priority():
     b.link = None  # ... and falls silent
     b.run(0.5)
     assert_tripped(b, 'stale_link')
+    fault_table.add('traction: navigation link stops while Position has priority (lock step)',
+                    'trip: stale_link (no trip while the executive has priority)', 'as expected')
 
 
 def test_trip_latches_until_estop_then_nonzero():
