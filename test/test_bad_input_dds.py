@@ -5,11 +5,12 @@ task. This test process is the foreign writer: hypothesis draws one malformed re
 topic per example (test/record_fuzz.py: wrong lengths, random bytes, bad CRC, replayed and
 skipped counters, spare bits, out-of-range values) and publishes it next to the genuine writer.
 Afterwards every reading node's `/diagnostics` inputs row must count at least as many
-rejections on each topic as records were sent to it, no node may have died, and the world's
+rejections on each record topic as records were sent to it (99 % on the best-effort 340 Hz
+ADC stream, whose transport may drop a record unseen), no node may have died, and the world's
 ground truth must show that nothing happened: the truck never moved and no load moved.
 
-`AGV_FUZZ_EXAMPLES` sets the number of examples (default 150, ~2,000 records; the long variant
-`AGV_FUZZ_EXAMPLES=7000 ./agv.sh test -m dds -k fuzz` sends ~100,000).
+`AGV_FUZZ_EXAMPLES` sets the number of examples (default 150: 3,000 records on 20 topics; the
+long variant `AGV_FUZZ_EXAMPLES=5000 ./agv.sh test -m dds -k fuzz` sends 100,000, ~6 min).
 """
 
 from __future__ import annotations
@@ -192,11 +193,16 @@ def test_fuzzed_records_were_counted_and_never_acted_on(graph, fault_table):
     want = {(r, s.name): graph.sent[s.name] for s in FUZZED for r in s.readers
             if r in GRAPH_NODES}
 
+    c = codec()
+
     def short() -> dict:
         out = {}
         for (reader, record), n in want.items():
             got = int(graph.inputs.get(reader, {}).get(f'{record} rejected', '0'))
-            if got < n:
+            # A best-effort stream (the 340 Hz ADC) may drop a record before it reaches the
+            # port (6 of 5,000 in the 100,000-record run): those are never seen, so never
+            # acted on either. Every reliable record topic must count every one.
+            if got < (n * 0.99 if c[record].qos == 'stream' else n):
                 out[(reader, record)] = (got, n)
         return out
 
