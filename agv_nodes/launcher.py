@@ -95,19 +95,24 @@ def load_graph(file: Path | None = None) -> Graph:
 
 
 def wait_lists(graph: Graph, world: bool, recording: bool) -> tuple[list[str], list[str]]:
-    """Topics that need readers / writers before the world moves (relative names)."""
+    """Topics that need readers / writers before the world moves (relative names).
+
+    Each topic needs *all* its readers ('topic:N'): the graph's readers from the schemas, the
+    world's pacing subscription on records it does not read itself, and the recorder. Counting
+    only one let the world's own pacing reader satisfy the wait while traction had not yet
+    matched the executive, so traction missed the 00H that arms it (a start-up trip).
+    """
     running = {n.name for n in graph.nodes if n.role == 'node' or (n.role == 'world' and world)}
+    paced = set(paced_records(graph)) if world else set()
     subs, pubs = [], []
     for s in codec():
         if s.kind == 'ground_truth':
             continue
-        writer_up = s.writer in running
         readers_up = [r for r in s.readers if r in running]
-        if writer_up and readers_up:
+        if s.writer in running and readers_up:
             pubs.append(s.topic)
-            subs.append(s.topic)
-    if recording:  # the position sensor and the recorder must both be reading
-        subs.append('hw/position_sensor/adc:2')
+            n = len(readers_up) + (s.name in paced and 'world' not in s.readers) + recording
+            subs.append(f'{s.topic}:{n}' if n > 1 else s.topic)
     return sorted(set(subs)), sorted(set(pubs))
 
 

@@ -177,6 +177,22 @@ def test_a_starved_executive_does_not_blame_a_record_still_in_its_queue():
     assert ex.tick(t)['traction_command']['demand'] == 55
 
 
+def test_traction_still_tripped_after_arming_is_armed_again_during_the_grace():
+    ex = ExecutiveCore(ExecutiveParams())
+    t = 0.0
+    tripped = {'tripped': 1, 'trip_cause': 'startup'}
+    ex.on_record('comms_status', parse_task('stop at 2 first').record() | {'task_id': 1}, t)
+    sent = []
+    for k in range(18):  # 0.9 s: traction never clears
+        t = k * 0.05
+        for name, fields in status_records(t).items():
+            ex.on_record(f'{name}_status', fields | (tripped if name == 'traction' else {}), t)
+        sent.append(ex.tick(t)['traction_command']['demand'])
+    zeros = [k for k, d in enumerate(sent) if d == 0 and k and sent[k - 1] != 0]
+    assert len(zeros) >= 2, sent  # 00H again after the first demand went unanswered
+    assert ex.mode == 'running'
+
+
 def test_reject_burst_is_a_fault():
     ex = running_executive()
     for k in range(8):

@@ -426,6 +426,11 @@ class ExecutiveCore:
             self.distance = self.distance_since_landmark  # no goal: progress is landmarks
         if self.mode in ('running', 'cruising'):
             self._supervise(now)
+            if traction.get('tripped') and now - self.task_start < self.p.trip_grace \
+                    and now - self.arm_until > 3 * self.p.period:
+                # Still tripped after 00H-then-demand: traction missed it (a trip while
+                # tripped restarts its latch). Arm again while the start-up grace lasts.
+                self.arm_until = now + 2 * self.p.period
         if self.mode == 'running':
             self._run_step(now)
         route = self.status.get('route') or {}
