@@ -155,6 +155,11 @@ def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
         code = 2
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:  # noqa: BLE001
+        if rclpy.ok():
+            raise
+        # SIGINT shut the context down between two waits of the executor: rclpy 7.1 then
+        # raises RCLError ('context is not valid') instead of ExternalShutdownException.
     finally:
         if node is not None:
             node.destroy_node()
