@@ -121,11 +121,13 @@ def test_bag_rates_match_what_was_published(quick):
 def test_full_demonstration_programme_over_dds(tmp_path):
     """Issue 7's end-to-end test: thesis 7.2 tasks 1-7 and 'load A at 1 and take to 3'.
 
-    Run it with `./agv.sh test -m soak`; CI (.ci/run) runs it after the suite. It is out of
-    the default run for time only (~5 min at ~1.2x on the 2-core reference machine). Before
-    the world paced itself on the slowest node (world/pacing.py) it failed 3 of 4 fresh-clone
-    runs from CPU starvation (a marker missed, late stops, a stale-command trip); paced, with
-    the executive's and traction's stale confirmation, it has passed every run since.
+    Run it with `./agv.sh test -m soak` (~5 min at ~1.2x on the 2-core reference machine).
+    Before the world paced itself on the slowest node (world/pacing.py) it failed 3 of 4
+    fresh-clone runs from CPU starvation (a marker missed, late stops, a stale-command trip).
+    Paced, it passed 4 of 6 runs; both failures were a false `stale status` at the executive,
+    whose oldest status in a healthy run is 0.141-0.150 s against the demo graph's 0.15 s
+    timeout (set from issue 9's 200 ms fault budget). Until that margin exists it stays out of
+    the default run.
     """
     res = run_demo(tmp_path)
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-3000:]
