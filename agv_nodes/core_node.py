@@ -36,6 +36,20 @@ class CoreNode(Node):
                                   'thesis records)', ('e2e', 'none'))
         self.core = core
         reads, writes = codec().for_node(core.node)
+        # Fault injection (agv-launch --fault; issue 9): one of this node's records is lost
+        # or delayed on its way out, as a bad link would. The E2E counter still advances for a
+        # lost record, so readers see the gap (counted as lost in /diagnostics).
+        self.fault_record = params.choice('fault_record', '', 'inject faults into this '
+                                          'record on its way out (empty: none)',
+                                          ('', *(w.name for w in writes)))
+        self.fault_loss = params.number('fault_loss', 0.0, 'fraction of fault_record records '
+                                        'dropped', 0.0, 1.0)
+        self.fault_delay = params.number('fault_delay', 0.0, 'extra delay of fault_record '
+                                         'records, s (released on the next /clock step)',
+                                         0.0, 1.0)
+        self._fault_rng = random.Random(params.integer('fault_seed', 1, 'seed of the losses',
+                                                       0, 2**31 - 1))
+        self._held: list[tuple[float, bytes]] = []
         self.writers = {s.name: RecordPublisher(self, s, integrity) for s in writes}
         self.readers = {s.name: RecordSubscription(self, s, integrity,
                                                    callback=self._on_record(s.name))
@@ -47,25 +61,10 @@ class CoreNode(Node):
                                      qos.RECORD_READER)
         if core.period:
             self.timer = self.create_timer(core.period, self._tick)
-        self.input_diagnostics = InputDiagnostics(self, self.readers,
-                                                  health=getattr(core, 'health', None))
-        # Fault injection (agv-launch --fault; issue 9): one of this node's records is lost
-        # or delayed on its way out, as a bad link would. The E2E counter still advances for a
-        # lost record, so readers see the gap (counted as lost in /diagnostics).
-        self.fault_record = params.choice('fault_record', '', 'inject faults into this '
-                                          'record on its way out (empty: none)',
-                                          ('', *self.writers))
-        self.fault_loss = params.number('fault_loss', 0.0, 'fraction of fault_record records '
-                                        'dropped', 0.0, 1.0)
-        self.fault_delay = params.number('fault_delay', 0.0, 'extra delay of fault_record '
-                                         'records, s (released on the next /clock step)',
-                                         0.0, 1.0)
-        self._fault_rng = random.Random(params.integer('fault_seed', 1, 'seed of the losses',
-                                                       0, 2**31 - 1))
-        self._held: list[tuple[float, bytes]] = []
-        self.fault_dropped = 0
         if self.fault_record and self.fault_delay:
             self.create_timer(0.001, self._release)  # fires once per /clock step
+        self.input_diagnostics = InputDiagnostics(self, self.readers,
+                                                  health=getattr(core, 'health', None))
 
     def now_s(self) -> float:
         """ROS time in seconds (sim time when use_sim_time is set)."""
@@ -92,7 +91,7 @@ class CoreNode(Node):
     def publish(self, outputs: dict[str, dict[str, Any]] | None) -> None:
         """Publish the records a core returned."""
         for record, fields in (outputs or {}).items():
-            if record == getattr(self, 'fault_record', ''):
+            if record == self.fault_record:
                 self._faulty(record, fields)
             else:
                 self.writers[record].publish(fields)
@@ -100,8 +99,8 @@ class CoreNode(Node):
     def _faulty(self, record: str, fields: dict[str, Any]) -> None:
         raw = self.writers[record].pack(fields)
         if self._fault_rng.random() < self.fault_loss:
-            self.fault_dropped += 1
-        elif self.fault_delay:
+            return  # lost on the way
+        if self.fault_delay:
             self._held.append((self.now_s() + self.fault_delay, raw))
         else:
             self.writers[record].publish_raw(raw)

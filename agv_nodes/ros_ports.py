@@ -65,6 +65,17 @@ class RecordSubscription(RecordReader):
             self._callback(fields)
 
 
+def diagnostic_status(node: Node, label: str, level: int, message: str, hardware_id: str,
+                      values: Mapping[str, str]) -> DiagnosticStatus:
+    """One /diagnostics row named `agv[/ns]/<label>` (the name agv-diag and the tests read)."""
+    ns = node.get_namespace().strip('/')
+    status = DiagnosticStatus(name=f'agv{"/" + ns if ns else ""}/{label}', message=message,
+                              hardware_id=hardware_id)
+    status.level = bytes([level])
+    status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+    return status
+
+
 class InputDiagnostics:
     """Publishes a node's record inputs on /diagnostics once a (ROS-clock) second.
 
@@ -89,13 +100,9 @@ class InputDiagnostics:
         level, message, values = inputs_report(
             self._readers, self._before, self._node.get_clock().now().nanoseconds,
             self._health() if self._health else None)
-        self._before = int(values['rejected'])
-        ns = self._node.get_namespace().strip('/')
-        status = DiagnosticStatus(name=f'agv{"/" + ns if ns else ""}/{self._node.get_name()}'
-                                  '/inputs', message=message,
-                                  hardware_id=self._node.get_name())
-        status.level = bytes([level])
-        status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
-        msg = DiagnosticArray(status=[status])
+        self._before = sum(r.rejected for r in self._readers.values())
+        name = self._node.get_name()
+        msg = DiagnosticArray(status=[diagnostic_status(self._node, f'{name}/inputs', level,
+                                                        message, name, values)])
         msg.header.stamp = self._node.get_clock().now().to_msg()
         self._pub.publish(msg)

@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import sys
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 
 from agv_nodes import qos
 from agv_nodes.core_node import CoreNode, spin_main
 from agv_nodes.executive.core import ExecutiveCore, ExecutiveParams
 from agv_nodes.executive.diagnostics import HealthMonitor
 from agv_nodes.params import Parameters
+from agv_nodes.ros_ports import diagnostic_status
 
 
 def parse_srm_map(entries: list[str]) -> dict[int, int]:
@@ -83,17 +84,10 @@ class ExecutiveNode(CoreNode):
 
     def _diagnostics(self) -> None:
         rows = self.health.update(self.now_s(), self.readers, self.writers, self.core)
-        msg = DiagnosticArray()
+        msg = DiagnosticArray(status=[
+            diagnostic_status(self, row.name, row.level, row.message, row.name, row.values)
+            for row in rows])
         msg.header.stamp = self.get_clock().now().to_msg()
-        ns = self.get_namespace().strip('/')
-        for row in rows:
-            status = DiagnosticStatus()
-            status.level = bytes([row.level])
-            status.name = f'agv{"/" + ns if ns else ""}/{row.name}'
-            status.message = row.message
-            status.hardware_id = row.name
-            status.values = [KeyValue(key=k, value=v) for k, v in row.values.items()]
-            msg.status.append(status)
         self.diag_pub.publish(msg)
 
 

@@ -189,10 +189,6 @@ class WorldNode(Node):
             self.pacer.arrived(schema.name, self.core.time, count, self.core.sample)
         return on_msg
 
-    def lagging(self) -> list[str]:
-        """Paced writers that have fallen behind the world's clock."""
-        return self.pacer.lagging(self.core.time)
-
     def _set_at_run_time(self, params: list) -> SetParametersResult:
         """Faults switched while the world runs: ambient light and the wire generator."""
         for param in params:
@@ -350,12 +346,12 @@ class WorldNode(Node):
                 continue
             if self._step_requests:
                 self._step_requests -= 1
-            late = self.lagging()
+            late = self.pacer.lagging(self.core.time)
             if late:  # the graph has fallen behind: let it catch up before time moves on
                 waited = time.monotonic()
                 while late and rclpy.ok() and time.monotonic() - waited < self.lag_patience:
                     executor.spin_once(timeout_sec=0.002)
-                    late = self.lagging()
+                    late = self.pacer.lagging(self.core.time)
                 if late:
                     lost = self.pacer.give_up(late)
                     self.get_logger().warn(

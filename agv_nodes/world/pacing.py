@@ -59,6 +59,7 @@ class GraphPacer:
     lost_samples: int = 0
     _paced: dict[str, _Paced] = field(default_factory=dict)
     _consumers: dict[str, _Consumer] = field(default_factory=dict)
+    names: list[str] = field(init=False, default_factory=list)  # every paced record
 
     def __post_init__(self) -> None:
         for name, period in self.periods.items():
@@ -67,11 +68,8 @@ class GraphPacer:
         for name in self.consumers:  # measured on arrival, so its period does not count
             self._consumers[name] = _Consumer(
                 max(1, round((self.max_lag + self.clock_step) * self.sample_rate)))
+        self.names = sorted(set(self._paced) | set(self._consumers))
 
-    @property
-    def names(self) -> list[str]:
-        """Every paced record."""
-        return sorted(set(self._paced) | set(self._consumers))
 
     def arrived(self, name: str, now: float, sample_count: int | None = None,
                 world_samples: int = 0) -> None:
