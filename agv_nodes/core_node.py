@@ -13,6 +13,7 @@ from collections.abc import Callable
 import os
 import random
 import sys
+import time
 from typing import Any
 
 import rclpy
@@ -129,6 +130,19 @@ def make_executor() -> Any:
     return SingleThreadedExecutor()
 
 
+def _shutting_down(wait: float = 0.5) -> bool:
+    """True when SIGINT is shutting the context down (rclpy's signal thread does it a moment
+    after the signal). Meanwhile rclpy 7.1 can raise from inside the executor - RCLError
+    'context is not valid' between two waits, RuntimeError from take_message - instead of
+    ExternalShutdownException; both are a clean exit, any other error is not."""
+    deadline = time.monotonic() + wait
+    while rclpy.ok():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.01)
+    return True
+
+
 def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
               executor: Callable[[], Any] | None = None,
               run: Callable[[Any, Any], int] | None = None) -> int:
@@ -155,10 +169,8 @@ def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception:  # noqa: BLE001
-        if rclpy.ok():
+        if not _shutting_down():
             raise
-        # SIGINT shut the context down between two waits of the executor: rclpy 7.1 then
-        # raises RCLError ('context is not valid') instead of ExternalShutdownException.
     finally:
         if node is not None:
             node.destroy_node()
