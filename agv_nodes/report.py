@@ -87,11 +87,37 @@ def _integrity(raw: bytes) -> str:
     return 'e2e' if raw[14] or raw[15] else 'none'
 
 
+def final_stops(events: list[dict[str, Any]], merge_s: float = 5.0) -> list[dict[str, Any]]:
+    """One entry per stop from the world's `stopped` events: where the truck finally rested.
+
+    A controlled stop (thesis 8.5 F5) that overshoots comes to rest, backs up and rests again
+    on the centre: rests at the same marker less than `merge_s` apart, with no load moved
+    between, are one stop. `speed_mm_s` is the speed of the approach, `rests` how many rests
+    it took.
+    """
+    stops: list[dict[str, Any]] = []
+    merge = False
+    for e in events:
+        if e['event'] == 'load_moved':
+            merge = False
+        if e['event'] != 'stopped':
+            continue
+        stop = {'time': e['time'], 'marker': _marker_name(e), 'error_mm': e['error'],
+                'speed_mm_s': e['speed'], 'rests': 1}
+        last = stops[-1] if stops else None
+        if merge and last and last['marker'] == stop['marker'] and \
+                stop['time'] - last['time'] < merge_s:
+            stops[-1] = {**stop, 'speed_mm_s': last['speed_mm_s'], 'rests': last['rests'] + 1}
+        else:
+            stops.append(stop)
+        merge = True
+    return stops
+
+
 def analyse(data: dict[str, Any]) -> dict[str, Any]:
     """The numbers of the report."""
     events = [f | {'time': t} for t, f in data['records'].get('world_event', [])]
-    stops = [{'time': e['time'], 'marker': _marker_name(e), 'error_mm': e['error'],
-              'speed_mm_s': e['speed']} for e in events if e['event'] == 'stopped']
+    stops = final_stops(events)
     markers = [{'time': e['time'], 'marker': _marker_name(e), 'speed_mm_s': e['speed'],
                 'range_error_mm': e['error']} for e in events if e['event'] == 'marker_passed']
     loads = [{'time': e['time'], 'marker': _marker_name(e)} for e in events

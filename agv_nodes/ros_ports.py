@@ -53,10 +53,12 @@ class RecordSubscription(RecordReader):
         self._node = node
         self._callback = callback
         self.on_reject: Callable[[], None] | None = None  # told after each rejection
+        self.sent_ns = 0  # DDS source timestamp of the record being handled (writer's wall ns)
         self._sub = node.create_subscription(UInt8MultiArray, schema.topic, self._on_msg,
                                              qos.reader_qos(schema))
 
-    def _on_msg(self, msg: UInt8MultiArray) -> None:
+    def _on_msg(self, msg: UInt8MultiArray, info: Mapping[str, Any]) -> None:
+        self.sent_ns = info.get('source_timestamp') or 0
         fields = self.accept(bytes(msg.data), self._node.get_clock().now().nanoseconds)
         if fields is None:
             if self.on_reject is not None:

@@ -30,7 +30,7 @@ EXPECTED = {'L0': 0, 'L1': 1, 'L2': 2, 'L3': 3, 'S.1': EDIM, 'W': None}
 
 def run_belt(speed: float, standoff: float = 0.300, height: float = 0.0, angle: float = 0.0,
              passes: int = 10, seed: int = 1, consecutive: int = 2, skew_mm: float = 0.0,
-             noise: float = 1.0) -> dict[str, dict[str, float]]:
+             noise: float = 1.0, run_length: int = 4) -> dict[str, dict[str, float]]:
     """Passes of the six patterns; per pattern: recognised fraction, matches, misreads."""
     lay = _rig_layout(speed, standoff, height, angle)
     rng = random.Random(seed)
@@ -42,7 +42,8 @@ def run_belt(speed: float, standoff: float = 0.300, height: float = 0.0, angle: 
                              sensor=SensorParams(noise=noise, skew=skew))
         world = WorldCore(lay, params)
         world._rig_s = rng.uniform(0.0, 0.02)  # a different sampling phase every pass
-        sensor = PositionSensorCore(SensorProcessing(min_consecutive_matches=consecutive))
+        sensor = PositionSensorCore(SensorProcessing(min_consecutive_matches=consecutive,
+                                                     run_length=run_length))
         current: str | None = None
         seen: dict[str, set] = {n: set() for n in EXPECTED}
         while not world.done_rig():
@@ -95,15 +96,18 @@ def main() -> int:
     ap.add_argument('--misread-passes', type=int, default=200)
     args = ap.parse_args()
     names = list(EXPECTED)
-    print('Recognised passes (%) by speed (standoff 300 mm, height 0, angle 0)\n')
-    print('| speed (m/s) | ' + ' | '.join(names) + ' | mean matches/pass (L0..L3) |')
-    print('|---' * (len(names) + 2) + '|')
-    for speed in (0.1, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0):
-        st = run_belt(speed, passes=args.passes)
-        cells = [f'{100 * st[n]["recognised"] / st[n]["passes"]:.0f}' for n in names]
-        matches = [st[n]['matches'] / st[n]['passes'] for n in ('L0', 'L1', 'L2', 'L3')]
-        print(f'| {speed} | ' + ' | '.join(cells) + ' | '
-              + ', '.join(f'{m:.1f}' for m in matches) + ' |', flush=True)
+    for run_length in (4, 2):
+        print(f'Recognised passes (%) by speed (run_length {run_length}, standoff 300 mm, '
+              'height 0, angle 0)\n')
+        print('| speed (m/s) | ' + ' | '.join(names) + ' | mean matches/pass (L0..L3) |')
+        print('|---' * (len(names) + 2) + '|')
+        for speed in (0.1, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 2.5):
+            st = run_belt(speed, passes=args.passes, run_length=run_length)
+            cells = [f'{100 * st[n]["recognised"] / st[n]["passes"]:.0f}' for n in names]
+            matches = [st[n]['matches'] / st[n]['passes'] for n in ('L0', 'L1', 'L2', 'L3')]
+            print(f'| {speed} | ' + ' | '.join(cells) + ' | '
+                  + ', '.join(f'{m:.1f}' for m in matches) + ' |', flush=True)
+        print()
     print('\nRecognised passes (%) at 1 m/s by standoff, height and angle\n')
     print('| setting | ' + ' | '.join(names) + ' |')
     print('|---' * (len(names) + 1) + '|')
@@ -119,22 +123,24 @@ def main() -> int:
             f'{100 * st[n]["recognised"] / st[n]["passes"]:.0f}' for n in names) + ' |',
             flush=True)
     print(f'\nMisreads in {args.misread_passes} passes of each pattern (random standoff '
-          '280-320 mm and height +-10 mm per pass, 1 m/s, detector skew +-3 mm, noise 2 '
-          'counts)\n')
-    print('| min_consecutive_matches | passes | misreads | missed |')
-    print('|---|---|---|---|')
-    for consecutive in (1, 2):
+          '280-320 mm and height +-10 mm per pass, detector skew +-3 mm, noise 2 counts)\n')
+    print('| run_length | speed (m/s) | min_consecutive_matches | passes | misreads | missed |')
+    print('|---|---|---|---|---|---|')
+    for run_length, speed, consecutive in ((4, 1.0, 1), (4, 1.0, 2), (2, 1.0, 1), (2, 1.0, 2),
+                                           (2, 2.0, 2)):
         rng = random.Random(7)
         misreads = missed = total = 0
         for k in range(args.misread_passes // 10):
-            st = run_belt(1.0, standoff=rng.uniform(0.28, 0.32), height=rng.uniform(-0.01, 0.01),
-                          passes=10, seed=100 + k, consecutive=consecutive, skew_mm=3.0,
-                          noise=2.0)
+            st = run_belt(speed, standoff=rng.uniform(0.28, 0.32),
+                          height=rng.uniform(-0.01, 0.01), passes=10, seed=100 + k,
+                          consecutive=consecutive, skew_mm=3.0, noise=2.0,
+                          run_length=run_length)
             for n in names:
                 total += st[n]['passes']
                 misreads += st[n]['misreads']
                 missed += st[n]['passes'] - st[n]['recognised']
-        print(f'| {consecutive} | {total} | {misreads} | {missed} |', flush=True)
+        print(f'| {run_length} | {speed} | {consecutive} | {total} | {misreads} | {missed} |',
+              flush=True)
     return 0
 
 

@@ -9,6 +9,9 @@ from agv_nodes.executive.core import ExecutiveCore, ExecutiveParams, itinerary
 from agv_nodes.executive.diagnostics import ERROR, OK, HealthMonitor
 from agv_nodes.harness import DEMO_PROGRAMME, submit, truck
 from agv_nodes.load_handling.core import LoadHandlingCore
+from agv_nodes.navigation.core import NavigationParams
+from agv_nodes.report import final_stops
+from agv_nodes.traction.core import TractionParams
 
 
 # -- communications ------------------------------------------------------------------------
@@ -240,8 +243,10 @@ def run_programme(tasks, limit: float = 900.0, **kw):
 
 @pytest.mark.slow
 def test_demonstration_programme_completes_in_lock_step():
-    """Thesis 7.2 tasks 1-7 and fig 3.1 on demo_1983: every task, stop and load."""
-    h = run_programme(DEMO_PROGRAMME)
+    """Thesis 7.2 tasks 1-7 and fig 3.1 on demo_1983: every task, stop and load, with the
+    1983 traction and friction stops (as config/agv_demo.yaml runs it)."""
+    h = run_programme(DEMO_PROGRAMME, traction=TractionParams(control='open_loop_1983'),
+                      navigation=NavigationParams(stopping='friction_1983'))
     comms = h.cores['communications']
     assert [r[1] for r in comms.results] == ['completed'] * len(DEMO_PROGRAMME)
     stops = [e for e in h.events if e['event'] == 'stopped']
@@ -258,6 +263,19 @@ def test_demonstration_programme_completes_in_lock_step():
     reports = ' '.join(comms.reports)
     assert reports.index("task 1 'load at 0") < reports.index("task 6 'load A at 1")
     assert h.cores['executive'].mode == 'idle' and world.vehicle.state.speed == 0.0
+
+
+@pytest.mark.slow
+def test_demonstration_programme_with_controlled_stops_ends_on_every_centre():
+    """The defaults (closed-loop traction, controlled stops, thesis 8.5 F4/F5): the same
+    programme, and the truck comes to its final rest on every stop marker's centre. A
+    controlled stop may rest more than once (an overshoot is backed out): the last counts."""
+    h = run_programme(DEMO_PROGRAMME)
+    assert [r[1] for r in h.cores['communications'].results] == ['completed'] * 8
+    finals = final_stops(h.events)
+    assert [e['marker'] for e in finals] == ['W0.1', 'W2.1', 'W0.1', 'W2.1', 'W1.1', 'W3.1',
+                                             'W2.2', 'W2.1', 'W2.2']
+    assert all(abs(e['error_mm']) <= 5 for e in finals), finals
 
 
 def test_missing_stop_marker_stops_at_the_positioning_limit():
@@ -311,3 +329,17 @@ def test_agv_diag_renders_the_32_byte_display():
     assert any(line.startswith('navigation') and ' OK ' in line for line in lines)
     assert any('in (hex)' in line and '0B00' in line for line in lines)  # the 16 bytes in
     assert any('out (hex)' in line for line in lines)
+
+
+def test_final_stops_merge_the_rests_of_one_controlled_stop():
+    def stopped(t: float, station: int, error: int, speed: int) -> dict:
+        return {'event': 'stopped', 'time': t, 'marker_kind': 'stop', 'station': station,
+                'identity': 1, 'error': error, 'speed': speed}
+    load = {'event': 'load_moved', 'time': 0.0, 'marker_kind': 'stop', 'station': 2,
+            'identity': 1, 'error': 0, 'speed': 0}
+    events = [stopped(10.0, 2, 12, 700), stopped(11.5, 2, 0, 90),  # overshoot, backed up
+              {**load, 'time': 14.0}, stopped(15.0, 2, 1, 40),  # a new stop after a load
+              stopped(40.0, 2, 3, 700)]  # the same marker, much later
+    finals = final_stops(events)
+    assert [(s['time'], s['error_mm'], s['speed_mm_s'], s['rests']) for s in finals] == [
+        (11.5, 0, 700, 2), (15.0, 1, 40, 1), (40.0, 3, 700, 1)]

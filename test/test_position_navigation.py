@@ -42,6 +42,16 @@ def test_running_sum_needs_four_snapshots_after_a_reset():
     assert results[3]['position_sensor_status']['identity'] == 0
 
 
+@pytest.mark.parametrize('run_length', [2, 3])
+def test_shorter_running_sum_fills_sooner_with_scaled_thresholds(run_length):
+    core = PositionSensorCore(SensorProcessing(min_consecutive_matches=1, run_length=run_length))
+    lit, dark = snapshot_for(0x78)  # per-snapshot levels: thresholds scale by run_length / 4
+    results = [core.sample(lit, dark, k / 340) for k in range(run_length)]
+    assert results[:-1] == [None] * (run_length - 1)
+    assert results[-1]['position_sensor_status']['identity'] == 0
+    assert SensorProcessing(run_length=9).check()[0][0] == 'run_length'
+
+
 @pytest.mark.parametrize('identity', [0, 1, 2, 3])
 def test_location_markers_recognised_with_two_consecutive_matches(identity):
     core = PositionSensorCore()
@@ -153,6 +163,8 @@ class Nav:
     """Drives a NavigationCore with records; keeps every status and link it sends."""
 
     def __init__(self, **params) -> None:
+        # PC6/1's record sequences (spec 4) are those of the 1983 friction stop
+        params.setdefault('stopping', 'friction_1983')
         self.core = NavigationCore(NavigationParams(**params))
         self.t = 0.0
         self.statuses: list[tuple[int, int]] = []
@@ -321,3 +333,44 @@ def test_via_executive_puts_the_request_in_the_status_record():
     assert n.core.status()['speed_request'] == 0x14
     n.sensor(view=4)
     assert n.core.status()['speed_request'] == 0x00
+
+
+def test_a_view_met_backing_up_puts_the_centre_nearer_not_further():
+    """Controlled stop (F5): a stop view is first matched centre_lead mm *before* it is aligned
+    in the direction of travel; backing up after an overshoot, that is past its alignment."""
+    from agv_nodes.markers import STOP_VIEWS
+
+    nav = NavigationCore(NavigationParams(stopping='controlled', centre_lead=5.0))
+    nav.mode = 'positioning'
+    to_go = STOP_VIEWS[4][2]  # view 5
+    nav._speed = 0.2  # forward
+    nav._view_seen(5, 0.0)
+    assert (nav._target - nav._odometer) * 1000 == pytest.approx(to_go + 5.0)
+    nav._speed = -0.09  # reversing onto the centre
+    nav._view_seen(5, 0.1)
+    assert (nav._target - nav._odometer) * 1000 == pytest.approx(to_go - 5.0)
+
+
+def test_controlled_stop_of_a_loaded_truck_from_1_m_s_ends_on_the_centre():
+    """Lock-step harness: 1000 kg at 80 % overshoots the centre, backs up and stops on it
+    (the ground truth from the world; with the forward lead it rested 12 mm past)."""
+    from agv_nodes.executive.core import ExecutiveParams
+    from agv_nodes.harness import submit, truck
+    from agv_nodes.traction.core import TractionParams
+    from agv_nodes.world.core import WorldParams
+    from agv_nodes.world.vehicles import ElectrukParams
+
+    h = truck('straight_track', seed=3,
+              world_params=WorldParams(seed=3, electruk=ElectrukParams(payload=1000.0)),
+              traction=TractionParams(control='closed_loop'),
+              navigation=NavigationParams(stopping='controlled'),
+              executive=ExecutiveParams(cruise_demand=80))
+    submit(h, 'stop at 1 first')
+    reversed_ = False
+    while h.now < 60 and (h.cores['executive'].mode == 'running'
+                          or h.cores['communications'].queue):
+        h.step()
+        reversed_ |= bool(h.cores['navigation'].link.get('reverse'))
+    stops = [e for e in h.events if e['event'] == 'stopped' and e['marker'] == 'S1.1']
+    assert reversed_ and h.cores['executive'].mode == 'idle'
+    assert abs(stops[-1]['error']) <= 3, stops

@@ -23,6 +23,7 @@ class Bench:
     """Drives a TractionCore with a fixed clock; the executive republishes its command."""
 
     def __init__(self, **params) -> None:
+        params.setdefault('control', 'open_loop_1983')  # the listing, unless a test says not
         self.core = TractionCore(TractionParams(**params))
         self.t = 0.0
         self.command = cmd()

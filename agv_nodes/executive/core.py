@@ -28,6 +28,8 @@ executive supervises on every arrival, so a silent sub-system is noticed within 
 the timeout; the count keeps a starved executive from blaming a sub-system whose record is
 still waiting in its queue: after a stall its clock jumps ahead at once (the /clock reader
 keeps only the latest) while the records queued behind it are taken one per topic per turn.
+The executive node's `status_age` option `sent` goes further and ages each status from the sim
+time it was sent (agv_nodes.sent_time), so a starved executive blames nobody.
 """
 
 from __future__ import annotations
@@ -145,13 +147,18 @@ class ExecutiveCore:
         self.log: list[tuple[float, str]] = []
 
     # -- inputs -----------------------------------------------------------------------------
-    def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
-        """A status record from a sub-system (or a task from communications)."""
+    def on_record(self, record: str, fields: dict[str, Any], now: float,
+                  sent: float | None = None) -> dict | None:
+        """A status record from a sub-system (or a task from communications).
+
+        `sent` is the sim time the record was sent (status_age `sent`, agv_nodes.sent_time);
+        without it the record's age runs from its arrival, `now`.
+        """
         for sub, name in STATUS_RECORDS.items():
             if name == record:
                 previous = self.status.get(sub)
                 self.status[sub] = fields
-                self.status_time[sub] = now
+                self.status_time[sub] = now if sent is None else min(sent, now)
                 self.arrivals += 1
                 self.arrivals_at[sub] = self.arrivals
                 if sub == 'communications':
@@ -167,6 +174,13 @@ class ExecutiveCore:
             if self.mode == 'failed':
                 return self._commands(now)
         return None
+
+    def sent_later(self, record: str, sent: float) -> None:
+        """A status taken before the executive knew the sim time it was sent at (its clock
+        queue was behind) turns out to have been sent at `sent` (agv_nodes.sent_time)."""
+        for sub, name in STATUS_RECORDS.items():
+            if name == record and sub in self.status_time:
+                self.status_time[sub] = max(self.status_time[sub], sent)
 
     def on_reject(self, record: str, reason: str, now: float) -> dict | None:
         """Count rejected status records (a burst of them is a fault)."""
@@ -192,7 +206,12 @@ class ExecutiveCore:
         self.steps, self.index, self.mode = steps, 0, 'running'
         self.fault = None
         self.task_start = now
-        self.arm_until = now + 2 * self.p.period  # 00H first: traction's trip latch rule
+        traction = self.status.get('traction')
+        if traction is None or traction.get('tripped'):
+            # 00H first: traction's trip latch clears on 00H then non-zero. Only a tripped
+            # traction needs it: sent to a truck cruising on from the last task it is an
+            # emergency stop pulse (the closed loop brakes to rest on it).
+            self.arm_until = now + 2 * self.p.period
         self.report = {'state': 'accepted', 'cause': 'none', 'subsystem': 'none'}
         self._log(now, f'task {self.task_id}: {len(steps)} steps: '
                   + '; '.join(s.name for s in steps))

@@ -8,8 +8,10 @@ comms/command; publishes /diagnostics (diagnostic_msgs/DiagnosticArray) once a s
 from __future__ import annotations
 
 import sys
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
+from rosgraph_msgs.msg import Clock
 
 from agv_nodes import qos
 from agv_nodes.core_node import CoreNode, spin_main
@@ -17,6 +19,7 @@ from agv_nodes.executive.core import ExecutiveCore, ExecutiveParams
 from agv_nodes.executive.diagnostics import HealthMonitor
 from agv_nodes.params import Parameters
 from agv_nodes.ros_ports import diagnostic_status
+from agv_nodes.sent_time import SentTimeline
 
 
 def parse_srm_map(entries: list[str]) -> dict[int, int]:
@@ -69,11 +72,43 @@ class ExecutiveNode(CoreNode):
                                         'direct link carry it', ('direct_link',
                                                                  'via_executive')),
         )
+        # Departure from the 1983 receiver-side monostables (thesis 6.3), default off: under
+        # sim time `sent` ages a status from when it was sent, not from when this process got
+        # round to it (agv_nodes.sent_time). Needs /clock and one wall clock for the graph.
+        self.status_age = p.choice('status_age', 'arrival', 'age of a status record: from '
+                                   'its arrival here (1983) or, under sim time, from when it '
+                                   'was sent (a starved executive blames nobody)',
+                                   ('arrival', 'sent'))
+        self.timeline = SentTimeline()
+        if self.status_age == 'sent' and self.get_parameter('use_sim_time').value:
+            # FIFO, unlike the ROS clock's keep-last-1 reader: time as the executive sees it
+            # advances no faster than it takes its records (one sample per topic per turn).
+            self.create_subscription(Clock, '/clock', self._on_clock, qos.STREAM_READER)
         self.health = HealthMonitor(ep.status_timeout)
         self.attach(ExecutiveCore(ep), p)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos.EVENTS)
         self.create_timer(1.0, self._diagnostics)
         self._logged = 0
+
+    def _on_clock(self, msg: Clock, info: dict[str, Any]) -> None:
+        raised = self.timeline.clock(info.get('source_timestamp') or 0,
+                                     msg.clock.sec + msg.clock.nanosec * 1e-9)
+        for name, sent in raised:
+            self.core.sent_later(name, sent)
+
+    def now_s(self) -> float:
+        """Sim time as far as the executive has taken its inputs (status_age `sent`)."""
+        return self.timeline.now() if self.timeline else super().now_s()
+
+    def _on_record(self, name: str):
+        if self.status_age != 'sent':
+            return super()._on_record(name)
+
+        def callback(fields: dict[str, Any]) -> None:
+            sent = self.timeline.record(name, self.readers[name].sent_ns) if self.timeline \
+                else None
+            self.publish(self.core.on_record(name, fields, self.now_s(), sent))
+        return callback
 
     def _tick(self) -> None:
         super()._tick()
@@ -83,7 +118,8 @@ class ExecutiveNode(CoreNode):
         self._logged = len(log)
 
     def _diagnostics(self) -> None:
-        rows = self.health.update(self.now_s(), self.readers, self.writers, self.core)
+        # The readers stamp arrivals on the ROS clock: the display ages them on it too.
+        rows = self.health.update(super().now_s(), self.readers, self.writers, self.core)
         msg = DiagnosticArray(status=[
             diagnostic_status(self, row.name, row.level, row.message, row.name, row.values)
             for row in rows])

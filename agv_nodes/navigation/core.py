@@ -21,7 +21,8 @@ wheel_odometry (controlled stopping only). Records out: navigation_status (OUTFO
 (the second-stop-marker hazard of spec 4). `intended` (default) starts LOCN at FFH and, on
 entering CLOP, ignores the centre view until another stop view has been seen.
 
-`stopping = controlled` (thesis 8.5 F4/F5, default `friction_1983`): every stop view gives the
+`stopping = controlled` (thesis 8.5 F4/F5; the default, since it beats `friction_1983` in
+bench/stop_bench.py: within +-3 mm against +34..+55 mm): every stop view gives the
 distance still to go (+60 ... -60 mm, spec 3.3); wheel odometry carries it between views and the
 link asks closed-loop traction to stop in that distance (traction_link.stop_in); an overshoot
 reverses slowly back onto the centre.
@@ -49,7 +50,7 @@ class NavigationParams:
 
     variant: str = 'intended'  # or 'as_listed'
     speed_request_path: str = 'direct_link'  # or 'via_executive'
-    stopping: str = 'friction_1983'  # or 'controlled'
+    stopping: str = 'controlled'  # or 'friction_1983' (as built)
     period: float = 0.010  # s, the loop (CHK) and controlled-stop update rate
     status_period: float = 0.050  # s between navigation_status heartbeats
     link_period: float = 0.020  # s between traction_link records (and at once on change)
@@ -261,13 +262,21 @@ class NavigationCore:
         if self._guard:
             if view == CENTRE_VIEW:
                 return  # the centre we started on is still in sight
+            if self.p.stopping == 'controlled' and STOP_VIEWS[view - 1][2] < 0:
+                # Leaving a stop marker for the next one: its views past the centre would
+                # bring a controlled stop back onto it (friction stops creep past them).
+                return
             self._guard = False
         self.stop_view = view
         if self.p.stopping == 'controlled':
             _code, _speed, to_go = STOP_VIEWS[view - 1]
             # A view is first matched centre_lead mm before it is aligned (the snapshot turns
-            # valid ~6 mm early), so the stop point is that much further on.
-            self._target = self._odometer + (to_go + self.p.centre_lead) / 1000.0
+            # valid ~6 mm early), so the stop point is that much further on - in the direction
+            # of travel: a view met while backing up after an overshoot (F5) is matched
+            # centre_lead mm *past* its alignment, so the centre is that much nearer. (Taking
+            # the forward lead there put every overshooting stop 2 x 5 mm past the centre.)
+            lead = self.p.centre_lead if self._speed >= 0 else -self.p.centre_lead
+            self._target = self._odometer + (to_go + lead) / 1000.0
             self._rest_since = None
             self._controlled(now)
             return

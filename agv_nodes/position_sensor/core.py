@@ -35,7 +35,10 @@ class SensorProcessing:
     black: tuple[int, ...] = THRESHOLDS['sensor1']['black']  # THROFF
     min_consecutive_matches: int = 2  # thesis 7.1.4 (the printed listing: 1)
     variant: str = 'intended'  # or 'as_listed'
-    run_length: int = 4  # running-sum filter length (thesis 5.2.2.2, fig 5.21)
+    # Running-sum filter length (thesis 5.2.2.2, fig 5.21: 4). The thresholds stay in the
+    # thesis's x4 units and are scaled by run_length / 4; a shorter filter smears a marker over
+    # fewer samples, so fast passes give more matching snapshots (bench/recognition_bench.py).
+    run_length: int = 4
     heartbeat: float = 0.020  # s between heartbeat status records
     # While snapshots arrive the heartbeat is counted in snapshots (6 at 340 Hz = 17.6 ms, just
     # inside the 20 ms period so the timer stays quiet), so its sample_count keeps reaching the
@@ -59,6 +62,8 @@ class SensorProcessing:
                         'threshold'))
         if self.variant not in ('intended', 'as_listed'):
             bad.append(('variant', self.variant, 'not intended or as_listed'))
+        if not 1 <= self.run_length <= 8:
+            bad.append(('run_length', self.run_length, 'outside 1..8'))
         if not 1 <= self.min_consecutive_matches <= 10:
             bad.append(('min_consecutive_matches', self.min_consecutive_matches, 'outside 1..10'))
         return bad
@@ -72,6 +77,9 @@ class PositionSensorCore:
     def __init__(self, params: SensorProcessing | None = None) -> None:
         self.p = params or SensorProcessing()
         self.period = self.p.heartbeat
+        n = self.p.run_length
+        self._white = [w * n // 4 for w in self.p.white]  # THRON in run_length units
+        self._black = [b * n // 4 for b in self.p.black]  # THROFF
         self.table = 'navigating'
         self.epoch = 0
         self._oldest = [[0] * 8 for _ in range(self.p.run_length)]  # OLDEST rows
@@ -140,9 +148,9 @@ class PositionSensorCore:
             self._total[d] += x - row[d]
             row[d] = x
             total = self._total[d]
-            if total > p.white[d]:
+            if total > self._white[d]:
                 code = code << 1 | 1
-            elif (total >> 8 <= p.black[d] >> 8) if as_listed else (total <= p.black[d]):
+            elif (total >> 8 <= self._black[d] >> 8) if as_listed else (total <= self._black[d]):
                 code <<= 1
             else:
                 valid = False

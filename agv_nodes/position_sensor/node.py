@@ -34,6 +34,9 @@ class PositionSensorNode(CoreNode):
             min_consecutive_matches=p.integer(
                 'min_consecutive_matches', d.min_consecutive_matches, 'equal matches in '
                 'successive snapshots before a recognition (thesis 7.1.4: 2; listing: 1)', 1, 10),
+            run_length=p.integer('run_length', d.run_length, 'running-sum filter length in '
+                                 'snapshots (thesis 5.2.2.2: 4; 2 reads markers to 2 m/s, '
+                                 'bench/recognition_bench.py); thresholds scale by n/4', 1, 8),
             variant=p.choice('variant', d.variant, "intended design, or the printed listing's "
                              'defects (black-test compare, EDGE search length 5)',
                              ('intended', 'as_listed')),

@@ -1,0 +1,98 @@
+"""SentTimeline: the sim time at which a record was sent, from its DDS source timestamp (ROS-free).
+
+A status record's age decides whether a sub-system is alive (thesis 6.3: the monostables). The
+1983 bus measured it where the record arrived; a simulated graph must not. Nine Python
+processes share two cores, so the reader itself is sometimes starved: its `/clock` reader keeps
+only the latest message and jumps ahead at once, while the records sent in the meantime wait
+in their queues, so every record looks old the moment the reader wakes. Measured on the full
+programme: the executive saw statuses up to 0.16 s old with the world pacing every writer to
+within 0.07 s (bench/results: a false `stale status` about one run in three).
+
+The age that matters is how long ago, in sim time, the writer *sent* its last record. DDS
+stamps every sample with the writer's wall clock (the rmw source timestamp; one host, one
+clock). The reader keeps the world's `/clock` samples in order (a FIFO reader, so that time as
+the reader sees it advances no faster than it takes its inputs) together with their source
+timestamps; `sim_at(sent)` is then the sim time the world had reached when the record was
+sent. The executor takes one sample per ready topic per turn, so after a stall the status queues
+(20-60 Hz) empty before the clock queue (113 Hz): a record taken before the clock samples that
+bracket its send is given the latest sim time known and raised as those samples come in. A
+record waiting in its queue is never blamed; a writer that died is aged exactly, from its last
+send.
+"""
+
+from __future__ import annotations
+
+from bisect import bisect_right
+from collections import deque
+
+
+class SentTimeline:
+    """(source wall time, sim time) samples of the world's clock, oldest first.
+
+    `keep` is how much wall time of samples to keep (s); a record sent before the oldest kept
+    sample is given the oldest sample's sim time less the wall time between them (it is stale
+    long before that matters).
+    """
+
+    def __init__(self, keep: float = 5.0) -> None:
+        self.keep_ns = int(keep * 1e9)
+        self._wall: deque[int] = deque()
+        self._sim: deque[float] = deque()
+        self._unplaced: dict[str, int] = {}  # record -> send (wall ns) after the latest sample
+
+    def __bool__(self) -> bool:
+        return bool(self._wall)
+
+    def clock(self, sent_ns: int, sim: float) -> list[tuple[str, float]]:
+        """A /clock sample (its source timestamp, ns; its value, s) taken from the FIFO.
+
+        Returns (record, sim) for each record taken earlier whose send time this sample
+        raises to `sim` (see `record`).
+        """
+        if self._wall and (sent_ns < self._wall[-1] or sim < self._sim[-1]):
+            return []  # out of order (best-effort transport): the later sample already counts
+        self._wall.append(sent_ns)
+        self._sim.append(sim)
+        while self._wall[-1] - self._wall[0] > self.keep_ns:
+            self._wall.popleft()
+            self._sim.popleft()
+        raised = []
+        for name, record_ns in list(self._unplaced.items()):
+            if sent_ns <= record_ns:  # sent after this sample too
+                raised.append((name, sim))
+            else:  # the first sample after its send: the time given last is final
+                del self._unplaced[name]
+        return raised
+
+    def record(self, name: str, sent_ns: int) -> float:
+        """Sim time a record taken now was sent at, as far as the samples taken tell.
+
+        A record sent after the latest sample is given that sample's time for now and
+        remembered: `clock` raises it until a sample sent after it arrives.
+        """
+        if sent_ns >= self.latest_ns():
+            self._unplaced[name] = sent_ns
+        else:
+            self._unplaced.pop(name, None)
+        return self.sim_at(sent_ns)
+
+    def latest_ns(self) -> int:
+        """Source timestamp of the latest clock sample taken (0 before the first)."""
+        return self._wall[-1] if self._wall else 0
+
+    def now(self) -> float:
+        """Sim time of the latest clock sample taken (0 before the first)."""
+        return self._sim[-1] if self._sim else 0.0
+
+    def sim_at(self, sent_ns: int) -> float:
+        """Sim time when a record with this source timestamp was sent.
+
+        For a record sent after the latest clock sample taken this is only a lower bound (the
+        reader's clock queue is behind); `record` keeps track of those.
+        """
+        if not self._wall:
+            return 0.0
+        i = bisect_right(self._wall, sent_ns)
+        if i == 0:
+            return self._sim[0] - (self._wall[0] - sent_ns) * 1e-9
+        return self._sim[i - 1]
