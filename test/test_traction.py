@@ -161,6 +161,23 @@ def test_emergency_stop_cuts_the_armature_at_once_unless_as_listed(mode, armatur
     assert last['field_forward'] == 0 and last['armature_duty'] == 5  # then plug braking
 
 
+@pytest.mark.parametrize('control', ['open_loop_1983', 'closed_loop'])
+def test_immediate_emergency_stop_acts_on_the_record_not_the_next_pass(control):
+    b = Bench(control=control)
+    b.arm()
+    b.command = cmd(55)
+    b.run(3.0)
+    assert b.log[-1][1]['armature_duty'] > 0
+    out = b.core.on_record('traction_command', cmd(0), b.t)  # between two loop passes
+    assert out['traction_drive']['armature_enable'] == 0
+    assert out['traction_drive']['armature_duty'] == 0 and out['traction_drive']['contactor']
+    as_listed = Bench(control=control, emergency_stop='as_listed')
+    as_listed.arm()
+    as_listed.command = cmd(55)
+    as_listed.run(3.0)
+    assert as_listed.core.on_record('traction_command', cmd(0), as_listed.t) is None
+
+
 def test_manual_bypasses_emergency_and_radio_stop():
     b = Bench()
     b.arm()

@@ -158,6 +158,15 @@ class TractionCore:
             self.command, self.command_time = fields, now
             if self.tripped:
                 self._advance_reset(fields)
+            elif self.p.emergency_stop == 'immediate' and self._estop_demanded() \
+                    and not self.armature_off and self.dcdem:
+                # The armature off the moment 00H arrives, not at the next loop pass (up to
+                # two /clock steps later under sim time): the drive record goes out now, and
+                # the next pass brakes (plug braking; the closed loop's hardest braking).
+                self.armature_off = True
+                self.dcycle = self.dcdem = self.speed = 0
+                self.state, self.wait_until = 'run', now
+                return {'traction_drive': self.drive()}
         elif record == 'traction_link':
             self.link, self.link_time = fields, now
             stop_in = fields.get('stop_in', 0)
