@@ -7,7 +7,7 @@ position_sensor_status, against the world's 340 Hz), snapshots lost (counter gap
 worst gaps of the records that carry the control loop. Also times the lock-step harness on
 the whole demonstration programme (real-time factor without DDS).
 
-Run: .venv/bin/python bench/graph_bench.py [--seconds 30] [--time-factor 1.0]
+Run: .venv/bin/python bench/graph_bench.py [--seconds 30] [--time-factor 1.0] [-p NODE:NAME:=V]
 """
 
 from __future__ import annotations
@@ -29,9 +29,13 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
-def live(seconds: float, time_factor: float) -> None:
+def live(seconds: float, time_factor: float, params: list[str] = ()) -> None:
     out = Path(tempfile.mkdtemp(prefix='agv_graph_bench_'))
-    launch = Launch(Options(time_factor=time_factor, bag=out / 'bag', quiet=True))
+    extra: dict[str, list[str]] = {}
+    for spec in params:  # NODE:NAME:=VALUE, as agv-launch -p
+        node, _, arg = spec.partition(':')
+        extra.setdefault(node, []).append(arg)
+    launch = Launch(Options(time_factor=time_factor, bag=out / 'bag', quiet=True, extra=extra))
     os.environ.update(ROS_DOMAIN_ID=str(launch.domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     import rclpy
     from std_msgs.msg import String
@@ -108,10 +112,14 @@ def main() -> int:
     ap.add_argument('--seconds', type=float, default=30.0)
     ap.add_argument('--time-factor', type=float, default=1.0)
     ap.add_argument('--no-live', action='store_true')
+    ap.add_argument('--no-harness', action='store_true')
+    ap.add_argument('-p', '--param', action='append', default=[],
+                    help='NODE:NAME:=VALUE for one node, e.g. recorder:poll_period:=0')
     args = ap.parse_args()
     if not args.no_live:
-        live(args.seconds, args.time_factor)
-    lockstep()
+        live(args.seconds, args.time_factor, args.param)
+    if not args.no_harness:
+        lockstep()
     return 0
 
 

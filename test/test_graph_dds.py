@@ -44,7 +44,7 @@ def test_quick_demo_tasks_and_stops(quick):
     assert all(code == 0 for code in summary['node_exits'].values()), summary['node_exits']
     report = json.loads((quick / 'report' / 'report.json').read_text())
     assert [s['marker'] for s in report['stops']] == ['W0.1', 'W2.1']
-    assert all(-20 <= s['error_mm'] <= 80 for s in report['stops'])
+    assert all(abs(s['error_mm']) <= 15 for s in report['stops'])  # controlled stops
     assert [x['marker'] for x in report['loads']] == ['W0.1', 'W2.1']
     for png in ('speed.png', 'path.png', 'stops.png', 'records.png', 'faults.png'):
         assert (quick / 'report' / png).stat().st_size > 1000  # a real PNG, drawn
@@ -117,17 +117,16 @@ def test_bag_rates_match_what_was_published(quick):
     assert len(wire) / (wire[-1] - wire[0]) == pytest.approx(100, rel=0.03)
 
 
-@pytest.mark.soak
 def test_full_demonstration_programme_over_dds(tmp_path):
     """Issue 7's end-to-end test: thesis 7.2 tasks 1-7 and 'load A at 1 and take to 3'.
 
-    Run it with `./agv.sh test -m soak` (~5 min at ~1.2x on the 2-core reference machine).
-    Before the world paced itself on the slowest node (world/pacing.py) it failed 3 of 4
-    fresh-clone runs from CPU starvation (a marker missed, late stops, a stale-command trip).
-    Paced, it passed 4 of 6 runs; both failures were a false `stale status` at the executive,
-    whose oldest status in a healthy run is 0.141-0.150 s against the demo graph's 0.15 s
-    timeout (set from issue 9's 200 ms fault budget). Until that margin exists it stays out of
-    the default run.
+    ~5 min at ~1.2x on the 2-core reference machine. Before the world paced itself on the
+    slowest node (world/pacing.py) it failed 3 of 4 fresh-clone runs from CPU starvation (a
+    marker missed, late stops, a stale-command trip). Paced, it still failed about one run in
+    three with a false `stale status`: the executive, itself starved, saw statuses 0.141-0.247 s
+    old against the demo graph's 0.15 s timeout. Aged from when they were sent
+    (`status_age: sent`, agv_nodes/sent_time.py) the oldest is 0.097 s, and the test is in the
+    default run.
     """
     res = run_demo(tmp_path)
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-3000:]
@@ -138,7 +137,7 @@ def test_full_demonstration_programme_over_dds(tmp_path):
     report = json.loads((tmp_path / 'report' / 'report.json').read_text())
     markers = [s['marker'] for s in report['stops']]
     assert markers == ['W0.1', 'W2.1', 'W0.1', 'W2.1', 'W1.1', 'W3.1', 'W2.2', 'W2.1', 'W2.2']
-    assert all(-20 <= s['error_mm'] <= 80 for s in report['stops'])
+    assert all(abs(s['error_mm']) <= 15 for s in report['stops'])  # controlled stops
     assert [x['marker'] for x in report['loads']] == ['W0.1', 'W2.1', 'W1.1', 'W3.1']
     finals = [t['text'] for t in report['tasks']]
     assert len(finals) == 8 and all(': completed' in t for t in finals)
