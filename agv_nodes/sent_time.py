@@ -49,7 +49,10 @@ class SentTimeline:
         Returns (record, sim) for each record taken earlier whose send time this sample
         raises to `sim` (see `record`).
         """
-        if self._wall and (sent_ns < self._wall[-1] or sim < self._sim[-1]):
+        if self._wall and sim < self._sim[-1] - 1.0 and sent_ns > self._wall[-1]:
+            self._wall.clear()  # sim time went back: a new (respawned) world, a new timeline
+            self._sim.clear()
+        elif self._wall and (sent_ns < self._wall[-1] or sim < self._sim[-1]):
             return []  # out of order (best-effort transport): the later sample already counts
         self._wall.append(sent_ns)
         self._sim.append(sim)

@@ -129,8 +129,65 @@ def camera_step(law: str, gain_i: float, speed: float,
     return overshoot, settle, steady
 
 
+def _straight_tape(length: float = 30.0):
+    """tape_1991's tape, one straight strip from x = -1 m along y = 0 (no signs)."""
+    lay = load_layout(layout_path('tape_1991'))
+    width = lay.paths['circle'].width
+    lay.paths = {'a': build_path('a', [-1.0, 0.0, 0.0], [{'straight': length}], 0.02,
+                                 lay.file, 'a', width=width)}
+    lay.signs = []
+    lay.start_path, lay.start_at = 'a', 1.0
+    return lay
+
+
+def camera_recovery(law: str, gain_i: float, gain_theta: float, speed: float, offset: float,
+                    angle_deg: float) -> tuple[float, float, float]:
+    """Start `offset` m beside the tape (at the camera) and `angle_deg` off its heading (thesis
+    S5: -0.08 m and 40 deg at 0.471 m/s): worst |error| (mm), time to stay within 5 mm (s),
+    steady error (mm); nan when the tape is lost."""
+    world = WorldCore(_straight_tape(), WorldParams(seed=2))
+    s = world.vehicle.state
+    s.heading = math.radians(angle_deg)
+    s.x, s.y = 1.0 - 0.64 * math.cos(s.heading), offset - 0.64 * math.sin(s.heading)
+    route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed,
+                                  steering=SteeringParams(law=law, gain_i=gain_i,
+                                                          gain_theta=gain_theta)))
+    h = Harness(world, [Executive(mode='camera'), route])
+    trace = []
+    while h.now < 20:
+        h.step()
+        if world.sample % 17 == 0:
+            s = world.vehicle.state
+            trace.append((h.now, s.y + 0.64 * math.sin(s.heading)))
+    if route.state == 'lost' or not route.motor_on:
+        return float('nan'), float('nan'), float('nan')
+    outside = [t for t, e in trace if abs(e) > 0.005]
+    worst = 1000 * max(abs(e) for _t, e in trace)
+    steady = 1000 * sum(abs(e) for _t, e in trace[-50:]) / 50
+    return worst, (outside[-1] if outside else 0.0), steady
+
+
+def camera_stop(speed: float) -> tuple[float, float]:
+    """The tape ends: four absent frames turn the motors off (thesis 7.3.4). Returns the
+    distance coasted after motor-off (mm) and the distance from the tape's end to rest (mm),
+    both at the camera."""
+    world = WorldCore(_straight_tape(length=4.0), WorldParams(seed=2))
+    route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed))
+    h = Harness(world, [Executive(mode='camera'), route])
+    off_x = None
+    while h.now < 60:
+        h.step()
+        s = world.vehicle.state
+        cx = s.x + 0.64 * math.cos(s.heading)
+        if off_x is None and h.now > 2 and not route.motor_on:
+            off_x = cx
+        if off_x is not None and s.speed == 0.0:
+            return 1000 * (cx - off_x), 1000 * (cx - 3.0)  # the tape runs -1 .. 3 m
+    return float('nan'), float('nan')
+
+
 def main() -> int:
-    only = sys.argv[1:] or ['wire', 'srm', 'circle', 'step']
+    only = sys.argv[1:] or ['wire', 'srm', 'circle', 'step', 'recovery', 'stop']
     if 'wire' in only:
         print('Guide wire on demo_1983 (sensor point to the wire)\n')
         print('| demand (%) | speed (m/s) | max error (mm) | rms error (mm) |\n|---|---|---|---|')
@@ -163,6 +220,24 @@ def main() -> int:
                 o, t, e = camera_step(law, gain_i, speed, gain_theta)
                 print(f'| {law} | {gain_theta} | {speed} | {o:.1f} | {t:.2f} | {e:.1f} |',
                       flush=True)
+    if 'recovery' in only:
+        print('\nCamera guidance from an initial error (thesis S5: -0.08 m and 40 deg at '
+              '0.471 m/s)\n')
+        print('| law | G_theta | offset (m) | angle (deg) | worst error (mm) | within 5 mm '
+              'after (s) | steady error (mm) |\n|---|---|---|---|---|---|---|')
+        for law, gain_i, gain_theta in (('p', 0.0, 0.0), ('pi', 0.07, 0.0), ('p', 0.0, 0.3)):
+            for offset, angle in ((-0.08, 40.0), (-0.08, -40.0), (0.08, -40.0)):
+                w, t, e = camera_recovery(law, gain_i, gain_theta, 0.471, offset, angle)
+                print(f'| {law} | {gain_theta} | {offset:+.2f} | {angle:+.0f} | {w:.0f} | '
+                      f'{t:.2f} | {e:.1f} |', flush=True)
+    if 'stop' in only:
+        print('\nCamera guidance: motor-off stop at the end of the tape (thesis 7.3.4: 5 mm '
+              'from 0.16 m/s; the coast-down is calibrated to it, the detection is not)\n')
+        print('| speed (m/s) | coasted after motor-off (mm) | tape end to rest (mm) |\n'
+              '|---|---|---|')
+        for speed in (0.16, 0.31, 0.47):
+            coast, past = camera_stop(speed)
+            print(f'| {speed} | {coast:.1f} | {past:.0f} |', flush=True)
     return 0
 
 

@@ -44,6 +44,8 @@ def test_pause_and_out_of_order_samples():
     assert t.sim_at(550 * MS) == 1.0 and t.now() == 1.1
     t.clock(2_000 * MS, 2.0)  # keeps one second of wall time
     assert t.sim_at(100 * MS) < 1.1
+    t.clock(3_000 * MS, 0.0)  # a respawned world starts again at 0
+    assert t.now() == 0.0 and t.sim_at(3_500 * MS) == 0.0
 
 
 def cruising(sent: bool, stale_confirm: int = 8) -> tuple[ExecutiveCore, SentTimeline]:
