@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+import signal
 import subprocess
 
 from mcap.reader import make_reader
@@ -25,8 +26,23 @@ DEMO = str(Path(PYTHON).parent / 'agv-demo')
 
 
 def run_demo(out: Path, *extra: str, timeout: float = 900) -> subprocess.CompletedProcess:
-    return subprocess.run([DEMO, '--out', str(out), *extra], capture_output=True, text=True,
-                          timeout=timeout)
+    """agv-demo as a user runs it; past `timeout` it gets SIGINT, so that it stops its graph
+    (a SIGKILLed demo would leave nine nodes running on the session's domain, and every
+    later graph test would cross-talk with them)."""
+    proc = subprocess.Popen([DEMO, '--out', str(out), *extra], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        stdout, stderr = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.send_signal(signal.SIGINT)
+        try:
+            stdout, stderr = proc.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            stdout, stderr = proc.communicate()
+        raise AssertionError(f'agv-demo did not finish in {timeout:.0f} s:\n'
+                             + stdout[-3000:] + stderr[-3000:]) from None
+    return subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr)
 
 
 @pytest.fixture(scope='module')
