@@ -22,6 +22,7 @@ on arrival.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 import importlib
 from pathlib import Path
 import sys
@@ -30,6 +31,7 @@ from typing import Any
 from rclpy.callback_groups import CallbackGroup
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 from rosbags.interfaces import (
     Qos,
     QosDurability,
@@ -40,6 +42,7 @@ from rosbags.interfaces import (
 )
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
+from rosgraph_msgs.msg import Clock
 
 from agv_nodes.core_node import spin_main
 from agv_nodes.params import Parameters
@@ -70,6 +73,16 @@ def to_bag_qos(profile: QoSProfile) -> Qos:
                liveliness=QosLiveliness(int(profile.liveliness)),
                liveliness_lease_duration=_time(profile.liveliness_lease_duration),
                avoid_ros_namespace_conventions=bool(profile.avoid_ros_namespace_conventions))
+
+
+def _queued(sub: Any, limit: int) -> Iterator[tuple[bytes, dict[str, Any]]]:
+    """Take (serialized message, message info) from `sub` until its queue is empty."""
+    for _ in range(limit):
+        with sub.handle:
+            taken = sub.handle.take_message(sub.msg_type, True)
+        if taken is None:
+            return
+        yield taken
 
 
 class PolledGroup(CallbackGroup):
@@ -188,13 +201,8 @@ class Recorder(Node):
             self._write(topic, raw)
             # Drain what else is queued on this topic now: one executor wake-up (and one
             # wait-set rebuild) then serves a whole burst instead of a single message.
-            sub = self.subs[topic]
-            for _ in range(200):
-                with sub.handle:
-                    taken = sub.handle.take_message(sub.msg_type, True)
-                if taken is None:
-                    break
-                self._write(topic, taken[0])
+            for raw, _info in _queued(self.subs[topic], 200):
+                self._write(topic, raw)
         return write
 
     def poll(self) -> None:
@@ -206,12 +214,7 @@ class Recorder(Node):
             sub = self.subs[topic]
             if sub is None:
                 continue
-            for _ in range(1000):
-                with sub.handle:
-                    taken = sub.handle.take_message(sub.msg_type, True)
-                if taken is None:
-                    break
-                raw, info = taken
+            for raw, info in _queued(sub, 1000):
                 sent_ns = info.get('source_timestamp') or 0
                 if topic == '/clock':
                     self.timeline.clock(sent_ns, self._clock_value(raw))
@@ -224,9 +227,6 @@ class Recorder(Node):
                 self._write(topic, raw, stamp)
 
     def _clock_value(self, raw: bytes) -> float:
-        from rclpy.serialization import deserialize_message
-        from rosgraph_msgs.msg import Clock
-
         clock = deserialize_message(raw, Clock).clock
         return clock.sec + clock.nanosec * 1e-9
 

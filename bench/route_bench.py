@@ -79,48 +79,67 @@ def srm(angle: int, demand: int) -> tuple[str, float, float]:
     return route.state, took, (sy - 4.0) * 1000
 
 
+CAMERA_AHEAD = 0.64  # m from the CONCIC-II's reference point to the camera's view centre
+
+
+def camera_point(world: WorldCore) -> tuple[float, float]:
+    """Where the camera looks (the thesis measures the guidance error there)."""
+    s = world.vehicle.state
+    return (s.x + CAMERA_AHEAD * math.cos(s.heading),
+            s.y + CAMERA_AHEAD * math.sin(s.heading))
+
+
+def camera_truck(world: WorldCore, speed: float, law: str = 'p', gain_i: float = 0.0,
+                 gain_theta: float = 0.0) -> tuple[Harness, RouteCore]:
+    """The CONCIC-II on `world`, route following in camera mode with the given law."""
+    route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed,
+                                  steering=SteeringParams(law=law, gain_i=gain_i,
+                                                          gain_theta=gain_theta)))
+    return Harness(world, [Executive(mode='camera'), route]), route
+
+
+def camera_trace(h: Harness, world: WorldCore, until: float) -> list[tuple[float, float, float]]:
+    """(time, camera x, camera y) every 17 samples (50 ms) until sim time `until`."""
+    trace = []
+    while h.now < until:
+        h.step()
+        if world.sample % 17 == 0:
+            trace.append((h.now, *camera_point(world)))
+    return trace
+
+
+def tape(*strips: tuple[str, list[float], float]):
+    """tape_1991 with its tape replaced by straight strips (name, [x, y, heading], length),
+    no road signs; the vehicle starts 1 m along the first."""
+    lay = load_layout(layout_path('tape_1991'))
+    width = lay.paths['circle'].width
+    lay.paths = {name: build_path(name, start, [{'straight': length}], 0.02, lay.file, name,
+                                  width=width) for name, start, length in strips}
+    lay.signs = []
+    lay.start_path, lay.start_at = strips[0][0], 1.0
+    return lay
+
+
 def camera_circle(law: str, gain_i: float, speed: float) -> float:
     world = WorldCore(load_layout(layout_path('tape_1991')), WorldParams(seed=2))
-    route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed,
-                                  steering=SteeringParams(law=law, gain_i=gain_i)))
-    h = Harness(world, [Executive(mode='camera'), route])
+    h, _route = camera_truck(world, speed, law, gain_i)
     h.run(20.0)
     errors = []
     for _ in range(20):
         h.run(0.5)
-        s = world.vehicle.state
-        errors.append(world.nearest_path_offset(s.x + 0.64 * math.cos(s.heading),
-                                                s.y + 0.64 * math.sin(s.heading)))
+        errors.append(world.nearest_path_offset(*camera_point(world)))
     return 1000 * sum(abs(e) for e in errors) / len(errors)
 
 
 def camera_step(law: str, gain_i: float, speed: float,
                 gain_theta: float = 0.0) -> tuple[float, float, float]:
     """A straight tape that jumps 0.065 m sideways: overshoot %, 5 mm settle (s), steady mm."""
-    lay = load_layout(layout_path('tape_1991'))
     step_at = 6.0
-    width = lay.paths['circle'].width
-    a = build_path('a', [-1.0, 0.0, 0.0], [{'straight': step_at + 2.0}], 0.02, lay.file, 'a',
-                   width=width)
-    b = build_path('b', [step_at + 1.0, 0.065, 0.0], [{'straight': 30.0}], 0.02, lay.file,
-                   'b', width=width)
-    lay.paths = {'a': a, 'b': b}
-    lay.signs = []
-    lay.start_path, lay.start_at = 'a', 1.0
-    world = WorldCore(lay, WorldParams(seed=2))
-    route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed,
-                                  steering=SteeringParams(law=law, gain_i=gain_i,
-                                                          gain_theta=gain_theta)))
-    h = Harness(world, [Executive(mode='camera'), route])
-    trace = []
-    while h.now < 40:
-        h.step()
-        if world.sample % 17 == 0:
-            s = world.vehicle.state
-            cx = s.x + 0.64 * math.cos(s.heading)
-            cy = s.y + 0.64 * math.sin(s.heading)
-            if cx > step_at + 1.0:
-                trace.append((h.now, cy - 0.065))
+    world = WorldCore(tape(('a', [-1.0, 0.0, 0.0], step_at + 2.0),
+                           ('b', [step_at + 1.0, 0.065, 0.0], 30.0)), WorldParams(seed=2))
+    h, _route = camera_truck(world, speed, law, gain_i, gain_theta)
+    trace = [(t, cy - 0.065) for t, cx, cy in camera_trace(h, world, 40.0)
+             if cx > step_at + 1.0]
     t0 = trace[0][0]
     overshoot = 100 * max(0.0, max(e for _t, e in trace)) / 0.065
     outside = [t for t, e in trace if abs(e) > 0.005]
@@ -129,36 +148,18 @@ def camera_step(law: str, gain_i: float, speed: float,
     return overshoot, settle, steady
 
 
-def _straight_tape(length: float = 30.0):
-    """tape_1991's tape, one straight strip from x = -1 m along y = 0 (no signs)."""
-    lay = load_layout(layout_path('tape_1991'))
-    width = lay.paths['circle'].width
-    lay.paths = {'a': build_path('a', [-1.0, 0.0, 0.0], [{'straight': length}], 0.02,
-                                 lay.file, 'a', width=width)}
-    lay.signs = []
-    lay.start_path, lay.start_at = 'a', 1.0
-    return lay
-
-
 def camera_recovery(law: str, gain_i: float, gain_theta: float, speed: float, offset: float,
                     angle_deg: float) -> tuple[float, float, float]:
     """Start `offset` m beside the tape (at the camera) and `angle_deg` off its heading (thesis
     S5: -0.08 m and 40 deg at 0.471 m/s): worst |error| (mm), time to stay within 5 mm (s),
     steady error (mm); nan when the tape is lost."""
-    world = WorldCore(_straight_tape(), WorldParams(seed=2))
+    world = WorldCore(tape(('a', [-1.0, 0.0, 0.0], 30.0)), WorldParams(seed=2))
     s = world.vehicle.state
     s.heading = math.radians(angle_deg)
-    s.x, s.y = 1.0 - 0.64 * math.cos(s.heading), offset - 0.64 * math.sin(s.heading)
-    route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed,
-                                  steering=SteeringParams(law=law, gain_i=gain_i,
-                                                          gain_theta=gain_theta)))
-    h = Harness(world, [Executive(mode='camera'), route])
-    trace = []
-    while h.now < 20:
-        h.step()
-        if world.sample % 17 == 0:
-            s = world.vehicle.state
-            trace.append((h.now, s.y + 0.64 * math.sin(s.heading)))
+    s.x = 1.0 - CAMERA_AHEAD * math.cos(s.heading)
+    s.y = offset - CAMERA_AHEAD * math.sin(s.heading)
+    h, route = camera_truck(world, speed, law, gain_i, gain_theta)
+    trace = [(t, cy) for t, _cx, cy in camera_trace(h, world, 20.0)]
     if route.state == 'lost' or not route.motor_on:
         return float('nan'), float('nan'), float('nan')
     outside = [t for t, e in trace if abs(e) > 0.005]
@@ -171,17 +172,15 @@ def camera_stop(speed: float) -> tuple[float, float]:
     """The tape ends: four absent frames turn the motors off (thesis 7.3.4). Returns the
     distance coasted after motor-off (mm) and the distance from the tape's end to rest (mm),
     both at the camera."""
-    world = WorldCore(_straight_tape(length=4.0), WorldParams(seed=2))
-    route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed))
-    h = Harness(world, [Executive(mode='camera'), route])
+    world = WorldCore(tape(('a', [-1.0, 0.0, 0.0], 4.0)), WorldParams(seed=2))
+    h, route = camera_truck(world, speed)
     off_x = None
     while h.now < 60:
         h.step()
-        s = world.vehicle.state
-        cx = s.x + 0.64 * math.cos(s.heading)
+        cx, _cy = camera_point(world)
         if off_x is None and h.now > 2 and not route.motor_on:
             off_x = cx
-        if off_x is not None and s.speed == 0.0:
+        if off_x is not None and world.vehicle.state.speed == 0.0:
             return 1000 * (cx - off_x), 1000 * (cx - 3.0)  # the tape runs -1 .. 3 m
     return float('nan'), float('nan')
 

@@ -42,6 +42,7 @@ NO_TASK = 0xFF
 STATUS_RECORDS = {'navigation': 'navigation_status', 'traction': 'traction_status',
                   'route': 'route_status', 'load': 'load_status',
                   'communications': 'comms_status'}
+SUBSYSTEM_OF = {record: sub for sub, record in STATUS_RECORDS.items()}
 
 
 @dataclass
@@ -154,17 +155,17 @@ class ExecutiveCore:
         `sent` is the sim time the record was sent (status_age `sent`, agv_nodes.sent_time);
         without it the record's age runs from its arrival, `now`.
         """
-        for sub, name in STATUS_RECORDS.items():
-            if name == record:
-                previous = self.status.get(sub)
-                self.status[sub] = fields
-                self.status_time[sub] = now if sent is None else min(sent, now)
-                self.arrivals += 1
-                self.arrivals_at[sub] = self.arrivals
-                if sub == 'communications':
-                    self._task_record(fields, now)
-                elif sub == 'navigation':
-                    self._navigation(previous, fields, now)
+        sub = SUBSYSTEM_OF.get(record)
+        if sub is not None:
+            previous = self.status.get(sub)
+            self.status[sub] = fields
+            self.status_time[sub] = now if sent is None else min(sent, now)
+            self.arrivals += 1
+            self.arrivals_at[sub] = self.arrivals
+            if sub == 'communications':
+                self._task_record(fields, now)
+            elif sub == 'navigation':
+                self._navigation(previous, fields, now)
         if self.mode in ('running', 'cruising'):
             # Supervise on every arrival too, not only at the 50 ms tick: a silent sub-system
             # is then noticed within ~10 ms of its status_timeout (the other sub-systems'
@@ -178,9 +179,9 @@ class ExecutiveCore:
     def sent_later(self, record: str, sent: float) -> None:
         """A status taken before the executive knew the sim time it was sent at (its clock
         queue was behind) turns out to have been sent at `sent` (agv_nodes.sent_time)."""
-        for sub, name in STATUS_RECORDS.items():
-            if name == record and sub in self.status_time:
-                self.status_time[sub] = max(self.status_time[sub], sent)
+        sub = SUBSYSTEM_OF.get(record)
+        if sub in self.status_time:
+            self.status_time[sub] = max(self.status_time[sub], sent)
 
     def on_reject(self, record: str, reason: str, now: float) -> dict | None:
         """Count rejected status records (a burst of them is a fault)."""

@@ -163,9 +163,7 @@ class TractionCore:
                 # The armature off the moment 00H arrives, not at the next loop pass (up to
                 # two /clock steps later under sim time): the drive record goes out now, and
                 # the next pass brakes (plug braking; the closed loop's hardest braking).
-                self.armature_off = True
-                self.dcycle = self.dcdem = self.speed = 0
-                self.state, self.wait_until = 'run', now
+                self._cut_armature(now)
                 return {'traction_drive': self.drive()}
         elif record == 'traction_link':
             self.link, self.link_time = fields, now
@@ -239,9 +237,7 @@ class TractionCore:
         if (not self.tripped and self.p.control == 'open_loop_1983'
                 and self.p.emergency_stop == 'immediate' and self._estop_demanded()
                 and self.dcycle > 0):  # the armature off now, not after the slew
-            self.armature_off = True
-            self.dcycle = self.dcdem = self.speed = 0
-            self.state, self.wait_until = 'run', now
+            self._cut_armature(now)
         if not self.tripped and now >= self.wait_until:
             if self.p.control == 'closed_loop':
                 self._closed_loop(now, dt)
@@ -261,6 +257,12 @@ class TractionCore:
                 'stale_link': ' (navigation is silent)'}.get(self.trip_cause, '')
         return (1 if self.trip_cause == 'startup' else 2,
                 f'trip relay open: {self.trip_cause}{hint}')
+
+    def _cut_armature(self, now: float) -> None:
+        """Emergency stop `immediate`: armature off and duty 0 now, any wait abandoned."""
+        self.armature_off = True
+        self.dcycle = self.dcdem = self.speed = 0
+        self.state, self.wait_until = 'run', now
 
     def _estop_demanded(self) -> bool:
         cmd = self.command
