@@ -10,7 +10,6 @@ publishes whatever the core returns.
 from __future__ import annotations
 
 from collections.abc import Callable
-import os
 import random
 import sys
 import time
@@ -19,6 +18,7 @@ from typing import Any
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool
 
 from agv_nodes import qos
@@ -30,12 +30,22 @@ from agv_nodes.ros_ports import InputDiagnostics, RecordPublisher, RecordSubscri
 class CoreNode(Node):
     """A node around one core; subclasses declare parameters and build the core."""
 
+    sent_stamps = False  # readers keep each record's DDS source timestamp (executive)
+    executor_kind = 'single'  # the `executor` parameter (attach declares it)
+    _clock_timers: ClockTimers | None = None
+
     def attach(self, core: Any, params: Parameters) -> None:
         """Declare record_integrity, then create the core's ports and timer."""
         integrity = params.choice('record_integrity', 'e2e', 'end-to-end protection of the '
                                   'inter-processor records (none: a legacy peer sending plain '
                                   'thesis records)', ('e2e', 'none'))
         self.core = core
+        if not self.has_parameter('executor'):  # (the executive declares it earlier)
+            self.executor_kind = declare_executor(params)
+        if self.sent_stamps:  # (msg, info) callbacks: not under rclpy 7.1.6's EventsExecutor
+            self.executor_kind = 'single'
+        if self.executor_kind == 'events' and self.get_parameter('use_sim_time').value:
+            self._clock_timers = ClockTimers(self)
         reads, writes = codec().for_node(core.node)
         # Fault injection (agv-launch --fault; issue 9): one of this node's records is lost
         # or delayed on its way out, as a bad link would. The E2E counter still advances for a
@@ -53,7 +63,8 @@ class CoreNode(Node):
         self._held: list[tuple[float, bytes]] = []
         self.writers = {s.name: RecordPublisher(self, s, integrity) for s in writes}
         self.readers = {s.name: RecordSubscription(self, s, integrity,
-                                                   callback=self._on_record(s.name))
+                                                   callback=self._on_record(s.name),
+                                                   sent_stamps=self.sent_stamps)
                         for s in reads}
         for reader in self.readers.values():
             reader.on_reject = self._on_reject(reader)
@@ -61,15 +72,30 @@ class CoreNode(Node):
             self.create_subscription(Bool, 'hw/radio_stop', self._radio_stop,
                                      qos.RECORD_READER)
         if core.period:
-            self.timer = self.create_timer(core.period, self._tick)
+            self.periodic(core.period, self._tick)
         if self.fault_record and self.fault_delay:
-            self.create_timer(0.001, self._release)  # fires once per /clock step
+            self.periodic(0.001, self._release)  # fires once per /clock step
         self.input_diagnostics = InputDiagnostics(self, self.readers,
                                                   health=getattr(core, 'health', None))
 
-    def now_s(self) -> float:
-        """ROS time in seconds (sim time when use_sim_time is set)."""
+    def periodic(self, period: float, callback: Callable[[], None]) -> None:
+        """Call `callback` every `period` s of ROS time, as a rclpy timer would (under sim
+        time with the EventsExecutor: from the node's own /clock reader, see ClockTimers)."""
+        if self._clock_timers is not None:
+            self._clock_timers.add(period, callback)
+        else:
+            self.create_timer(period, callback)
+
+    def ros_now_s(self) -> float:
+        """ROS time in seconds (sim time when use_sim_time is set): under the EventsExecutor
+        the latest /clock taken in arrival order (ClockTimers), else the ROS clock."""
+        if self._clock_timers is not None and self._clock_timers.now_ns is not None:
+            return self._clock_timers.now_ns * 1e-9
         return self.get_clock().now().nanoseconds * 1e-9
+
+    def now_s(self) -> float:
+        """The time the core is told (ros_now_s; the executive may age records otherwise)."""
+        return self.ros_now_s()
 
     def _on_record(self, name: str):
         def callback(fields: dict[str, Any]) -> None:
@@ -112,15 +138,65 @@ class CoreNode(Node):
             self.writers[self.fault_record].publish_raw(self._held.pop(0)[1])
 
 
-def make_executor() -> Any:
+def declare_executor(params: Parameters) -> str:
+    """The `executor` parameter every node process has (see make_executor)."""
+    return params.choice('executor', 'events', "rclpy executor of this node's process: events "
+                         "(rclpy's EventsExecutor: about half the CPU, inputs taken in arrival "
+                         'order) or single (SingleThreadedExecutor)', ('events', 'single'))
+
+
+class ClockTimers:
+    """A node's sim time and periodic callbacks under the EventsExecutor, from its own FIFO
+    /clock reader.
+
+    The EventsExecutor takes every input in the order it arrived. The ROS clock's own /clock
+    reader keeps only the newest sample, so in a process that has fallen behind it runs ahead
+    of the records still queued, and a record taken late looks late (a false "sensor lost" in
+    one full-programme run at 2.4x real time). Read FIFO, /clock is one more input in the
+    queue: each record is handled at the sim time it arrived, and a starved node blames
+    nobody. The callbacks follow rclpy timer semantics under sim time: due every `period` s,
+    at most once per /clock message, periods a jump passed over are skipped.
+    """
+
+    def __init__(self, node: Node) -> None:
+        self.now_ns: int | None = None  # the latest /clock taken
+        self._timers: list[list[Any]] = []  # [period, next due (ns) or None, callback]
+        node.create_subscription(Clock, '/clock', self._on_clock, qos.CLOCK_READER)
+
+    def add(self, period: float, callback: Callable[[], None]) -> None:
+        """One more periodic callback."""
+        self._timers.append([round(period * 1e9), None, callback])
+
+    def _on_clock(self, msg: Clock) -> None:
+        now = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+        if now <= 0:
+            return  # the world's clock has not started
+        self.now_ns = now
+        for timer in self._timers:
+            period, due, callback = timer
+            if due is None or now < due - 10 * period:  # first tick, or sim time went back
+                timer[1] = now + period
+                continue
+            if now >= due:
+                skipped = (now - due) // period
+                timer[1] = due + (skipped + 1) * period
+                callback()
+
+
+def make_executor(kind: str = 'single') -> Any:
     """The executor for one node process (never MultiThreadedExecutor: anchors.md 3.3).
 
-    The SingleThreadedExecutor is the default. AGV_EXECUTOR=events tries rclpy's experimental
-    EventsExecutor (a third of the CPU in anchors.md 3.2), but with the PyPI rclpy 7.1.6 and
-    sim time it spun at ~22 % CPU per process without ever running the graph here, so it stays
-    an experiment.
+    `events` is rclpy's EventsExecutor (rclpy.experimental in Jazzy): measured on the demo
+    graph it halves each node's CPU (bench/graph_bench.py), which is what lets the full
+    programme run faster than real time on two cores. It also takes every input in the order
+    it arrived, /clock included, so a record is handled at the sim time it came in even when
+    the process falls behind (the SingleThreadedExecutor takes one sample per ready topic per
+    turn, and its keep-last-1 clock runs ahead of the records still queued). Two limits of the
+    PyPI rclpy 7.1.6 shape the nodes: (msg, info) callbacks raise SystemError (so only a
+    SingleThreadedExecutor reader asks for source timestamps) and spin() misses the shutdown
+    (spin_main loops on spin_once).
     """
-    if os.environ.get('AGV_EXECUTOR', 'single') == 'events':
+    if kind == 'events':
         try:
             from rclpy.experimental import EventsExecutor
 
@@ -157,12 +233,14 @@ def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
     code = 0
     try:
         node = make_node()
-        spinner = executor() if executor is not None else make_executor()
+        spinner = executor() if executor is not None else \
+            make_executor(getattr(node, 'executor_kind', 'single'))
         spinner.add_node(node)
         if run is not None:
             code = run(node, spinner)
         else:
-            spinner.spin()
+            while rclpy.ok():  # not spin(): the EventsExecutor's misses the shutdown
+                spinner.spin_once(timeout_sec=0.1)
     except ParameterError as exc:
         print(exc, file=sys.stderr)
         code = 2

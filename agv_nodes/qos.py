@@ -37,6 +37,11 @@ STREAM_WRITER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
 STREAM_READER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                            reliability=ReliabilityPolicy.BEST_EFFORT,
                            durability=DurabilityPolicy.VOLATILE)
+# A node's own FIFO /clock reader (core_node.ClockTimers, the executive's sent timeline): every
+# sample, in order - a lost one would leave the node's time and timers behind until the next.
+CLOCK_READER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                          reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.VOLATILE)
 # Ground truth drawn once (world/route, world/markers) and late-joining viewers or recorders.
 LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                      reliability=ReliabilityPolicy.RELIABLE,

@@ -29,6 +29,7 @@ import sys
 from typing import Any
 
 from rclpy.callback_groups import CallbackGroup
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
@@ -176,7 +177,9 @@ class Recorder(Node):
             offered = [i.qos_profile for i in infos]
             reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
             latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
-            qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+            # deep enough for ~2 s of the 340 Hz ADC stream at 3x real time: a poll delayed by
+            # a bag flush or a CPU-starved turn must not let the queue overflow
+            qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=2000,
                              reliability=ReliabilityPolicy.RELIABLE if reliable
                              else ReliabilityPolicy.BEST_EFFORT,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL if latched
@@ -266,7 +269,7 @@ class Recorder(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Entry point: ros2 run agv_nodes recorder [--ros-args -p bag:=DIR ...]."""
-    return spin_main(Recorder, args)
+    return spin_main(Recorder, args, executor=SingleThreadedExecutor)
 
 
 if __name__ == '__main__':

@@ -44,22 +44,39 @@ class RecordPublisher(RecordWriter):
         return self._pub.get_subscription_count()
 
 
+def node_time(node: Node) -> Callable[[], int]:
+    """The node's time in ns: a CoreNode's ros_now_s (its FIFO /clock under the
+    EventsExecutor, see core_node.ClockTimers), else the ROS clock."""
+    ros_now_s = getattr(node, 'ros_now_s', None)
+    if ros_now_s is not None:
+        return lambda: round(ros_now_s() * 1e9)
+    return lambda: node.get_clock().now().nanoseconds
+
+
 class RecordSubscription(RecordReader):
     """Subscribes one record topic; calls `callback(fields)` for each record accepted."""
 
     def __init__(self, node: Node, schema: RecordSchema, integrity: str = 'e2e',
-                 callback: Callable[[dict[str, Any]], None] | None = None) -> None:
+                 callback: Callable[[dict[str, Any]], None] | None = None,
+                 sent_stamps: bool = False) -> None:
         super().__init__(schema, integrity if schema.protected else 'none')
         self._node = node
         self._callback = callback
+        self._now_ns = node_time(node)
         self.on_reject: Callable[[], None] | None = None  # told after each rejection
         self.sent_ns = 0  # DDS source timestamp of the record being handled (writer's wall ns)
-        self._sub = node.create_subscription(UInt8MultiArray, schema.topic, self._on_msg,
-                                             qos.reader_qos(schema))
+        # Only a reader that ages records from their send asks for the message info: rclpy
+        # 7.1.6's EventsExecutor fails ("SystemError: null argument") on (msg, info) callbacks.
+        self._sub = node.create_subscription(
+            UInt8MultiArray, schema.topic, self._on_msg_info if sent_stamps else self._on_msg,
+            qos.reader_qos(schema))
 
-    def _on_msg(self, msg: UInt8MultiArray, info: Mapping[str, Any]) -> None:
+    def _on_msg_info(self, msg: UInt8MultiArray, info: Mapping[str, Any]) -> None:
         self.sent_ns = info.get('source_timestamp') or 0
-        fields = self.accept(bytes(msg.data), self._node.get_clock().now().nanoseconds)
+        self._on_msg(msg)
+
+    def _on_msg(self, msg: UInt8MultiArray) -> None:
+        fields = self.accept(bytes(msg.data), self._now_ns())
         if fields is None:
             if self.on_reject is not None:
                 self.on_reject()
@@ -94,13 +111,18 @@ class InputDiagnostics:
         self._readers = readers
         self._health = health
         self._before = 0
+        self._now_ns = node_time(node)
         self._pub = node.create_publisher(DiagnosticArray, '/diagnostics', qos.EVENTS)
-        node.create_timer(period, self.publish)
+        periodic = getattr(node, 'periodic', None)  # a CoreNode's timers follow its executor
+        if periodic is not None:
+            periodic(period, self.publish)
+        else:
+            node.create_timer(period, self.publish)
 
     def publish(self) -> None:
         """Send the current counts."""
         level, message, values = inputs_report(
-            self._readers, self._before, self._node.get_clock().now().nanoseconds,
+            self._readers, self._before, self._now_ns(),
             self._health() if self._health else None)
         self._before = sum(r.rejected for r in self._readers.values())
         name = self._node.get_name()

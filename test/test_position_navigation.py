@@ -373,4 +373,5 @@ def test_controlled_stop_of_a_loaded_truck_from_1_m_s_ends_on_the_centre():
         reversed_ |= bool(h.cores['navigation'].link.get('reverse'))
     stops = [e for e in h.events if e['event'] == 'stopped' and e['marker'] == 'S1.1']
     assert reversed_ and h.cores['executive'].mode == 'idle'
-    assert abs(stops[-1]['error']) <= 3, stops
+    # issue 4's goal band; bench/stop_bench.py: -5..0 mm over 30 seeds for this case
+    assert abs(stops[-1]['error']) <= 5, stops

@@ -14,7 +14,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rosgraph_msgs.msg import Clock
 
 from agv_nodes import qos
-from agv_nodes.core_node import CoreNode, spin_main
+from agv_nodes.core_node import CoreNode, declare_executor, spin_main
 from agv_nodes.executive.core import ExecutiveCore, ExecutiveParams
 from agv_nodes.executive.diagnostics import HealthMonitor
 from agv_nodes.params import Parameters
@@ -79,15 +79,21 @@ class ExecutiveNode(CoreNode):
                                    'its arrival here (1983) or, under sim time, from when it '
                                    'was sent (a starved executive blames nobody)',
                                    ('arrival', 'sent'))
+        self.executor_kind = declare_executor(p)
+        # With the EventsExecutor every input, /clock included, is taken in arrival order
+        # (core_node.ClockTimers), so a status is aged from its arrival in the queue, not from
+        # when a starved executive took it: `sent` needs nothing more. With the
+        # SingleThreadedExecutor it needs the DDS source timestamps (agv_nodes.sent_time).
+        self.sent_stamps = self.status_age == 'sent' and self.executor_kind == 'single'
         self.timeline = SentTimeline()
-        if self.status_age == 'sent' and self.get_parameter('use_sim_time').value:
+        if self.sent_stamps and self.get_parameter('use_sim_time').value:
             # FIFO, unlike the ROS clock's keep-last-1 reader: time as the executive sees it
             # advances no faster than it takes its records (one sample per topic per turn).
-            self.create_subscription(Clock, '/clock', self._on_clock, qos.STREAM_READER)
+            self.create_subscription(Clock, '/clock', self._on_clock, qos.CLOCK_READER)
         self.health = HealthMonitor(ep.status_timeout)
         self.attach(ExecutiveCore(ep), p)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos.EVENTS)
-        self.create_timer(1.0, self._diagnostics)
+        self.periodic(1.0, self._diagnostics)
         self._logged = 0
 
     def _on_clock(self, msg: Clock, info: dict[str, Any]) -> None:
@@ -101,7 +107,7 @@ class ExecutiveNode(CoreNode):
         return self.timeline.now() if self.timeline else super().now_s()
 
     def _on_record(self, name: str):
-        if self.status_age != 'sent':
+        if not self.sent_stamps:
             return super()._on_record(name)
 
         def callback(fields: dict[str, Any]) -> None:

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from agv_nodes.markers import CENTRE_VIEW, EDIM, SLOW1, STOP_VIEWS
+from agv_nodes.odometry import Odometer
 
 NO_TASK = 0xFF
 
@@ -107,7 +108,8 @@ class NavigationCore:
         self._next = {'status': 0.0, 'link': 0.0, 'command': 0.0}
         self._pending: dict[str, dict[str, Any]] = {}
         # controlled stopping
-        self._odometer = 0.0  # m, integrated wheel odometry
+        self._odometer = 0.0  # m travelled, from the wheel distance counters
+        self._wheels = Odometer()
         self._target: float | None = None  # odometer reading of the stop point
         self._rest_since: float | None = None
         self._speed = 0.0
@@ -216,6 +218,9 @@ class NavigationCore:
             self._sensor_status(fields, now)
         elif record == 'wheel_odometry':
             self._speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
+            # the encoders' own distance, not speed x tick (agv_nodes.odometry)
+            self._odometer = self._wheels.update(fields['left_distance'],
+                                                 fields['right_distance'])
         return self._flush()
 
     def on_reject(self, record: str, reason: str, now: float) -> dict | None:
@@ -324,7 +329,6 @@ class NavigationCore:
                 self._set_lost(True)  # a task, and no sensor has ever reported
         elif now - self._sensor_time > self.p.sensor_timeout:
             self._set_lost(True)
-        self._odometer += self._speed * self.p.period
         if self.mode == 'positioning' and self.p.stopping == 'controlled':
             self._controlled(now)
         if now >= self._next['status']:

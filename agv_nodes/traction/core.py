@@ -40,6 +40,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from agv_nodes.odometry import Odometer
 from agv_nodes.records.ports import CORRUPT
 
 SOURCES = ('executive', 'position', 'manual', 'emergency_stop', 'radio_stop', 'trip')
@@ -147,7 +148,8 @@ class TractionCore:
         self._v_demand = 0.0
         self._a_demand = 0.0
         self._integral = 0.0
-        self.odometer = 0.0  # m, integrated wheel odometry
+        self.odometer = 0.0  # m travelled, from the wheel distance counters
+        self._wheels = Odometer()
         self._braking = False
         self.stop_target: float | None = None  # odometer reading of a requested stop
 
@@ -176,6 +178,9 @@ class TractionCore:
         elif record == 'wheel_odometry':
             self.measured_speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
             self._odometry_count += 1
+            # The encoders' own distance, not speed x tick (agv_nodes.odometry).
+            self.odometer = self._wheels.update(fields['left_distance'],
+                                                fields['right_distance'])
         if record in ('traction_command', 'traction_link'):
             self._odometry_at[record] = self._odometry_count
         return None
@@ -225,7 +230,6 @@ class TractionCore:
             self._trip('stalled_loop')
         dt = self.p.loop_period if self._last_tick is None else now - self._last_tick
         self._last_tick = now
-        self.odometer += self.measured_speed * dt
         self.watchdog = (self.watchdog + 1) & 0xFF  # MONO, also inside every WAIT1
         if not self.tripped:
             if self._stale('traction_command', now - self.command_time,

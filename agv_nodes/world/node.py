@@ -17,13 +17,13 @@ from __future__ import annotations
 import math
 import sys
 import time
+from typing import Any
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, PoseStamped
 from nav_msgs.msg import Path
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image
@@ -32,7 +32,7 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker, MarkerArray
 
 from agv_nodes import qos
-from agv_nodes.core_node import spin_main
+from agv_nodes.core_node import declare_executor, spin_main
 from agv_nodes.params import Parameters
 from agv_nodes.records import codec
 from agv_nodes.records.codec import RecordError, RecordSchema
@@ -95,6 +95,7 @@ class WorldNode(Node):
         wp.start_loaded = ('first' in loaded, 'second' in loaded)
         self.time_factor = p.number('time_factor', 1.0, 'simulated seconds per real second '
                                     '(0 = as fast as possible)', 0.0, 1000.0)
+        self.executor_kind = declare_executor(p)
         self.publish_clock = p.flag('publish_clock', True, 'publish /clock (the graph runs on '
                                     'sim time with use_sim_time:=true)')
         self.clock_every = p.integer('clock_every', 1, 'samples per /clock message (1 = every '
@@ -302,7 +303,7 @@ class WorldNode(Node):
         self.markers_pub.publish(markers)
 
     # -- the loop ---------------------------------------------------------------------------
-    def drain(self, executor: SingleThreadedExecutor, limit: int = 200) -> None:
+    def drain(self, executor: Any, limit: int = 200) -> None:
         """Run every callback that is ready now (inputs, services)."""
         for _ in range(limit):
             before = self._work
@@ -323,7 +324,7 @@ class WorldNode(Node):
         pubs_ok = all(self.count_publishers(t) >= n for t, n in map(needed, self.wait_pubs))
         return subs_ok and pubs_ok
 
-    def run(self, executor: SingleThreadedExecutor) -> int:
+    def run(self, executor: Any) -> int:
         """Wait for peers, then step the world until shut down (or `duration`)."""
         deadline = time.monotonic() + self.peer_timeout
         while rclpy.ok() and not self.peers_ready():
@@ -349,9 +350,16 @@ class WorldNode(Node):
             late = self.pacer.lagging(self.core.time)
             if late:  # the graph has fallen behind: let it catch up before time moves on
                 waited = time.monotonic()
+                nudge = waited + 0.05
                 while late and rclpy.ok() and time.monotonic() - waited < self.lag_patience:
                     executor.spin_once(timeout_sec=0.002)
                     late = self.pacer.lagging(self.core.time)
+                    if late and self.publish_clock and time.monotonic() > nudge:
+                        # The same time again: a node that missed the last /clock (or took
+                        # it before its timer could see it) gets another look; timers that
+                        # already ran at this time do not run twice.
+                        self.clock_pub.publish(Clock(clock=self.stamp()))
+                        nudge = time.monotonic() + 0.05
                 if late:
                     lost = self.pacer.give_up(late)
                     self.get_logger().warn(
@@ -373,8 +381,7 @@ class WorldNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Entry point: ros2 run agv_nodes world [--ros-args ...]."""
-    return spin_main(WorldNode, args, executor=SingleThreadedExecutor,
-                     run=lambda node, executor: node.run(executor))
+    return spin_main(WorldNode, args, run=lambda node, executor: node.run(executor))
 
 
 if __name__ == '__main__':
