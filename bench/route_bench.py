@@ -1,6 +1,7 @@
 """Route-following benchmark (issue 6): guide wire on demo_1983, SRM landings, camera guidance.
 
-Run: .venv/bin/python bench/route_bench.py [wire] [srm] [circle] [step]
+Run: .venv/bin/python bench/route_bench.py [wire] [srm] [circle] [step] [recovery] [stop]
+     [junction]
 
 
 - Guide wire: lateral error of the sensor point along the demo route (straights and the
@@ -9,6 +10,7 @@ Run: .venv/bin/python bench/route_bench.py [wire] [srm] [circle] [step]
 - Camera (Rajagopalan 1991, CONCIC-II on tape): steady error on the R = 2.95 m circle, and a
   0.065 m lateral step of a straight tape at 0.31-0.79 m/s: overshoot, 5 mm settling time,
   steady error (thesis: ~10 % overshoot, back within 5 mm in ~3 s at 0.63 m/s, 5 mm steady).
+- Junction: turning onto a branch of junction_1991's cross (App. F.6) by cruise speed.
 
 """
 
@@ -28,15 +30,17 @@ from agv_nodes.world.layout import build_path, layout_path, load_layout
 class Executive:
     node, period = 'executive', 0.05
 
-    def __init__(self, demand: int = 0, mode: str = 'follow_wire') -> None:
+    def __init__(self, demand: int = 0, mode: str = 'follow_wire',
+                 junction: str = 'straight') -> None:
         self.demand, self.mode, self.manoeuvre, self.angle = demand, mode, 0, 0
+        self.junction = junction
 
     def on_record(self, *args):
         return None
 
     def tick(self, now):
-        out = {'route_command': dict(mode=self.mode, srm_angle=self.angle, junction='straight',
-                                     manoeuvre=self.manoeuvre)}
+        out = {'route_command': dict(mode=self.mode, srm_angle=self.angle,
+                                     junction=self.junction, manoeuvre=self.manoeuvre)}
         if self.mode != 'camera':
             out['traction_command'] = dict(manual=0, manual_speed=0, reverse=0,
                                            demand=self.demand if now > 0.3 else 0,
@@ -185,8 +189,46 @@ def camera_stop(speed: float) -> tuple[float, float]:
     return float('nan'), float('nan')
 
 
+def camera_junction(junction: str, speed: float) -> dict[str, float | str]:
+    """Take a branch of junction_1991's R2 crossing (App. F.6): where the spin began, the
+    heading it ended on, the camera's offset on the branch then and over the next 3 s."""
+    lay = load_layout(layout_path('junction_1991'))
+    world = WorldCore(lay, WorldParams(seed=3))
+    route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed))
+    h = Harness(world, [Executive(mode='camera', junction=junction), route])
+    crossing = lay.paths['main'].pose_at(lay.signs[0]['at'])
+    branch = lay.paths[f'sign0_{junction}']
+    want = crossing[2] + (math.pi / 2 if junction == 'left' else -math.pi / 2)
+    out: dict[str, float | str] = {'spin_at': math.nan, 'resumed': math.nan}
+    seen = resumed = None
+    offsets = []
+    while h.now < 40.0:
+        h.step()
+        s = world.vehicle.state
+        if seen is None and route.turn_phase:
+            seen = h.now
+        if route.turn_phase == 'spin' and math.isnan(out['spin_at']):
+            along = (s.x - crossing[0]) * math.cos(crossing[2]) + \
+                (s.y - crossing[1]) * math.sin(crossing[2])
+            out['spin_at'] = along * 1000.0
+        if seen is not None and resumed is None and not route.turn_phase:
+            resumed = h.now
+            out['resumed'] = resumed - seen
+            out['heading'] = math.degrees(s.heading - want)
+        if resumed is not None:
+            if h.now > resumed + 3.0:
+                break
+            if world.sample % 17 == 0:
+                offsets.append(abs(branch.project(*camera_point(world))[1]) * 1000.0)
+    out['first'] = offsets[0] if offsets else math.nan
+    out['worst'] = max(offsets, default=math.nan)
+    out['last'] = offsets[-1] if offsets else math.nan
+    out['state'] = route.state
+    return out
+
+
 def main() -> int:
-    only = sys.argv[1:] or ['wire', 'srm', 'circle', 'step', 'recovery', 'stop']
+    only = sys.argv[1:] or ['wire', 'srm', 'circle', 'step', 'recovery', 'stop', 'junction']
     if 'wire' in only:
         print('Guide wire on demo_1983 (sensor point to the wire)\n')
         print('| demand (%) | speed (m/s) | max error (mm) | rms error (mm) |\n|---|---|---|---|')
@@ -237,6 +279,19 @@ def main() -> int:
         for speed in (0.16, 0.31, 0.47):
             coast, past = camera_stop(speed)
             print(f'| {speed} | {coast:.1f} | {past:.0f} |', flush=True)
+    if 'junction' in only:
+        print('\nCamera guidance: turning at the R2 crossing of junction_1991 (App. F.6: slow '
+              'down, stop with the axle centre over the crossing, spin a quarter turn, follow '
+              'the branch; PI law)\n')
+        print('| branch | cruise (m/s) | axle past the crossing at the spin (mm) | seen to '
+              'following (s) | heading error after (deg) | camera offset on the branch: at '
+              'once / worst / after 3 s (mm) | state |\n|---|---|---|---|---|---|---|')
+        for junction in ('left', 'right'):
+            for speed in (0.31, 0.47, 0.63, 0.79):
+                r = camera_junction(junction, speed)
+                print(f"| {junction} | {speed} | {r['spin_at']:+.0f} | {r['resumed']:.1f} | "
+                      f"{r.get('heading', math.nan):+.1f} | {r['first']:.1f} / "
+                      f"{r['worst']:.1f} / {r['last']:.1f} | {r['state']} |", flush=True)
     return 0
 
 

@@ -202,3 +202,73 @@ def test_road_signs_decoded_at_every_junction(speed):
     h.run(lay.paths['circle'].length / speed + 2.0)
     assert watcher.signs == [s['type'] for s in lay.signs]
     assert route.state == 'following'
+
+
+class JunctionExec(CameraExec):
+    """A scripted executive (App. F.7: one decision per junction) that logs route states."""
+
+    def __init__(self, junction: str) -> None:
+        self.junction = junction
+        self.states: list[str] = []
+
+    def on_record(self, record, fields, now):
+        if record == 'route_status' and (not self.states or self.states[-1] != fields['state']):
+            self.states.append(fields['state'])
+        return None
+
+    def tick(self, now):
+        return {'route_command': dict(mode='camera', srm_angle=0, junction=self.junction,
+                                      manoeuvre=0)}
+
+
+def _junction_run(layout, junction: str, seconds: float, speed: float = 0.47):
+    world = WorldCore(layout, WorldParams(seed=3))
+    script = JunctionExec(junction)
+    route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed))
+    h = Harness(world, [script, route])
+    spin_at = None
+    while h.now < seconds:
+        h.step()
+        if route.turn_phase == 'spin' and spin_at is None:
+            s = world.vehicle.state
+            spin_at = (s.x, s.y)
+    return world, route, script, spin_at
+
+
+@pytest.mark.parametrize('junction, heading, branch', [('left', 90.0, 'sign0_left'),
+                                                        ('right', -90.0, 'sign0_right')])
+def test_junction_choice_turns_onto_the_branch(junction, heading, branch):
+    """App. F.6: slow down at the sign, stop with the axle over the crossing, turn, follow."""
+    lay = load_layout(layout_path('junction_1991'))
+    world, route, script, spin_at = _junction_run(lay, junction, 18.0)
+    junction_xy = lay.paths['main'].pose_at(3.0)[:2]
+    assert spin_at is not None and math.dist(spin_at, junction_xy) < 0.03
+    assert script.states[:4] == ['following', 'sign', 'turning', 'following']
+    s = world.vehicle.state
+    assert math.degrees(s.heading) == pytest.approx(heading, abs=2.0)
+    assert abs(s.y) > 1.0 and s.speed > 0.4  # well along the branch, at cruise
+    along, off, _h = lay.paths[branch].project(*world.vehicle.sensor_point)
+    assert abs(off) < 0.005 and along > 1.0  # the PI law on the branch (bench: 1-4 mm)
+    assert route.state == 'following'
+
+
+def test_straight_on_at_the_junction_keeps_to_the_main_tape():
+    lay = load_layout(layout_path('junction_1991'))
+    world, route, script, spin_at = _junction_run(lay, 'straight', 11.0)
+    s = world.vehicle.state
+    assert spin_at is None and 'turning' not in script.states
+    assert s.x > 4.0 and abs(s.y) < 0.005 and abs(math.degrees(s.heading)) < 1.0
+    assert route.state == 'following'
+
+
+def test_a_branch_the_sign_does_not_offer_stops_the_vehicle(tmp_path):
+    """App. F.7: "If a scripted option is not available on the floor, the vehicle stops"."""
+    text = layout_path('junction_1991').read_text().replace('type: R2', 'type: P22')
+    (tmp_path / 'junction_1991.yaml').write_text(text)
+    lay = load_layout(tmp_path / 'junction_1991.yaml')
+    world, route, script, _spin = _junction_run(lay, 'left', 12.0)
+    s = world.vehicle.state
+    assert route.state == 'no_branch' and script.states[-1] == 'no_branch'
+    # Stopped once the camera had passed the crossing, the axle short of it.
+    assert abs(s.speed) < 0.01 and 2.2 < s.x < 3.0
+    assert 'turning' not in script.states

@@ -77,6 +77,24 @@ class ImageAnalyser:
         self.normal_width = self.p.normal_width
         self._prev_centre: float | None = None
 
+    def branch_edge(self, frame: np.ndarray, side: str) -> float | None:
+        """m ahead of the window centre of the near edge of a branch crossing the window's
+        left or right edge column (None: no branch there, or its near edge is behind the
+        window). The longest dark run down the column is the branch; specks are shorter."""
+        column = frame[:, 0 if side == 'left' else -1]
+        runs = [(a, n) for a, n in runs_of(column) if n >= self.p.sign_rows]
+        if not runs:
+            return None
+        a, n = max(runs, key=lambda k: k[1])
+        last = a + n - 1  # rearmost dark row (row 0 is ahead)
+        if last >= len(column) - 1:
+            return None
+        return (31.0 - last) * self.mm_row  # between row `last` and the light row behind it
+
+    def forget_track(self) -> None:
+        """Take the widest run next frame, not the one nearest the last (a new branch)."""
+        self._prev_centre = None
+
     def analyse(self, frame: np.ndarray) -> Measurement:
         """eps_d, eps_theta and validity of one frame."""
         p = self.p

@@ -12,7 +12,12 @@ Camera (Rajagopalan 1991, mode = camera, the differential-drive CONCIC-II): each
 analysed (run-length noise filter, least-squares line fit, validity, road-sign edges), the P or
 PI law gives the caster angle, and Eq 5.15/5.16 the wheel speeds. Four absent frames stop the
 vehicle (motor off); a saturated frame keeps the last command. At a road sign the branch flags
-are collected and the junction choice of route_command is reported.
+are collected, and the junction choice of route_command is taken (App. F.6): once the chosen
+branch shows at the window's edge column the vehicle slows, stops with its axle centre over
+the crossing (judged by wheel odometry: the camera's distance ahead of the axle), spins in place
+a quarter turn toward the branch and follows it. A branch chosen that the sign does not offer
+stops the vehicle ("no_branch"; thesis: "the vehicle stops with a message"); a straight choice
+where the track ends stops it by the four absent frames.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from agv_nodes.odometry import counter_step
 from agv_nodes.route_following.camera_guidance import (
     CameraSteering,
     ImageAnalyser,
@@ -55,6 +61,28 @@ class WireParams:
 
 
 @dataclass
+class TurningParams:
+    """Taking a branch at a road sign (Rajagopalan App. F.6; the manoeuvre itself is not
+    described there [?]: a spin in place, which the differential drive allows, is assumed)."""
+
+    camera_ahead: float = 0.64  # m, L_c: camera window centre ahead of the axle centre
+    # The thesis drives L_c from the detection, which puts the axle where the window was when
+    # a frame first showed the branch: up to one frame's travel (31 mm at 0.63 m/s) and the
+    # ten rows the edge column needs short of the crossing. `image` (default) places the
+    # crossing from the branch's near edge in each frame that shows it, plus half the tape's
+    # width; `thesis` uses L_c + detect_lead.
+    crossing_from: str = 'image'  # or 'thesis'
+    detect_lead: float = 0.045  # m added to L_c under `thesis` (the rows needed to flag it)
+    approach_speed: float = 0.16  # m/s once the branch is seen ("decelerate gradually")
+    position_tolerance: float = 0.004  # m: the axle centre is over the crossing
+    stop_deceleration: float = 0.25  # m/s^2 of the stops (the drive's trapezoid: 0.3)
+    spin_speed: float = 0.15  # m/s of each wheel, opposite ways
+    spin_angle: float = 90.0  # deg: the branches of the floor are at right angles
+    angle_tolerance: float = 0.2  # deg of the spin, by wheel odometry
+    resume_acceleration: float = 0.2  # m/s^2 setting off along the branch
+
+
+@dataclass
 class RouteParams:
     """All route-following settings."""
 
@@ -65,6 +93,7 @@ class RouteParams:
     wire: WireParams = field(default_factory=WireParams)
     image: ImageParams = field(default_factory=ImageParams)
     steering: SteeringParams = field(default_factory=SteeringParams)
+    turning: TurningParams = field(default_factory=TurningParams)
 
 
 def wire_offset(left: float, right: float, spacing: float, height: float,
@@ -131,6 +160,14 @@ class RouteCore:
         self._in_sign = False
         self._frame_time: float | None = None
         self.measurement = None
+        self.turn_phase = ''  # '' | 'approach' (to the crossing) | 'spin' | 'settle' (to rest)
+        self._rim_speeds = (0.0, 0.0)  # m/s, from wheel odometry
+        self._wheel_mm = [0, 0]  # wheel travel from the encoders' counters, mm
+        self._counters: tuple[int, int] | None = None
+        self._turn_from = (0, 0)  # wheel travel when the phase began
+        self._turn_way = 0  # +1 left, -1 right
+        self._crossing = 0.0  # m of axle travel from the sighting to the crossing
+        self._resumed_at: float | None = None  # sim time the vehicle set off along a branch
 
     # -- inputs -----------------------------------------------------------------------------
     def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
@@ -142,6 +179,12 @@ class RouteCore:
             self._wire(fields['left_coil'], fields['right_coil'], now)
         elif record == 'wheel_odometry':
             self.speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
+            self._rim_speeds = (fields['left_speed'] / 1000.0, fields['right_speed'] / 1000.0)
+            counters = (fields['left_distance'], fields['right_distance'])
+            if self._counters is not None:
+                for k in (0, 1):
+                    self._wheel_mm[k] += counter_step(self._counters[k], counters[k])
+            self._counters = counters
         return None
 
     def _command(self, fields: dict[str, Any], now: float) -> dict | None:
@@ -256,8 +299,20 @@ class RouteCore:
         m = self.analyser.analyse(frame)
         self.measurement = m
         self._road_sign(m)
-        if self.mode != 'camera':
+        if self.mode != 'camera' or self.state == 'no_branch':
             return None
+        if self.turn_phase in ('spin', 'settle'):
+            return None  # the window sweeps the floor: nothing to steer by until the turn ends
+        if not self.turn_phase and self._in_sign and self.junction != 'straight' \
+                and (m.left_edge if self.junction == 'left' else m.right_edge):
+            self._start_turn('approach')  # the chosen branch is in sight
+            t = self.p.turning
+            self._crossing = t.camera_ahead + t.detect_lead
+        if self.turn_phase == 'approach' and self.p.turning.crossing_from == 'image':
+            edge = self.analyser.branch_edge(frame, self.junction)
+            if edge is not None:  # the crossing, measured from where the axle is now
+                half = self.analyser.normal_width * self.analyser.mm_col / 2.0
+                self._crossing = self._turned()[0] + self.p.turning.camera_ahead + edge + half
         theta = self.camera.update(m, dt)
         if theta is None:
             self.motor_on = False  # four absent frames: motor-off stop
@@ -268,9 +323,76 @@ class RouteCore:
             self.steer = theta
             if m.validity is not Validity.ABSENT:
                 self.lateral = m.eps_d
+            if self.turn_phase == 'approach':
+                return None  # _turn drives to the crossing with this steering angle
             speed = self.speed_request or self.p.camera_speed
+            if self._resumed_at is not None:
+                # Off again after a turn: our own ramp, gentler than the drive's trapezoid,
+                # which accelerates both wheels alike and so cannot steer while it ramps.
+                speed = min(speed, self.p.turning.resume_acceleration * (now - self._resumed_at))
+                if speed >= (self.speed_request or self.p.camera_speed):
+                    self._resumed_at = None
             self.wheels = self.camera.wheel_speeds(speed, theta) if self.motor_on else (0, 0)
         return None
+
+    # -- junctions (App. F.6) ---------------------------------------------------------------
+    def _start_turn(self, phase: str) -> None:
+        self.turn_phase = phase
+        self._turn_from = (self._wheel_mm[0], self._wheel_mm[1])
+        self._turn_way = 1 if self.junction == 'left' else -1
+        self.state = 'turning'
+
+    def _turned(self) -> tuple[float, float]:
+        """(m the axle centre has moved, rad the vehicle has turned) since the phase began."""
+        left = (self._wheel_mm[0] - self._turn_from[0]) / 1000.0
+        right = (self._wheel_mm[1] - self._turn_from[1]) / 1000.0
+        return (left + right) / 2.0, (right - left) / self.p.steering.wheel_span
+
+    def _to_crossing(self) -> float:
+        """m the axle centre still has to go to be over the crossing (< 0: past it)."""
+        return self._crossing - self._turned()[0]
+
+    def _profile(self, distance: float, top: float) -> float:
+        """Speed that comes to rest in `distance` at the turning's deceleration."""
+        return min(top, math.sqrt(2.0 * self.p.turning.stop_deceleration * max(distance, 0.0)))
+
+    def _turn(self, now: float) -> None:
+        """Approach, spin, settle: at the loop rate (the frames come at only ~20 Hz)."""
+        t = self.p.turning
+        if self.turn_phase == 'approach':
+            remaining = self._to_crossing()
+            if abs(remaining) > t.position_tolerance or abs(self.speed) > 0.01:
+                if remaining >= 0:  # steered by the tape, slowing to a stop over the crossing
+                    speed = self._profile(remaining, min(t.approach_speed, self.p.camera_speed))
+                    self.wheels = self.camera.wheel_speeds(speed, self.steer)
+                else:  # braked past it (from a high cruise): straight back onto it
+                    speed = self._profile(-remaining, t.approach_speed)
+                    self.wheels = (-speed, -speed)
+                self.motor_on = True
+                return
+            self._start_turn('spin')
+        if self.turn_phase == 'spin':
+            # A wheel speed profile that ends the quarter turn at rest (the drive's trapezoid
+            # brakes at 0.3 m/s^2: cut short at full speed it would overshoot by ~8 deg), and
+            # turns back what the wheels' lag carried it past.
+            error = math.radians(t.spin_angle) - self._turn_way * self._turned()[1]
+            arc = error * self.p.steering.wheel_span / 2.0
+            w = math.copysign(self._profile(abs(arc), t.spin_speed), arc)
+            if abs(error) > math.radians(t.angle_tolerance) or \
+                    max(abs(v) for v in self._rim_speeds) > 0.005:
+                w *= self._turn_way
+                self.wheels, self.motor_on = (-w, w), True
+                return
+            self.turn_phase, self.wheels = 'settle', (0.0, 0.0)
+        if max(abs(v) for v in self._rim_speeds) > 0.005:
+            return  # still turning
+        # On the branch: follow it afresh (the fit takes the widest run, the law starts clean).
+        self.turn_phase = ''
+        self._resumed_at = now
+        self.camera.integral = 0.0
+        self.analyser.forget_track()
+        self._in_sign = False
+        self.state = 'following'
 
     def _road_sign(self, m) -> None:
         """Branch flags while the track is wide (thesis 4.3)."""
@@ -284,6 +406,9 @@ class RouteCore:
             self._in_sign = False
             if self.sign['left'] or self.sign['right']:
                 self.sign['straight'] = 1  # width back to normal after a turn signal
+            if self.mode == 'camera' and self.junction != 'straight' and not self.turn_phase:
+                # The sign is behind us and its branches did not include the one chosen.
+                self.state, self.motor_on, self.wheels = 'no_branch', False, (0.0, 0.0)
 
     # -- outputs ----------------------------------------------------------------------------
     def tick(self, now: float) -> dict | None:
@@ -295,6 +420,8 @@ class RouteCore:
             self.steer = 0.0
         if self.state == 'wire_found' and self.mode == 'follow_wire':
             self.state = 'following'
+        if self.turn_phase and self.mode == 'camera':
+            self._turn(now)
         return self._outputs(now)
 
     def _outputs(self, now: float, force_status: bool = False) -> dict:
@@ -319,7 +446,7 @@ class RouteCore:
 
     def status(self) -> dict[str, Any]:
         """The route_status record."""
-        sign_state = self._in_sign and self.mode == 'camera'
+        sign_state = self._in_sign and self.mode == 'camera' and not self.turn_phase
         return {
             'state': 'sign' if sign_state else self.state,
             'lateral_error': int(max(-128, min(127, round(self.lateral * 1000)))),

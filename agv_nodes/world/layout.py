@@ -329,8 +329,9 @@ def _load_marker(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
 
 def _add_sign(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
               step: float) -> dict[str, Any]:
-    """A road sign on a tape: a wider patch before the junction, and a short tape stub for
-    each turning branch (the camera sees the width jump, then the stub at column 0 or 127)."""
+    """A road sign on a tape: a wider patch before the junction, and a tape for each turning
+    branch, at right angles (the camera sees the width jump, then the branch at column 0 or
+    127): `branch` m long, a 0.35 m stub by default."""
     key = f'signs[{i}]'
     if not isinstance(spec, dict):
         raise LayoutError(f'{file}: key {key}: {spec!r} must be a mapping')
@@ -343,6 +344,8 @@ def _add_sign(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
     tape = paths[pid]
     at = _num(spec.get('at'), file, f'{key}.at', 0.3, tape.length)
     patch = _num(spec.get('patch', 0.15), file, f'{key}.patch', 0.05, 0.5)
+    # A short stub shows the branch to the camera; a long one is a branch the truck can take.
+    branch_length = _num(spec.get('branch', 0.35), file, f'{key}.branch', 0.1, 50.0)
     x, y, h = tape.pose_at(at - patch)
     paths[f'sign{i}_patch'] = build_path(f'sign{i}_patch', [x, y, math.degrees(h)],
                                          [{'straight': patch}], step, file, key,
@@ -353,9 +356,11 @@ def _add_sign(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
             continue
         turn = math.pi / 2 if branch == 'left' else -math.pi / 2
         paths[f'sign{i}_{branch}'] = build_path(
-            f'sign{i}_{branch}', [jx, jy, math.degrees(jh + turn)], [{'straight': 0.35}], step,
+            f'sign{i}_{branch}', [jx, jy, math.degrees(jh + turn)],
+            [{'straight': branch_length}], step,
             file, key, width=tape.width)
-    return {'type': kind, 'path': pid, 'at': at, 'branches': SIGN_BRANCHES[kind]}
+    return {'type': kind, 'path': pid, 'at': at, 'branches': SIGN_BRANCHES[kind],
+            'branch': branch_length}
 
 
 def _check_rig(layout: Layout, file: Path) -> None:
