@@ -12,6 +12,10 @@ rejection; with 10 a few were dropped unseen). Stream readers keep 0.3 s of the 
 best-effort reader with a 10-deep queue (29 ms) then drops samples, breaking the run-length
 patterns a marker passage is recognised by (a location marker was missed this way in a full-
 programme run on a saturated machine); the 1983 sensor never lost a sample, so neither should we.
+Stream writers keep 100 samples too: to a reliable reader (the recorder, a node's FIFO /clock)
+a sample is lost only when it has left the writer's history before the reader acknowledged it,
+and with 10 that was 11 ms of wall time with the graph at 2.7x real time (the quick demo's bag
+held 323 of 340 snapshots per second on a loaded machine).
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ RECORD_WRITER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
 RECORD_READER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
                            reliability=ReliabilityPolicy.RELIABLE,
                            durability=DurabilityPolicy.VOLATILE)
-STREAM_WRITER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+STREAM_WRITER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                            reliability=ReliabilityPolicy.RELIABLE,
                            durability=DurabilityPolicy.VOLATILE)
 STREAM_READER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,

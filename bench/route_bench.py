@@ -94,11 +94,15 @@ def camera_point(world: WorldCore) -> tuple[float, float]:
 
 
 def camera_truck(world: WorldCore, speed: float, law: str = 'p', gain_i: float = 0.0,
-                 gain_theta: float = 0.0) -> tuple[Harness, RouteCore]:
-    """The CONCIC-II on `world`, route following in camera mode with the given law."""
+                 gain_theta: float = 0.0, schedule: float = 0.0) -> tuple[Harness, RouteCore]:
+    """The CONCIC-II on `world`, route following in camera mode with the given law ('pi_dt':
+    PI with the integral over time, Eq 5.6, instead of per frame as Eq 5.8 is printed)."""
+    form = 'with_dt' if law == 'pi_dt' else 'per_frame'
     route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed,
-                                  steering=SteeringParams(law=law, gain_i=gain_i,
-                                                          gain_theta=gain_theta)))
+                                  steering=SteeringParams(law=law[:2], gain_i=gain_i,
+                                                          gain_theta=gain_theta,
+                                                          schedule_speed=schedule,
+                                                          integral_form=form)))
     return Harness(world, [Executive(mode='camera'), route]), route
 
 
@@ -124,9 +128,10 @@ def tape(*strips: tuple[str, list[float], float]):
     return lay
 
 
-def camera_circle(law: str, gain_i: float, speed: float) -> float:
+def camera_circle(law: str, gain_i: float, speed: float, gain_theta: float = 0.0,
+                  schedule: float = 0.0) -> float:
     world = WorldCore(load_layout(layout_path('tape_1991')), WorldParams(seed=2))
-    h, _route = camera_truck(world, speed, law, gain_i)
+    h, _route = camera_truck(world, speed, law, gain_i, gain_theta, schedule)
     h.run(20.0)
     errors = []
     for _ in range(20):
@@ -135,13 +140,13 @@ def camera_circle(law: str, gain_i: float, speed: float) -> float:
     return 1000 * sum(abs(e) for e in errors) / len(errors)
 
 
-def camera_step(law: str, gain_i: float, speed: float,
-                gain_theta: float = 0.0) -> tuple[float, float, float]:
+def camera_step(law: str, gain_i: float, speed: float, gain_theta: float = 0.0,
+                schedule: float = 0.0) -> tuple[float, float, float]:
     """A straight tape that jumps 0.065 m sideways: overshoot %, 5 mm settle (s), steady mm."""
     step_at = 6.0
     world = WorldCore(tape(('a', [-1.0, 0.0, 0.0], step_at + 2.0),
                            ('b', [step_at + 1.0, 0.065, 0.0], 30.0)), WorldParams(seed=2))
-    h, _route = camera_truck(world, speed, law, gain_i, gain_theta)
+    h, _route = camera_truck(world, speed, law, gain_i, gain_theta, schedule)
     trace = [(t, cy - 0.065) for t, cx, cy in camera_trace(h, world, 40.0)
              if cx > step_at + 1.0]
     t0 = trace[0][0]
@@ -153,7 +158,7 @@ def camera_step(law: str, gain_i: float, speed: float,
 
 
 def camera_recovery(law: str, gain_i: float, gain_theta: float, speed: float, offset: float,
-                    angle_deg: float) -> tuple[float, float, float]:
+                    angle_deg: float, schedule: float = 0.0) -> tuple[float, float, float]:
     """Start `offset` m beside the tape (at the camera) and `angle_deg` off its heading (thesis
     S5: -0.08 m and 40 deg at 0.471 m/s): worst |error| (mm), time to stay within 5 mm (s),
     steady error (mm); nan when the tape is lost."""
@@ -162,7 +167,7 @@ def camera_recovery(law: str, gain_i: float, gain_theta: float, speed: float, of
     s.heading = math.radians(angle_deg)
     s.x = 1.0 - CAMERA_AHEAD * math.cos(s.heading)
     s.y = offset - CAMERA_AHEAD * math.sin(s.heading)
-    h, route = camera_truck(world, speed, law, gain_i, gain_theta)
+    h, route = camera_truck(world, speed, law, gain_i, gain_theta, schedule)
     trace = [(t, cy) for t, _cx, cy in camera_trace(h, world, 20.0)]
     if route.state == 'lost' or not route.motor_on:
         return float('nan'), float('nan'), float('nan')
@@ -227,6 +232,13 @@ def camera_junction(junction: str, speed: float) -> dict[str, float | str]:
     return out
 
 
+# (law, G_i, G_theta, schedule speed): the thesis's P and PI, then with orientation feedback,
+# the 1/speed gain schedule and the integral over time (modern options, route_following
+# parameters camera_gain_theta, camera_schedule_speed, camera_integral: with_dt)
+LAWS = (('p', 0.0, 0.0, 0.0), ('pi', 0.07, 0.0, 0.0), ('p', 0.0, 0.3, 0.0),
+        ('p', 0.0, 0.4, 0.63), ('pi_dt', 0.2, 0.4, 0.63))
+
+
 def main() -> int:
     only = sys.argv[1:] or ['wire', 'srm', 'circle', 'step', 'recovery', 'stop', 'junction']
     if 'wire' in only:
@@ -246,31 +258,34 @@ def main() -> int:
                       flush=True)
     if 'circle' in only:
         print('\nCamera guidance, circle R = 2.95 m (mean |eps| at the camera, after 20 s)\n')
-        print('| law | speed (m/s) | mean error (mm) |\n|---|---|---|')
-        for law, gain_i in (('p', 0.0), ('pi', 0.07)):
-            for speed in (0.31, 0.63):
-                print(f'| {law} | {speed} | {camera_circle(law, gain_i, speed):.1f} |',
+        print('| law | G_theta | schedule (m/s) | speed (m/s) | mean error (mm) |\n'
+              '|---|---|---|---|---|')
+        for law, gain_i, gain_theta, schedule in LAWS:
+            for speed in (0.31, 0.63, 0.79):
+                e = camera_circle(law, gain_i, speed, gain_theta, schedule)
+                print(f'| {law} | {gain_theta} | {schedule or "-"} | {speed} | {e:.1f} |',
                       flush=True)
     if 'step' in only:
         print('\nCamera guidance, 0.065 m step of a straight tape (G_theta: orientation gain; '
               'the thesis fed none back)\n')
-        print('| law | G_theta | speed (m/s) | overshoot (%) | within 5 mm after (s) | '
-              'steady error (mm) |\n|---|---|---|---|---|---|')
-        for law, gain_i, gain_theta in (('p', 0.0, 0.0), ('pi', 0.07, 0.0), ('p', 0.0, 0.3)):
+        print('| law | G_theta | schedule (m/s) | speed (m/s) | overshoot (%) | within 5 mm '
+              'after (s) | steady error (mm) |\n|---|---|---|---|---|---|---|')
+        for law, gain_i, gain_theta, schedule in LAWS:
             for speed in (0.31, 0.47, 0.63, 0.79):
-                o, t, e = camera_step(law, gain_i, speed, gain_theta)
-                print(f'| {law} | {gain_theta} | {speed} | {o:.1f} | {t:.2f} | {e:.1f} |',
-                      flush=True)
+                o, t, e = camera_step(law, gain_i, speed, gain_theta, schedule)
+                print(f'| {law} | {gain_theta} | {schedule or "-"} | {speed} | {o:.1f} | '
+                      f'{t:.2f} | {e:.1f} |', flush=True)
     if 'recovery' in only:
         print('\nCamera guidance from an initial error (thesis S5: -0.08 m and 40 deg at '
               '0.471 m/s)\n')
-        print('| law | G_theta | offset (m) | angle (deg) | worst error (mm) | within 5 mm '
-              'after (s) | steady error (mm) |\n|---|---|---|---|---|---|---|')
-        for law, gain_i, gain_theta in (('p', 0.0, 0.0), ('pi', 0.07, 0.0), ('p', 0.0, 0.3)):
+        print('| law | G_theta | schedule (m/s) | offset (m) | angle (deg) | worst error (mm) '
+              '| within 5 mm after (s) | steady error (mm) |\n|---|---|---|---|---|---|---|---|')
+        for law, gain_i, gain_theta, schedule in LAWS:
             for offset, angle in ((-0.08, 40.0), (-0.08, -40.0), (0.08, -40.0)):
-                w, t, e = camera_recovery(law, gain_i, gain_theta, 0.471, offset, angle)
-                print(f'| {law} | {gain_theta} | {offset:+.2f} | {angle:+.0f} | {w:.0f} | '
-                      f'{t:.2f} | {e:.1f} |', flush=True)
+                w, t, e = camera_recovery(law, gain_i, gain_theta, 0.471, offset, angle,
+                                          schedule)
+                print(f'| {law} | {gain_theta} | {schedule or "-"} | {offset:+.2f} | '
+                      f'{angle:+.0f} | {w:.0f} | {t:.2f} | {e:.1f} |', flush=True)
     if 'stop' in only:
         print('\nCamera guidance: motor-off stop at the end of the tape (thesis 7.3.4: 5 mm '
               'from 0.16 m/s; the coast-down is calibrated to it, the detection is not)\n')

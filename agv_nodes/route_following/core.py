@@ -79,7 +79,6 @@ class TurningParams:
     spin_speed: float = 0.15  # m/s of each wheel, opposite ways
     spin_angle: float = 90.0  # deg: the branches of the floor are at right angles
     angle_tolerance: float = 0.2  # deg of the spin, by wheel odometry
-    resume_acceleration: float = 0.2  # m/s^2 setting off along the branch
 
 
 @dataclass
@@ -167,7 +166,7 @@ class RouteCore:
         self._turn_from = (0, 0)  # wheel travel when the phase began
         self._turn_way = 0  # +1 left, -1 right
         self._crossing = 0.0  # m of axle travel from the sighting to the crossing
-        self._resumed_at: float | None = None  # sim time the vehicle set off along a branch
+        self._set_off_at: float | None = None  # sim time the vehicle set off from rest
 
     # -- inputs -----------------------------------------------------------------------------
     def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
@@ -313,7 +312,7 @@ class RouteCore:
             if edge is not None:  # the crossing, measured from where the axle is now
                 half = self.analyser.normal_width * self.analyser.mm_col / 2.0
                 self._crossing = self._turned()[0] + self.p.turning.camera_ahead + edge + half
-        theta = self.camera.update(m, dt)
+        theta = self.camera.update(m, dt, self.speed_request or self.p.camera_speed)
         if theta is None:
             self.motor_on = False  # four absent frames: motor-off stop
             self.state = 'lost'
@@ -326,12 +325,18 @@ class RouteCore:
             if self.turn_phase == 'approach':
                 return None  # _turn drives to the crossing with this steering angle
             speed = self.speed_request or self.p.camera_speed
-            if self._resumed_at is not None:
-                # Off again after a turn: our own ramp, gentler than the drive's trapezoid,
-                # which accelerates both wheels alike and so cannot steer while it ramps.
-                speed = min(speed, self.p.turning.resume_acceleration * (now - self._resumed_at))
+            if self._set_off_at is None and abs(self.speed) < 0.01 \
+                    and self.p.steering.set_off_acceleration > 0:
+                self._set_off_at = now
+            if self._set_off_at is not None:
+                # Setting off from rest (camera mode starting, or along a branch after a
+                # turn): our own ramp, gentler than the drive's trapezoid, which accelerates
+                # both wheels alike and so cannot steer while it ramps (from 40 deg off the
+                # tape the window lost it before the wheels reached cruise).
+                speed = min(speed, self.p.steering.set_off_acceleration
+                            * (now - self._set_off_at))
                 if speed >= (self.speed_request or self.p.camera_speed):
-                    self._resumed_at = None
+                    self._set_off_at = None
             self.wheels = self.camera.wheel_speeds(speed, theta) if self.motor_on else (0, 0)
         return None
 
@@ -388,7 +393,7 @@ class RouteCore:
             return  # still turning
         # On the branch: follow it afresh (the fit takes the widest run, the law starts clean).
         self.turn_phase = ''
-        self._resumed_at = now
+        self._set_off_at = now
         self.camera.integral = 0.0
         self.analyser.forget_track()
         self._in_sign = False

@@ -17,7 +17,7 @@ from agv_nodes import qos
 from agv_nodes.core_node import CoreNode, spin_main
 from agv_nodes.params import Parameters
 from agv_nodes.route_following.camera_guidance import ImageParams, SteeringParams
-from agv_nodes.route_following.core import RouteCore, RouteParams, WireParams
+from agv_nodes.route_following.core import RouteCore, RouteParams, TurningParams, WireParams
 
 
 class RouteFollowingNode(CoreNode):
@@ -54,6 +54,24 @@ class RouteFollowingNode(CoreNode):
             integral_form=p.choice('camera_integral', ds.integral_form, 'integral term: per '
                                    'frame as Eq 5.8 is printed, or x Delta-T as in Eq 5.6',
                                    ('per_frame', 'with_dt')),
+            schedule_speed=p.number('camera_schedule_speed', ds.schedule_speed, 'above this '
+                                    'cruise the eps_d gain falls as 1/speed, m/s (0: off, the '
+                                    'thesis)', 0.0, 2.0),
+            set_off_acceleration=p.number('camera_set_off_acceleration',
+                                          ds.set_off_acceleration, 'speed ramp asked for when '
+                                          'setting off from rest, m/s^2 (0: cruise at once)',
+                                          0.0, 2.0),
+        )
+        dt_ = TurningParams()
+        turning = TurningParams(
+            crossing_from=p.choice('junction_crossing_from', dt_.crossing_from, 'where the '
+                                   'axle stops to turn: at the crossing placed from the image, '
+                                   'or L_c past the sighting (thesis App. F.6)',
+                                   ('image', 'thesis')),
+            approach_speed=p.number('junction_approach_speed', dt_.approach_speed, 'm/s once '
+                                    'the chosen branch is in sight', 0.02, 1.0),
+            spin_speed=p.number('junction_spin_speed', dt_.spin_speed, 'wheel speed of the '
+                                'spin onto a branch, m/s', 0.02, 0.5),
         )
         image = ImageParams(min_run=p.integer('camera_min_run', di.min_run, 'noise filter: '
                                               'shortest track run, px (thesis 16)', 1, 64))
@@ -62,7 +80,7 @@ class RouteFollowingNode(CoreNode):
                              'differential wheel speeds', ('electruk', 'concic2')),
             camera_speed=p.number('camera_speed', RouteParams().camera_speed, 'cruise speed in '
                                   'camera mode, m/s', 0.0, 1.2),
-            wire=wire, image=image, steering=steering)
+            wire=wire, image=image, steering=steering, turning=turning)
         self.attach(RouteCore(rp), p)
         self.create_subscription(Image, 'hw/camera/front', self._frame, qos.STREAM_READER)
 
