@@ -300,7 +300,10 @@ class Launch:
                 print(f'[{name:{width}s}] {line}', flush=True)
 
     def _start(self, spec: NodeSpec) -> None:
-        proc = subprocess.Popen(self.command(spec), env=self.env, stdout=subprocess.PIPE,
+        # through launch_child: the node gets SIGTERM if this launcher dies (even by SIGKILL)
+        command = [sys.executable, '-m', 'agv_nodes.launch_child', str(os.getpid()),
+                   *self.command(spec)]
+        proc = subprocess.Popen(command, env=self.env, stdout=subprocess.PIPE,
                                 stderr=subprocess.STDOUT, text=True, bufsize=1,
                                 start_new_session=True)
         self.procs[spec.name] = proc

@@ -136,13 +136,15 @@ def test_bag_rates_match_what_was_published(quick):
 def test_full_demonstration_programme_over_dds(tmp_path):
     """Issue 7's end-to-end test: thesis 7.2 tasks 1-7 and 'load A at 1 and take to 3'.
 
-    ~5 min at ~1.2x on the 2-core reference machine. Before the world paced itself on the
+    ~2.5 min at ~2.7x on the 2-core reference machine (EventsExecutor nodes; ~5 min at ~1.2x
+    with SingleThreadedExecutors). Before the world paced itself on the
     slowest node (world/pacing.py) it failed 3 of 4 fresh-clone runs from CPU starvation (a
     marker missed, late stops, a stale-command trip). Paced, it still failed about one run in
     three with a false `stale status`: the executive, itself starved, saw statuses 0.141-0.247 s
     old against the demo graph's 0.15 s timeout. Aged from when they were sent
-    (`status_age: sent`, agv_nodes/sent_time.py) the oldest is 0.097 s, and the test is in the
-    default run.
+    (`status_age: sent`: the arrival order of the executive's FIFO /clock under the
+    EventsExecutor, agv_nodes/sent_time.py under a SingleThreadedExecutor) the oldest is
+    0.079-0.097 s, and the test is in the default run.
     """
     res = run_demo(tmp_path)
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-3000:]

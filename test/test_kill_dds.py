@@ -88,3 +88,45 @@ def test_silent_node_ends_in_a_stop(tmp_path, victim, stop_within, report, diag_
         if sig == signal.SIGSTOP and proc[victim].poll() is None:
             proc[victim].send_signal(signal.SIGCONT)  # so that it can shut down
         g.close()
+
+
+LAUNCHER = """
+import os, sys, time
+from agv_nodes.launcher import Launch, Options
+launch = Launch(Options(world='none', quiet=True, domain_id=int(os.environ['ROS_DOMAIN_ID'])))
+launch.start()
+print(' '.join(str(p.pid) for p in launch.procs.values()), flush=True)
+time.sleep(120)
+"""
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f'/proc/{pid}/stat') as f:
+            return f.read().rsplit(')', 1)[1].split()[0] != 'Z'
+    except FileNotFoundError:
+        return False
+
+
+def test_a_sigkilled_launcher_takes_its_nodes_with_it():
+    """No graph is left running on the domain when agv-launch itself is killed (it then runs
+    no clean-up): each node was started through agv_nodes.launch_child (PR_SET_PDEATHSIG)."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    proc = subprocess.Popen([sys.executable, '-c', LAUNCHER], stdout=subprocess.PIPE, text=True)
+    pids = [int(p) for p in proc.stdout.readline().split()]
+    assert len(pids) == 7  # world: none, no recorder
+    time.sleep(3.0)  # past the exec into each node
+    assert all(_alive(p) for p in pids)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    deadline = time.monotonic() + 20.0
+    while time.monotonic() < deadline and any(_alive(p) for p in pids):
+        time.sleep(0.2)
+    left = [p for p in pids if _alive(p)]
+    for p in left:
+        os.kill(p, signal.SIGKILL)
+    assert not left, f'node processes outlived their launcher: {left}'

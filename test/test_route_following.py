@@ -163,11 +163,13 @@ def test_camera_guidance_follows_the_circle(law, gain_i, limit_mm):
     route = RouteCore(RouteParams(vehicle='concic2', camera_speed=0.47,
                                   steering=SteeringParams(law=law, gain_i=gain_i)))
     h = Harness(world, [CameraExec(), route])
-    h.run(30.0)
-    s = world.vehicle.state
-    cx, cy = s.x + 0.64 * math.cos(s.heading), s.y + 0.64 * math.sin(s.heading)
-    assert abs(world.nearest_path_offset(cx, cy)) * 1000 < limit_mm
-    assert route.state == 'following' and s.speed > 0.4
+    h.run(25.0)
+    errors = []
+    for _ in range(10):  # the mean over 5 s, as route_bench measures it (PI: 1.1-1.5 mm)
+        h.run(0.5)
+        errors.append(abs(world.nearest_path_offset(*world.vehicle.sensor_point)))
+    assert 1000 * sum(errors) / len(errors) < limit_mm
+    assert route.state == 'following' and world.vehicle.state.speed > 0.4
 
 
 class SignWatcher(CameraExec):

@@ -112,6 +112,7 @@ class ExecutiveCore:
     def __init__(self, params: ExecutiveParams | None = None) -> None:
         self.p = params or ExecutiveParams()
         self.period = self.p.period
+        self._last_tick: float | None = None
         self.status: dict[str, dict[str, Any]] = {}  # latest status record per sub-system
         self.status_time: dict[str, float] = {}
         self.max_age: dict[str, float] = {}  # oldest status seen while supervising (diagnostics)
@@ -438,7 +439,13 @@ class ExecutiveCore:
     def tick(self, now: float) -> dict[str, dict[str, Any]]:
         """Supervise, run the step, and send every command record (pigeon-holes)."""
         traction = self.status.get('traction') or {}
-        travelled = abs(traction.get('speed', 0)) / 1000.0 * self.p.period
+        # Over the time since the last pass, not one period: under sim time a pass can come
+        # late or be skipped (a starved process), and period x speed then lost distance (a
+        # missing stop marker was overrun by 13.8 m against the 4 m positioning limit).
+        dt = self.p.period if self._last_tick is None else min(max(now - self._last_tick, 0.0),
+                                                                 1.0)
+        self._last_tick = now
+        travelled = abs(traction.get('speed', 0)) / 1000.0 * dt
         self.distance += travelled
         self.distance_since_landmark += travelled
         self.positioning_distance += travelled

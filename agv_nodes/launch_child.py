@@ -1,0 +1,37 @@
+"""Start one node process that dies with its launcher (agv-launch's child wrapper).
+
+`python -m agv_nodes.launch_child PARENT_PID COMMAND...` asks Linux to send this process
+SIGTERM when the thread that started it exits (prctl PR_SET_PDEATHSIG, kept across exec),
+then execs COMMAND in its place (same pid). A launcher that is SIGKILLed therefore leaves no
+graph running on its ROS domain, where a later graph would cross-talk with it. Doing this in
+Popen's preexec_fn is not safe once the launcher has threads; a fresh interpreter is.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import sys
+
+PR_SET_PDEATHSIG = 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point; never returns when the exec succeeds."""
+    args = sys.argv[1:] if argv is None else argv
+    if len(args) < 2:
+        print('usage: python -m agv_nodes.launch_child PARENT_PID COMMAND...', file=sys.stderr)
+        return 2
+    parent, command = int(args[0]), args[1:]
+    if sys.platform.startswith('linux'):
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+        if os.getppid() != parent:  # the launcher died before the request was in place
+            return 1
+    os.execv(command[0], command)
+    return 1  # not reached
+
+
+if __name__ == '__main__':
+    sys.exit(main())
