@@ -95,14 +95,14 @@ def camera_point(world: WorldCore) -> tuple[float, float]:
 
 def camera_truck(world: WorldCore, speed: float, law: str = 'p', gain_i: float = 0.0,
                  gain_theta: float = 0.0, schedule: float = 0.0) -> tuple[Harness, RouteCore]:
-    """The CONCIC-II on `world`, route following in camera mode with the given law ('pi_dt':
-    PI with the integral over time, Eq 5.6, instead of per frame as Eq 5.8 is printed)."""
-    form = 'with_dt' if law == 'pi_dt' else 'per_frame'
+    """The CONCIC-II on `world`, route following in camera mode with the given law ('pi_b':
+    PI whose integral gathers only within 10 mm of the tape, the integral_band option)."""
     route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed,
                                   steering=SteeringParams(law=law[:2], gain_i=gain_i,
                                                           gain_theta=gain_theta,
                                                           schedule_speed=schedule,
-                                                          integral_form=form)))
+                                                          integral_band=0.01 if law == 'pi_b'
+                                                          else 0.0)))
     return Harness(world, [Executive(mode='camera'), route]), route
 
 
@@ -233,10 +233,11 @@ def camera_junction(junction: str, speed: float) -> dict[str, float | str]:
 
 
 # (law, G_i, G_theta, schedule speed): the thesis's P and PI, then with orientation feedback,
-# the 1/speed gain schedule and the integral over time (modern options, route_following
-# parameters camera_gain_theta, camera_schedule_speed, camera_integral: with_dt)
+# the 1/speed gain schedule and (pi_b) the integral gathered only within 10 mm of the tape
+# (modern options, route_following parameters camera_gain_theta, camera_schedule_speed,
+# camera_integral_band)
 LAWS = (('p', 0.0, 0.0, 0.0), ('pi', 0.07, 0.0, 0.0), ('p', 0.0, 0.3, 0.0),
-        ('p', 0.0, 0.4, 0.63), ('pi_dt', 0.2, 0.4, 0.63))
+        ('p', 0.0, 0.4, 0.63), ('pi_b', 0.07, 0.4, 0.63))
 
 
 def main() -> int:

@@ -154,6 +154,10 @@ class SteeringParams:
     # 1/speed, so the loop's bandwidth in distance stays that of this speed (with G_theta 0.4
     # it kept the 0.065 m step's overshoot under 5 % up to 0.79 m/s; see route_bench step).
     schedule_speed: float = 0.0
+    # Modern option, off (0) by default: the integral only gathers while |eps_d| is within
+    # this band (m), so a step's transient does not wind it up; a curve's small steady offset
+    # still does.
+    integral_band: float = 0.0
     wheel_span: float = 0.52  # m, L
     caster_distance: float = 0.31  # m, L_a
     caster_trail: float = 0.05  # m, s
@@ -186,7 +190,8 @@ class CameraSteering:
         if m.validity is Validity.SATURATED:
             return self.theta_s  # ignore the frame: steer from the previous data
         if p.law == 'pi':  # Eq 5.6 (G1 on eps_theta, G2 on eps_d, G3 on the integral)
-            self.integral += (dt if p.integral_form == 'with_dt' else 1.0) * m.eps_d
+            if not p.integral_band or abs(m.eps_d) < p.integral_band:
+                self.integral += (dt if p.integral_form == 'with_dt' else 1.0) * m.eps_d
             theta = p.gain_theta * m.eps_theta + gain_d * m.eps_d + p.gain_i * self.integral
         else:  # Eq 5.4
             theta = gain_d * m.eps_d + p.gain_theta * m.eps_theta

@@ -57,6 +57,9 @@ class RouteFollowingNode(CoreNode):
             schedule_speed=p.number('camera_schedule_speed', ds.schedule_speed, 'above this '
                                     'cruise the eps_d gain falls as 1/speed, m/s (0: off, the '
                                     'thesis)', 0.0, 2.0),
+            integral_band=p.number('camera_integral_band', ds.integral_band, 'the integral '
+                                   'gathers only while |eps_d| is within this, m (0: always, '
+                                   'the thesis)', 0.0, 0.2),
             set_off_acceleration=p.number('camera_set_off_acceleration',
                                           ds.set_off_acceleration, 'speed ramp asked for when '
                                           'setting off from rest, m/s^2 (0: cruise at once)',
