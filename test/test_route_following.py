@@ -274,3 +274,22 @@ def test_a_branch_the_sign_does_not_offer_stops_the_vehicle(tmp_path):
     # Stopped once the camera had passed the crossing, the axle short of it.
     assert abs(s.speed) < 0.01 and 2.2 < s.x < 3.0
     assert 'turning' not in script.states
+
+
+def test_a_turn_whose_odometry_stops_ends_at_rest():
+    """Safety: the spin ends by wheel odometry; if that falls silent mid-turn the vehicle must
+    not spin on for ever (turn_timeout, then motors off as for a lost tape)."""
+    from agv_nodes.harness import Link
+
+    lay = load_layout(layout_path('junction_1991'))
+    world = WorldCore(lay, WorldParams(seed=3))
+    route = RouteCore(RouteParams(vehicle='concic2', camera_speed=0.47))
+    h = Harness(world, [JunctionExec('left'), route])
+    while route.turn_phase != 'spin' and h.now < 15.0:
+        h.step()
+    assert route.turn_phase == 'spin'
+    h.links['wheel_odometry'] = Link(drop=1.0)  # the encoders' records stop arriving
+    h.run(route.p.turning.turn_timeout + 3.0)
+    s = world.vehicle.state
+    assert route.state == 'lost' and not route.motor_on
+    assert abs(s.speed) < 0.005 and abs(s.yaw_rate) < 0.005

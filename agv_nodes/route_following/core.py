@@ -79,6 +79,7 @@ class TurningParams:
     spin_speed: float = 0.15  # m/s of each wheel, opposite ways
     spin_angle: float = 90.0  # deg: the branches of the floor are at right angles
     angle_tolerance: float = 0.2  # deg of the spin, by wheel odometry
+    turn_timeout: float = 20.0  # s from the sighting to following the branch (bench: 6-10 s)
 
 
 @dataclass
@@ -166,6 +167,7 @@ class RouteCore:
         self._turn_from = (0, 0)  # wheel travel when the phase began
         self._turn_way = 0  # +1 left, -1 right
         self._crossing = 0.0  # m of axle travel from the sighting to the crossing
+        self._turn_began: float | None = None  # sim time the manoeuvre's first pass ran
         self._set_off_at: float | None = None  # sim time the vehicle set off from rest
 
     # -- inputs -----------------------------------------------------------------------------
@@ -364,6 +366,14 @@ class RouteCore:
     def _turn(self, now: float) -> None:
         """Approach, spin, settle: at the loop rate (the frames come at only ~20 Hz)."""
         t = self.p.turning
+        if self._turn_began is None:
+            self._turn_began = now
+        if now - self._turn_began > t.turn_timeout:
+            # Odometry that stopped counting (or a wheel that will not turn) must not leave
+            # the vehicle spinning or creeping: motors off, as for a lost tape.
+            self.turn_phase, self._turn_began = '', None
+            self.state, self.motor_on, self.wheels = 'lost', False, (0.0, 0.0)
+            return
         if self.turn_phase == 'approach':
             remaining = self._to_crossing()
             if abs(remaining) > t.position_tolerance or abs(self.speed) > 0.01:
@@ -392,7 +402,7 @@ class RouteCore:
         if max(abs(v) for v in self._rim_speeds) > 0.005:
             return  # still turning
         # On the branch: follow it afresh (the fit takes the widest run, the law starts clean).
-        self.turn_phase = ''
+        self.turn_phase, self._turn_began = '', None
         self._set_off_at = now
         self.camera.integral = 0.0
         self.analyser.forget_track()
