@@ -30,7 +30,9 @@ from agv_nodes.ros_ports import InputDiagnostics, RecordPublisher, RecordSubscri
 class CoreNode(Node):
     """A node around one core; subclasses declare parameters and build the core."""
 
-    sent_stamps = False  # readers keep each record's DDS source timestamp (executive)
+    # Readers keep each record's DDS source timestamp: (msg, info) callbacks, which rclpy
+    # 7.1.6's EventsExecutor cannot run, so only a `single` node may set it (the executive).
+    sent_stamps = False
     executor_kind = 'single'  # the `executor` parameter (attach declares it)
     _clock_timers: ClockTimers | None = None
 
@@ -42,8 +44,6 @@ class CoreNode(Node):
         self.core = core
         if not self.has_parameter('executor'):  # (the executive declares it earlier)
             self.executor_kind = declare_executor(params)
-        if self.sent_stamps:  # (msg, info) callbacks: not under rclpy 7.1.6's EventsExecutor
-            self.executor_kind = 'single'
         if self.executor_kind == 'events' and self.get_parameter('use_sim_time').value:
             self._clock_timers = ClockTimers(self)
         reads, writes = codec().for_node(core.node)

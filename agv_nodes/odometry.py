@@ -15,16 +15,21 @@ def counter_step(before: int, after: int) -> int:
 
 
 class Odometer:
-    """Distance travelled by the truck's centre, m (mean of the two wheels)."""
+    """Distance travelled by each driven wheel and by the truck's centre (their mean), m."""
 
     def __init__(self) -> None:
-        self.metres = 0.0
+        self.left = self.right = 0.0
         self._last: tuple[int, int] | None = None
 
+    @property
+    def metres(self) -> float:
+        """The centre's travel, m."""
+        return (self.left + self.right) / 2.0
+
     def update(self, left_mm: int, right_mm: int) -> float:
-        """Take one reading of the two counters; returns the distance so far."""
+        """Take one reading of the two counters; returns the centre's distance so far."""
         if self._last is not None:
-            self.metres += (counter_step(self._last[0], left_mm)
-                            + counter_step(self._last[1], right_mm)) / 2000.0
+            self.left += counter_step(self._last[0], left_mm) / 1000.0
+            self.right += counter_step(self._last[1], right_mm) / 1000.0
         self._last = (left_mm, right_mm)
         return self.metres

@@ -240,6 +240,11 @@ LAWS = (('p', 0.0, 0.0, 0.0), ('pi', 0.07, 0.0, 0.0), ('p', 0.0, 0.3, 0.0),
         ('p', 0.0, 0.4, 0.63), ('pi_b', 0.07, 0.4, 0.63))
 
 
+def law_cells(law: str, gain_theta: float, schedule: float) -> str:
+    """The first three cells of a camera-law row: law, G_theta, schedule speed."""
+    return f'| {law} | {gain_theta} | {schedule or "-"} |'
+
+
 def main() -> int:
     only = sys.argv[1:] or ['wire', 'srm', 'circle', 'step', 'recovery', 'stop', 'junction']
     if 'wire' in only:
@@ -264,8 +269,7 @@ def main() -> int:
         for law, gain_i, gain_theta, schedule in LAWS:
             for speed in (0.31, 0.63, 0.79):
                 e = camera_circle(law, gain_i, speed, gain_theta, schedule)
-                print(f'| {law} | {gain_theta} | {schedule or "-"} | {speed} | {e:.1f} |',
-                      flush=True)
+                print(f'{law_cells(law, gain_theta, schedule)} {speed} | {e:.1f} |', flush=True)
     if 'step' in only:
         print('\nCamera guidance, 0.065 m step of a straight tape (G_theta: orientation gain; '
               'the thesis fed none back)\n')
@@ -274,8 +278,8 @@ def main() -> int:
         for law, gain_i, gain_theta, schedule in LAWS:
             for speed in (0.31, 0.47, 0.63, 0.79):
                 o, t, e = camera_step(law, gain_i, speed, gain_theta, schedule)
-                print(f'| {law} | {gain_theta} | {schedule or "-"} | {speed} | {o:.1f} | '
-                      f'{t:.2f} | {e:.1f} |', flush=True)
+                print(f'{law_cells(law, gain_theta, schedule)} {speed} | {o:.1f} | {t:.2f} | '
+                      f'{e:.1f} |', flush=True)
     if 'recovery' in only:
         print('\nCamera guidance from an initial error (thesis S5: -0.08 m and 40 deg at '
               '0.471 m/s)\n')
@@ -285,8 +289,8 @@ def main() -> int:
             for offset, angle in ((-0.08, 40.0), (-0.08, -40.0), (0.08, -40.0)):
                 w, t, e = camera_recovery(law, gain_i, gain_theta, 0.471, offset, angle,
                                           schedule)
-                print(f'| {law} | {gain_theta} | {schedule or "-"} | {offset:+.2f} | '
-                      f'{angle:+.0f} | {w:.0f} | {t:.2f} | {e:.1f} |', flush=True)
+                print(f'{law_cells(law, gain_theta, schedule)} {offset:+.2f} | {angle:+.0f} | '
+                      f'{w:.0f} | {t:.2f} | {e:.1f} |', flush=True)
     if 'stop' in only:
         print('\nCamera guidance: motor-off stop at the end of the tape (thesis 7.3.4: 5 mm '
               'from 0.16 m/s; the coast-down is calibrated to it, the detection is not)\n')

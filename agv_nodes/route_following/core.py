@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from agv_nodes.odometry import counter_step
+from agv_nodes.odometry import Odometer
 from agv_nodes.route_following.camera_guidance import (
     CameraSteering,
     ImageAnalyser,
@@ -162,9 +162,8 @@ class RouteCore:
         self.measurement = None
         self.turn_phase = ''  # '' | 'approach' (to the crossing) | 'spin' | 'settle' (to rest)
         self._rim_speeds = (0.0, 0.0)  # m/s, from wheel odometry
-        self._wheel_mm = [0, 0]  # wheel travel from the encoders' counters, mm
-        self._counters: tuple[int, int] | None = None
-        self._turn_from = (0, 0)  # wheel travel when the phase began
+        self._wheels = Odometer()  # each wheel's travel, from the encoders' counters
+        self._turn_from = (0.0, 0.0)  # each wheel's travel when the phase began, m
         self._turn_way = 0  # +1 left, -1 right
         self._crossing = 0.0  # m of axle travel from the sighting to the crossing
         self._turn_began: float | None = None  # sim time the manoeuvre's first pass ran
@@ -181,11 +180,7 @@ class RouteCore:
         elif record == 'wheel_odometry':
             self.speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
             self._rim_speeds = (fields['left_speed'] / 1000.0, fields['right_speed'] / 1000.0)
-            counters = (fields['left_distance'], fields['right_distance'])
-            if self._counters is not None:
-                for k in (0, 1):
-                    self._wheel_mm[k] += counter_step(self._counters[k], counters[k])
-            self._counters = counters
+            self._wheels.update(fields['left_distance'], fields['right_distance'])
         return None
 
     def _command(self, fields: dict[str, Any], now: float) -> dict | None:
@@ -345,14 +340,14 @@ class RouteCore:
     # -- junctions (App. F.6) ---------------------------------------------------------------
     def _start_turn(self, phase: str) -> None:
         self.turn_phase = phase
-        self._turn_from = (self._wheel_mm[0], self._wheel_mm[1])
+        self._turn_from = (self._wheels.left, self._wheels.right)
         self._turn_way = 1 if self.junction == 'left' else -1
         self.state = 'turning'
 
     def _turned(self) -> tuple[float, float]:
         """(m the axle centre has moved, rad the vehicle has turned) since the phase began."""
-        left = (self._wheel_mm[0] - self._turn_from[0]) / 1000.0
-        right = (self._wheel_mm[1] - self._turn_from[1]) / 1000.0
+        left = self._wheels.left - self._turn_from[0]
+        right = self._wheels.right - self._turn_from[1]
         return (left + right) / 2.0, (right - left) / self.p.steering.wheel_span
 
     def _to_crossing(self) -> float:
