@@ -24,7 +24,12 @@ from std_msgs.msg import Bool
 from agv_nodes import qos
 from agv_nodes.params import ParameterError, Parameters
 from agv_nodes.records import codec
-from agv_nodes.ros_ports import InputDiagnostics, RecordPublisher, RecordSubscription
+from agv_nodes.ros_ports import (
+    InputDiagnostics,
+    LinkAnnouncer,
+    RecordPublisher,
+    RecordSubscription,
+)
 
 
 class CoreNode(Node):
@@ -68,6 +73,7 @@ class CoreNode(Node):
                         for s in reads}
         for reader in self.readers.values():
             reader.on_reject = self._on_reject(reader)
+        self.links = LinkAnnouncer(self, self.readers)  # the world moves once all have matched
         if hasattr(core, 'on_radio_stop'):
             self.create_subscription(Bool, 'hw/radio_stop', self._radio_stop,
                                      qos.RECORD_READER)

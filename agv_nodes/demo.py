@@ -10,6 +10,7 @@ writes the report (agv-report: report.json, summary.md, PNG plots) and prints a 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 import json
 import os
 from pathlib import Path
@@ -20,6 +21,28 @@ from agv_nodes.harness import DEMO_PROGRAMME
 from agv_nodes.launcher import GraphError, Launch, Options
 
 QUICK = DEMO_PROGRAMME[:2]
+STATUS_REPLY = 'comms: status:'
+
+
+def comms_handshake(spin_once: Callable[[], None], send: Callable[[str], None],
+                    reports: list[str], timeout: float = 60.0,
+                    alive: Callable[[], bool] = lambda: True) -> None:
+    """Ask communications `status` until it answers on comms/report.
+
+    A reliable writer that has matched a reader may still lose what it sends before the reader
+    has matched it back (a volatile reader drops it): one slow start-up lost the whole
+    programme that way. An answer proves both directions; `status` changes nothing, so asking
+    again while waiting is harmless (docs/tasks.md).
+    """
+    deadline = time.monotonic() + timeout
+    asked = 0.0
+    while not any(line.startswith(STATUS_REPLY) for line in reports):
+        if not alive() or time.monotonic() > deadline:
+            raise RuntimeError('communications did not answer a status query on comms/task')
+        if time.monotonic() - asked > 0.25:
+            send('status')
+            asked = time.monotonic()
+        spin_once()
 
 
 def run(args: argparse.Namespace) -> int:
@@ -44,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
           f'ROS_DOMAIN_ID={launch.domain}, time_factor {args.time_factor:g}; output in {out}')
     rclpy.init()
     node = rclpy.create_node('demo')
-    state = {'sim': 0.0, 'results': {}, 'reports': []}
+    state = {'sim': 0.0, 'results': {}, 'reports': [], 'lines': []}
 
     def on_clock(msg: Clock) -> None:
         state['sim'] = msg.clock.sec + msg.clock.nanosec * 1e-9
@@ -52,6 +75,9 @@ def run(args: argparse.Namespace) -> int:
     def on_report(msg: String) -> None:
         line = msg.data
         state['reports'].append((state['sim'], line))
+        state['lines'].append(line)
+        if line.startswith(STATUS_REPLY):
+            return
         print(f'  {state["sim"]:7.1f} s  {line}', flush=True)
         words = line.split()
         if len(words) > 2 and words[0] == 'task' and words[1].isdigit():
@@ -72,6 +98,9 @@ def run(args: argparse.Namespace) -> int:
             if launch.poll() or time.monotonic() > deadline:
                 raise RuntimeError('the graph did not come up (see the logs in '
                                    f'{out / "logs"})')
+        comms_handshake(lambda: rclpy.spin_once(node, timeout_sec=0.05),
+                        lambda text: task_pub.publish(String(data=text)), state['lines'],
+                        alive=lambda: not launch.poll())
         print(f'agv-demo: graph up in {time.monotonic() - wall0:.1f} s; sending the programme')
         moving_wall, sim0 = time.monotonic(), state['sim']
         for text in tasks:

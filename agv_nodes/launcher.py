@@ -116,6 +116,22 @@ def wait_lists(graph: Graph, world: bool, recording: bool) -> tuple[list[str], l
     return sorted(set(subs)), sorted(set(pubs))
 
 
+def wait_links(graph: Graph) -> list[str]:
+    """The world's `wait_for_links`: every 'reader:record' link of the graph (both ends
+    launched), the world's pacing readers included. Counting readers from the world's side
+    (wait_lists) says the writers have matched them, not that they have matched the writers:
+    navigation once took a task before its first sensor status (ros_ports.LinkAnnouncer)."""
+    running = {n.name for n in graph.nodes if n.role in ('node', 'world')}
+    links = set()
+    for s in codec():
+        if s.kind == 'ground_truth' or s.writer not in running:
+            continue
+        links.update(f'{r}:{s.name}' for r in s.readers if r in running)
+    if 'world' in running:
+        links.update(f'world:{name}' for name in paced_records(graph))
+    return sorted(links)
+
+
 def paced_records(graph: Graph) -> list[str]:
     """Every record a node of the graph writes: the world waits for the slowest (pacing.py)."""
     running = {n.name for n in graph.nodes if n.role == 'node'}
@@ -175,6 +191,7 @@ def node_parameters(graph: Graph, spec: NodeSpec, options: Options) -> dict[str,
         subs, pubs = wait_lists(graph, True, options.bag is not None)
         out.update(time_factor=float(options.time_factor), publish_clock=options.use_sim_time,
                    wait_for_subscribers=subs, wait_for_publishers=pubs,
+                   wait_for_links=wait_links(graph),
                    pace_on=paced_records(graph))
         if options.faults:
             out['pace_slack'] = pace_slack(options.faults)

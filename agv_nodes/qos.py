@@ -50,6 +50,10 @@ CLOCK_READER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
 LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                      reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# graph/links (ros_ports.LinkAnnouncer): each node's latched word; the world keeps them all.
+LINKS_READER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                          reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # /diagnostics, reports, ground-truth streams: reliable, volatile.
 EVENTS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
                     reliability=ReliabilityPolicy.RELIABLE,

@@ -10,8 +10,10 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.clock import Clock as RosClock
+from rclpy.clock import ClockType
 from rclpy.node import Node
-from std_msgs.msg import UInt8MultiArray
+from std_msgs.msg import String, UInt8MultiArray
 
 from agv_nodes import qos
 from agv_nodes.records.codec import RecordSchema
@@ -70,6 +72,10 @@ class RecordSubscription(RecordReader):
         self._sub = node.create_subscription(
             UInt8MultiArray, schema.topic, self._on_msg_info if sent_stamps else self._on_msg,
             qos.reader_qos(schema))
+
+    def publisher_count(self) -> int:
+        """Writers this reader has matched (its own side of the link)."""
+        return self._sub.get_publisher_count()
 
     def _on_msg_info(self, msg: UInt8MultiArray, info: Mapping[str, Any]) -> None:
         self.sent_ns = info.get('source_timestamp') or 0
@@ -130,3 +136,45 @@ class InputDiagnostics:
                                                         message, name, values)])
         msg.header.stamp = self._node.get_clock().now().to_msg()
         self._pub.publish(msg)
+
+
+LINKS_TOPIC = 'graph/links'
+
+
+class LinkAnnouncer:
+    """Says on `graph/links` which of a node's record inputs have matched their writer.
+
+    Discovery is two-sided: a writer may match a reader (and the world may count it) before
+    the reader has matched the writer, and a volatile reader drops what comes in meanwhile. A
+    run that started then lost its first records (navigation saw a task before any sensor
+    status and called the sensor lost). So each node polls its own readers on a steady timer
+    (sim time stands still until the world moves) and publishes `"<node> rec1 rec2 ..."`
+    (latched) each time the matched set grows, until all are matched; the world waits for the
+    links the launcher names (`wait_for_links`) before it moves.
+    """
+
+    def __init__(self, node: Node, readers: Mapping[str, RecordSubscription],
+                 period: float = 0.02) -> None:
+        self._node = node
+        self._readers = readers
+        self._said: set[str] | None = None
+        self._pub = node.create_publisher(String, LINKS_TOPIC, qos.LATCHED)
+        self._timer = node.create_timer(period, self.poll,
+                                        clock=RosClock(clock_type=ClockType.STEADY_TIME))
+
+    def poll(self) -> None:
+        """Publish the matched inputs if they changed; stop once every input is matched."""
+        matched = {name for name, r in self._readers.items() if r.publisher_count() > 0}
+        if matched != self._said:
+            self._said = matched
+            words = [self._node.get_name(), *sorted(matched)]
+            self._pub.publish(String(data=' '.join(words)))
+        if len(matched) == len(self._readers) and self._timer is not None:
+            self._node.destroy_timer(self._timer)
+            self._timer = None
+
+
+def parse_links(text: str) -> tuple[str, set[str]]:
+    """`"<node> rec1 rec2 ..."` (LinkAnnouncer) -> (node, {records})."""
+    words = text.split()
+    return (words[0] if words else ''), set(words[1:])

@@ -41,13 +41,18 @@ def live(seconds: float, time_factor: float, params: list[str] = ()) -> None:
     from std_msgs.msg import String
 
     from agv_nodes import qos
+    from agv_nodes.demo import comms_handshake
 
     rclpy.init()
     node = rclpy.create_node('graph_bench')
     pub = node.create_publisher(String, 'comms/task', qos.EVENTS)
+    lines: list[str] = []
+    node.create_subscription(String, 'comms/report', lambda m: lines.append(m.data), qos.EVENTS)
     launch.start()
     while not launch.moving.is_set() or pub.get_subscription_count() == 0:
         rclpy.spin_once(node, timeout_sec=0.1)
+    comms_handshake(lambda: rclpy.spin_once(node, timeout_sec=0.05),
+                    lambda text: pub.publish(String(data=text)), lines)
     pub.publish(String(data='srm at 1 angle 15'))
     time.sleep(3.0)
     c0 = {n: cpu_seconds(p.pid) for n, p in launch.procs.items()}

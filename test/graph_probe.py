@@ -110,10 +110,16 @@ class GraphProbe:
 
     def start_task(self, text: str, cruise: float | None = CRUISE) -> None:
         """Wait for the graph, send a task, and (optionally) wait until it runs at speed."""
-        self.spin_until(lambda: self.launch.moving.is_set()
-                        and self.task_pub.get_subscription_count() > 0, 120, 'the graph')
         from std_msgs.msg import String
 
+        from agv_nodes.demo import comms_handshake
+
+        self.spin_until(lambda: self.launch.moving.is_set()
+                        and self.task_pub.get_subscription_count() > 0, 120, 'the graph')
+        comms_handshake(lambda: self.executor.spin_once(timeout_sec=0.05),
+                        lambda words: self.task_pub.publish(String(data=words)), self.reports,
+                        alive=lambda: not [n for n in self.launch.poll()
+                                           if n not in self.expected_dead])
         self.task_pub.publish(String(data=text))
         if cruise is not None:
             self.spin_until(lambda: self.speed > cruise, 90, f'the truck to exceed {cruise}')

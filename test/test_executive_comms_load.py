@@ -60,6 +60,21 @@ def test_bad_task_changes_nothing():
     assert 'rejected' in comms.reports[-1] and 'column 9' in comms.reports[-1]
 
 
+def test_status_query_is_answered_and_changes_nothing():
+    comms = CommunicationsCore()
+    assert comms.on_task('status', 0.0) is None
+    assert comms.reports[-1] == 'comms: status: 0 in queue'
+    comms.on_task('stop at 2 first', 0.1)
+    before = comms.tick(0.2)
+    assert comms.on_task('Status', 0.3) is None
+    assert comms.reports[-1] == "comms: status: 1 in queue; head: task 1 'stop at 2 first'"
+    assert comms.tick(0.4) == before and len(comms.queue) == 1
+    comms.on_task('load at 0', 0.5)
+    assert comms.queue[-1].task_id == 2  # a query takes no task number
+    with pytest.raises(TaskError):
+        parse_task('status now')
+
+
 def test_comms_queue_relays_in_order_and_reports():
     comms = CommunicationsCore()
     comms.on_task('stop at 2 first', 0.0)

@@ -154,3 +154,21 @@ def test_fault_option_reaches_the_writer_and_the_world():
     world = node_parameters(graph, graph.node('world'), options)
     assert 'traction_link' in world['pace_on'] and world['pace_slack'] == ['traction_link:0.09']
     assert 'pace_slack' not in node_parameters(graph, graph.node('world'), Options())
+
+
+def test_world_waits_for_every_link_whose_two_ends_are_launched():
+    """wait_for_links: each reader of each record once both ends run (LinkAnnouncer)."""
+    from dataclasses import replace
+
+    from agv_nodes.launcher import wait_links
+
+    graph = load_graph()
+    links = wait_links(graph)
+    assert {'navigation:position_sensor_status', 'position_sensor:adc_snapshot',
+            'traction:traction_command', 'executive:navigation_status',
+            'world:traction_drive'} <= set(links)
+    assert node_parameters(graph, graph.node('world'), Options())['wait_for_links'] == links
+    partial = replace(graph, nodes=[n for n in graph.nodes if n.name != 'position_sensor'])
+    assert not [x for x in wait_links(partial)
+                if x.startswith('position_sensor:') or x.endswith(':position_sensor_status')]
+    assert 'navigation:wheel_odometry' in wait_links(partial)

@@ -324,6 +324,22 @@ def test_sensor_silence_reports_lost_and_requests_speed_0():
     assert status['sensor_lost'] == 1
 
 
+def test_a_task_with_no_sensor_ever_heard_ends_lost_after_the_timeout():
+    """The first sensor status may still be on its way when a task comes (graph start-up);
+    none within sensor_timeout of the task is a lost sensor all the same."""
+    n = Nav(stopping='controlled')
+    n.command(1, 0)
+    for _ in range(int(0.05 / 0.005)):  # quiet, but not yet for sensor_timeout (50 ms)
+        n._take(n.core.tick(n.t))
+        n.t = round(n.t + 0.005, 6)
+    assert not n.core.sensor_lost and n.core.mode == 'navigating'
+    for _ in range(3):
+        n._take(n.core.tick(n.t))
+        n.t = round(n.t + 0.005, 6)
+    assert n.core.sensor_lost and n.core.mode == 'idle' and n.links[-1] == 0x00
+    assert n.statuses[-1][0] & 0x08  # LOST bit
+
+
 def test_via_executive_puts_the_request_in_the_status_record():
     n = Nav(speed_request_path='via_executive')
     n.command(2, 0)

@@ -96,7 +96,7 @@ def parse_task(text: str, locations: tuple[int, ...] = (0, 1, 2, 3)) -> Task:
     """Parse one task of the task language (TaskError on anything else)."""
     t = _Tokens(text)
     verb = t.peek()
-    verbs = ('load', 'unload', 'wait', 'stop', 'srm', 'leave', 'abort')
+    verbs = ('load', 'unload', 'wait', 'stop', 'srm', 'leave', 'abort', 'status')
     if verb not in verbs:
         what = 'empty task' if verb is None else f'unknown task {verb!r}'
         raise TaskError(text, t.column(), f'{what} (expected one of {", ".join(verbs)})')
@@ -110,8 +110,8 @@ def parse_task(text: str, locations: tuple[int, ...] = (0, 1, 2, 3)) -> Task:
                             f'{", ".join(map(str, locations))})')
         return n
 
-    if verb == 'abort':
-        task = Task(text, 'abort')
+    if verb in ('abort', 'status'):
+        task = Task(text, verb)
     elif verb == 'load' and t.peek() not in (None, 'at'):  # load A at B and take to C
         name = t.take()
         t.take('at')
@@ -193,6 +193,11 @@ class CommunicationsCore:
             task = parse_task(text, self.p.locations)
         except TaskError as exc:
             self.reports.append(f'comms: {exc}')
+            return None
+        if task.op == 'status':  # a query: answered, never queued (demo.py's handshake)
+            head = f'; head: task {self.queue[0].task_id} {self.queue[0].text!r}' \
+                if self.queue else ''
+            self.reports.append(f'comms: status: {len(self.queue)} in queue{head}')
             return None
         task.task_id = self._next_id
         self._next_id = self._next_id % 255 + 1

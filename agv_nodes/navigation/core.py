@@ -102,6 +102,7 @@ class NavigationCore:
         self.sensor_lost = False
         self.input_fault = False
         self._sensor_time: float | None = None
+        self._task_since: float | None = None  # first tick of a task before any sensor status
         self._seen_recognitions: int | None = None
         self._blind_until = 0.0
         self._guard = False  # ignore the centre view until another view is seen
@@ -325,8 +326,15 @@ class NavigationCore:
     def tick(self, now: float) -> dict | None:
         """CHK rate: sensor watchdog, controlled stop, and the steady heartbeats."""
         if self._sensor_time is None:
-            if self.mode != 'idle':
-                self._set_lost(True)  # a task, and no sensor has ever reported
+            # A task, and no sensor has ever reported: lost once it has been quiet for
+            # sensor_timeout since the task came (not at once: its first status may be on
+            # its way).
+            if self.mode == 'idle':
+                self._task_since = None
+            elif self._task_since is None:
+                self._task_since = now
+            elif now - self._task_since > self.p.sensor_timeout:
+                self._set_lost(True)
         elif now - self._sensor_time > self.p.sensor_timeout:
             self._set_lost(True)
         if self.mode == 'positioning' and self.p.stopping == 'controlled':

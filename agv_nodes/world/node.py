@@ -9,7 +9,9 @@ The world is the clock: it does not run on a ROS timer (a sim-time timer cannot 
 /clock advances, and the world is what advances it). Its own loop steps the core, publishes
 /clock every sample, services its subscriptions and services, and paces itself at `time_factor`
 x real time (0 = as fast as the machine allows). It waits until the topics named in
-`wait_for_subscribers` have readers (and `wait_for_publishers` have writers) before moving.
+`wait_for_subscribers` have readers (and `wait_for_publishers` have writers), and every node
+has said on graph/links that its readers of the `wait_for_links` records have matched their
+writers, before moving.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ import rclpy
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image
-from std_msgs.msg import Bool, UInt8MultiArray
+from std_msgs.msg import Bool, String, UInt8MultiArray
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -36,7 +38,13 @@ from agv_nodes.core_node import declare_executor, spin_main
 from agv_nodes.params import Parameters
 from agv_nodes.records import codec
 from agv_nodes.records.codec import RecordError, RecordSchema
-from agv_nodes.ros_ports import InputDiagnostics, RecordPublisher, RecordSubscription
+from agv_nodes.ros_ports import (
+    LINKS_TOPIC,
+    InputDiagnostics,
+    RecordPublisher,
+    RecordSubscription,
+    parse_links,
+)
 from agv_nodes.world.core import WorldCore, WorldParams
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
 from agv_nodes.world.pacing import GraphPacer
@@ -105,6 +113,13 @@ class WorldNode(Node):
                                  'before the world moves')
         self.wait_pubs = p.texts('wait_for_publishers', [], 'topics that need a writer '
                                  'before the world moves')
+        self.wait_links = p.texts('wait_for_links', [], 'NODE:RECORD links whose reader must '
+                                  'have matched its writer before the world moves (graph/links;'
+                                  ' agv-launch names every link of the graph)')
+        for entry in self.wait_links:
+            node, _, record = entry.partition(':')
+            if not node or record not in codec():
+                p.fail('wait_for_links', self.wait_links, f'{entry!r} is not NODE:RECORD')
         self.peer_timeout = p.number('peer_timeout', 60.0, 'seconds to wait for peers', 0.0,
                                      3600.0)
         self.duration = p.number('duration', 0.0, 'stop after this many simulated seconds '
@@ -146,11 +161,16 @@ class WorldNode(Node):
         self.inputs = {name: RecordSubscription(self, c[name], callback=self._input(name))
                        for name in INPUTS}
         self.input_diagnostics = InputDiagnostics(self, self.inputs)
+        # matched-writer counts of the world's own readers (its `wait_for_links` entries)
+        self._own_links = {name: reader.publisher_count for name, reader in self.inputs.items()}
         for name in pace_on:  # only the arrival (and a sample count) matter: read raw
             if name not in INPUTS:
-                self.create_subscription(UInt8MultiArray, c[name].topic, self._paced(c[name]),
-                                         qos.reader_qos(c[name]))
+                sub = self.create_subscription(UInt8MultiArray, c[name].topic,
+                                               self._paced(c[name]), qos.reader_qos(c[name]))
+                self._own_links[name] = sub.get_publisher_count
         self.create_subscription(Bool, 'hw/radio_stop', self._radio_stop, qos.RECORD_READER)
+        self._links: dict[str, set[str]] = {}  # node -> its inputs matched (graph/links)
+        self.create_subscription(String, LINKS_TOPIC, self._on_links, qos.LINKS_READER)
         self.clock_pub = self.create_publisher(Clock, '/clock', qos.STREAM_WRITER)
         self.pose_pub = self.create_publisher(PoseStamped, 'world/pose', qos.STREAM_WRITER)
         self.route_pub = self.create_publisher(Path, 'world/route', qos.LATCHED)
@@ -189,6 +209,10 @@ class WorldNode(Node):
                         continue
             self.pacer.arrived(schema.name, self.core.time, count, self.core.sample)
         return on_msg
+
+    def _on_links(self, msg: String) -> None:
+        node, records = parse_links(msg.data)
+        self._links[node] = records
 
     def _set_at_run_time(self, params: list) -> SetParametersResult:
         """Faults switched while the world runs: ambient light and the wire generator."""
@@ -322,7 +346,21 @@ class WorldNode(Node):
 
         subs_ok = all(self.count_subscribers(t) >= n for t, n in map(needed, self.wait_subs))
         pubs_ok = all(self.count_publishers(t) >= n for t, n in map(needed, self.wait_pubs))
-        return subs_ok and pubs_ok
+        return subs_ok and pubs_ok and not self.links_missing()
+
+    def links_missing(self) -> list[str]:
+        """`wait_for_links` entries not matched yet (the world's own, by its readers)."""
+        missing = []
+        for entry in self.wait_links:
+            node, _, record = entry.partition(':')
+            if node == self.get_name():
+                count = self._own_links.get(record)
+                matched = count is not None and count() > 0
+            else:
+                matched = record in self._links.get(node, ())
+            if not matched:
+                missing.append(entry)
+        return missing
 
     def run(self, executor: Any) -> int:
         """Wait for peers, then step the world until shut down (or `duration`)."""
@@ -334,7 +372,8 @@ class WorldNode(Node):
             if time.monotonic() > deadline:
                 self.get_logger().error(
                     f'peers not matched after {self.peer_timeout:.0f} s (subscribers: '
-                    f'{self.wait_subs}, publishers: {self.wait_pubs})')
+                    f'{self.wait_subs}, publishers: {self.wait_pubs}, links still missing: '
+                    f'{self.links_missing()})')
                 return 1
         self.get_logger().info(f'layout {self.layout.name}: moving at time_factor '
                                f'{self.time_factor:g}')
