@@ -167,6 +167,15 @@ class ClockTimers:
     def __init__(self, node: Node) -> None:
         self.now_ns: int | None = None  # the latest /clock taken
         self._timers: list[list[Any]] = []  # [period, next due (ns) or None, callback]
+        # One /clock reader per node, not two: rclpy's TimeSource keeps a reader of its own,
+        # and at 340 Hz taking every sample twice was a good part of an idle node's CPU. Its
+        # reader goes, and this one sets the node's ROS clock (so get_clock() is the same
+        # FIFO time). rclpy has no public hook for it: without the attributes, both stay.
+        self._time_source = getattr(node, '_time_source', None)
+        own = getattr(self._time_source, '_clock_sub', None)
+        if own is not None:
+            node.destroy_subscription(own)
+            self._time_source._clock_sub = None
         node.create_subscription(Clock, '/clock', self._on_clock, qos.CLOCK_READER)
 
     def add(self, period: float, callback: Callable[[], None]) -> None:
@@ -178,6 +187,8 @@ class ClockTimers:
         if now <= 0:
             return  # the world's clock has not started
         self.now_ns = now
+        if self._time_source is not None:
+            self._time_source.clock_callback(msg)
         for timer in self._timers:
             period, due, callback = timer
             if due is None or now < due - 10 * period:  # first tick, or sim time went back

@@ -101,3 +101,23 @@ def test_both_executors_can_be_made(kind: str):
         executor.shutdown()
     finally:
         rclpy.try_shutdown()
+
+
+def test_clock_timers_replace_the_time_sources_reader_and_set_the_ros_clock():
+    """One /clock reader per node (ClockTimers'), and get_clock() follows it."""
+    from rclpy.parameter import Parameter
+
+    rclpy.init()
+    try:
+        node = rclpy.create_node('clock_timers_test',
+                                 parameter_overrides=[Parameter('use_sim_time', value=True)])
+        clock_readers = [s for s in node.subscriptions if s.topic_name == '/clock']
+        assert len(clock_readers) == 1  # rclpy's TimeSource
+        timers = ClockTimers(node)
+        clock_readers = [s for s in node.subscriptions if s.topic_name == '/clock']
+        assert len(clock_readers) == 1 and clock_readers[0].callback == timers._on_clock
+        clock_readers[0].callback(_clock(1_234 * MS))
+        assert node.get_clock().now().nanoseconds == 1_234 * MS == timers.now_ns
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown()
