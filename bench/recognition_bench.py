@@ -31,7 +31,8 @@ EXPECTED = {'L0': 0, 'L1': 1, 'L2': 2, 'L3': 3, 'S.1': EDIM, 'W': None}
 
 def run_belt(speed: float, standoff: float = 0.300, height: float = 0.0, angle: float = 0.0,
              passes: int = 10, seed: int = 1, consecutive: int = 2, skew_mm: float = 0.0,
-             noise: float = 1.0, run_length: int = 4) -> dict[str, dict[str, float]]:
+             noise: float = 1.0, run_length: int = 4,
+             band: str = 'invalid') -> dict[str, dict[str, float]]:
     """Passes of the six patterns; per pattern: recognised fraction, matches, misreads."""
     lay = _rig_layout(speed, standoff, height, angle)
     rng = random.Random(seed)
@@ -44,7 +45,8 @@ def run_belt(speed: float, standoff: float = 0.300, height: float = 0.0, angle: 
         world = WorldCore(lay, params)
         world._rig_s = rng.uniform(0.0, 0.02)  # a different sampling phase every pass
         sensor = PositionSensorCore(SensorProcessing(min_consecutive_matches=consecutive,
-                                                     run_length=run_length))
+                                                     run_length=run_length,
+                                                     invalid_band=band))
         current: str | None = None
         seen: dict[str, set] = {n: set() for n in EXPECTED}
         while not world.done_rig():
@@ -96,11 +98,15 @@ def main() -> int:
     ap.add_argument('--passes', type=int, default=10)
     ap.add_argument('--misread-passes', type=int, default=200)
     ap.add_argument('--misread-only', default='', help='only the misread study, for these '
-                    'RUN_LENGTH:SPEED:MIN_CONSECUTIVE configurations, comma separated')
+                    'RUN_LENGTH:SPEED:MIN_CONSECUTIVE[:BAND] configurations, comma separated '
+                    '(BAND: invalid, the thesis, or hold)')
     args = ap.parse_args()
-    configs = [(4, 1.0, 1), (4, 1.0, 2), (2, 1.0, 1), (2, 1.0, 2), (2, 2.0, 2)]
+    configs = [(4, 1.0, 1, 'invalid'), (4, 1.0, 2, 'invalid'), (2, 1.0, 1, 'invalid'),
+               (2, 1.0, 2, 'invalid'), (2, 2.0, 2, 'invalid'), (4, 1.0, 2, 'hold'),
+               (2, 2.0, 2, 'hold')]
     if args.misread_only:
-        configs = [(int(n), float(v), int(c)) for n, v, c in
+        configs = [(int(n), float(v), int(c), rest[0] if rest else 'invalid')
+                   for n, v, c, *rest in
                    (item.split(':') for item in args.misread_only.split(','))]
         misreads(args.misread_passes, configs)
         return 0
@@ -135,27 +141,28 @@ def main() -> int:
     return 0
 
 
-def misreads(passes: int, configs: list[tuple[int, float, int]]) -> None:
+def misreads(passes: int, configs: list[tuple[int, float, int, str]]) -> None:
     """The misread study: passes of each pattern per configuration."""
     names = list(EXPECTED)
     print(f'\nMisreads in {passes} passes of each pattern (random standoff '
           '280-320 mm and height +-10 mm per pass, detector skew +-3 mm, noise 2 counts)\n')
-    print('| run_length | speed (m/s) | min_consecutive_matches | passes | misreads | missed |')
-    print('|---|---|---|---|---|---|')
-    for run_length, speed, consecutive in configs:
+    print('| run_length | speed (m/s) | min_consecutive_matches | invalid_band | passes | '
+          'misreads | missed |')
+    print('|---|---|---|---|---|---|---|')
+    for run_length, speed, consecutive, band in configs:
         rng = random.Random(7)
         wrong = missed = total = 0
         for k in range(passes // 10):
             st = run_belt(speed, standoff=rng.uniform(0.28, 0.32),
                           height=rng.uniform(-0.01, 0.01), passes=10, seed=100 + k,
                           consecutive=consecutive, skew_mm=3.0, noise=2.0,
-                          run_length=run_length)
+                          run_length=run_length, band=band)
             for n in names:
                 total += st[n]['passes']
                 wrong += st[n]['misreads']
                 missed += st[n]['passes'] - st[n]['recognised']
-        print(f'| {run_length} | {speed} | {consecutive} | {total} | {wrong} | {missed} |',
-              flush=True)
+        print(f'| {run_length} | {speed} | {consecutive} | {band} | {total} | {wrong} | '
+              f'{missed} |', flush=True)
 
 
 if __name__ == '__main__':

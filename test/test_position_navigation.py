@@ -89,6 +89,25 @@ def test_invalid_band_gives_no_code():
     assert core.invalid and core.recognitions == 0
 
 
+def test_hold_band_extends_a_streak_but_needs_one_decided_snapshot():
+    """invalid_band = hold: a detector in its band keeps its last decision; held codes alone
+    never make a recognition, one fully decided snapshot completes the streak."""
+    hold, thesis = (PositionSensorCore(SensorProcessing(run_length=1, invalid_band=band))
+                    for band in ('hold', 'invalid'))
+    blurred, dark = snapshot_for(0x1E)  # location 3, detector 1 (BLACK in it) in its band
+    blurred[0] = int((WHITE[0] + BLACK[0]) / 8) + 10
+    for core in (hold, thesis):
+        for k in range(3):
+            core.sample(*snapshot_for(0x00), k / 340)  # every detector decided BLACK
+        for k in range(3):
+            assert core.sample(blurred, dark, 0.1 + k / 340) is None
+    assert hold._streak == 3 and not hold.invalid and thesis.invalid
+    got = [core.sample(*snapshot_for(0x1E), 0.2) for core in (hold, thesis)]
+    assert got[0]['position_sensor_status']['identity'] == 3 and got[1] is None
+    assert hold.recognitions == 1 and thesis.recognitions == 0
+    assert SensorProcessing(invalid_band='sometimes').check()[0][0] == 'invalid_band'
+
+
 @pytest.mark.parametrize('view', range(1, 8))
 def test_stop_views_in_positioning_table(view):
     core = PositionSensorCore()

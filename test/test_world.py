@@ -215,6 +215,22 @@ def test_world_drives_past_markers_and_reports_ground_truth(drive_codec):
     assert len(stops) == 1 and stops[0]['speed'] > 600
 
 
+def test_a_slow_creep_after_a_rest_ends_in_a_rest_of_its_own():
+    """The last creep of a controlled stop back onto the centre peaks under 10 mm/s: its
+    rest is the stop (the benches once took the rest before it as the stop)."""
+    world = WorldCore(layout('straight_track'), WorldParams(seed=5))
+    for speed in (0.30, 0.10, 0.0, 0.0, 0.006, 0.003, 0.0, 0.0):
+        world.vehicle.state.speed = speed
+        world._detect_stop()
+    stops = [e for e in world.events if e['event'] == 'stopped']
+    assert len(stops) == 2 and stops[0]['speed'] == 300 and stops[1]['speed'] == 6
+    world.vehicle.state.speed = 0.0015  # drift below 2 mm/s is not moving
+    world._detect_stop()
+    world.vehicle.state.speed = 0.0
+    world._detect_stop()
+    assert len([e for e in world.events if e['event'] == 'stopped']) == 2
+
+
 def test_watchdog_stall_opens_the_contactor(drive_codec):
     world = WorldCore(layout('straight_track'), WorldParams(seed=5))
     drive = ScriptedDrive(duty=60)

@@ -14,6 +14,11 @@ Per snapshot (spec 2.2-2.7):
    snapshots (thesis 7.1.4; 1 = the printed listing). An invalid or different snapshot resets
    the count.
 
+`invalid_band = hold` (a modern option, default `invalid`): a detector inside its band keeps its
+last decision instead of invalidating the snapshot, so a blurred card (standoff off focus, fast
+passes) yields more matching snapshots; a recognition still needs one snapshot of the streak
+with every detector decided, which keeps the held codes from making misreads.
+
 `variant = as_listed` keeps the listing's defects (spec 2.4, 2.6, register items 1 and 14): the
 black test compares only the high bytes of TOTAL and THROFF, and the EDGE search covers LEN = 5
 entries, so stop views 6 and 7 never match. The default `intended` is the design as described.
@@ -39,6 +44,11 @@ class SensorProcessing:
     # thesis's x4 units and are scaled by run_length / 4; a shorter filter smears a marker over
     # fewer samples, so fast passes give more matching snapshots (bench/recognition_bench.py).
     run_length: int = 4
+    # A detector between its thresholds: 'invalid' (thesis 5.2.3, spec 2.4: no CODE this
+    # snapshot) or 'hold' (a Schmitt trigger: it keeps its last WHITE/BLACK decision until it
+    # crosses the other threshold). A held code only extends a streak of matches: one snapshot
+    # of the streak must have every detector decided (bench/recognition_bench.py).
+    invalid_band: str = 'invalid'
     heartbeat: float = 0.020  # s between heartbeat status records
     # While snapshots arrive the heartbeat is counted in snapshots (6 at 340 Hz = 17.6 ms, just
     # inside the 20 ms period so the timer stays quiet), so its sample_count keeps reaching the
@@ -62,6 +72,8 @@ class SensorProcessing:
                         'threshold'))
         if self.variant not in ('intended', 'as_listed'):
             bad.append(('variant', self.variant, 'not intended or as_listed'))
+        if self.invalid_band not in ('invalid', 'hold'):
+            bad.append(('invalid_band', self.invalid_band, 'not invalid or hold'))
         if not 1 <= self.run_length <= 8:
             bad.append(('run_length', self.run_length, 'outside 1..8'))
         if not 1 <= self.min_consecutive_matches <= 10:
@@ -94,6 +106,9 @@ class PositionSensorCore:
         self.samples = 0
         self._streak_key: int | None = None
         self._streak = 0
+        self._streak_decisive = False  # a snapshot of the streak had no detector in the band
+        self._reported = False  # this streak has been reported
+        self._held: list[int | None] = [None] * 8  # each detector's last WHITE/BLACK decision
         self._last_adc: float | None = None
         self._last_status: float | None = None  # sim time of the last status record
         self._since_status = 0  # snapshots since the last status record
@@ -113,6 +128,7 @@ class PositionSensorCore:
         self._total = [0] * 8
         self._row = 0
         self._streak_key, self._streak = None, 0
+        self._held = [None] * 8
 
     # -- inputs -----------------------------------------------------------------------------
     def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
@@ -139,8 +155,9 @@ class PositionSensorCore:
         self.samples = (self.samples + 1) & 0xFFFF
         self.saturated = max(dark) >= p.saturation
         row = self._oldest[self._row]
-        code, valid = 0, True
+        code, valid, decisive = 0, True, True
         as_listed = p.variant == 'as_listed'
+        hold, held = p.invalid_band == 'hold', self._held
         for d in range(8):
             x = lit[d] - dark[d]
             if x < 0:
@@ -150,8 +167,13 @@ class PositionSensorCore:
             total = self._total[d]
             if total > self._white[d]:
                 code = code << 1 | 1
+                held[d] = 1
             elif (total >> 8 <= self._black[d] >> 8) if as_listed else (total <= self._black[d]):
                 code <<= 1
+                held[d] = 0
+            elif hold and held[d] is not None:
+                code = code << 1 | held[d]  # in the band: the detector's last decision
+                decisive = False
             else:
                 valid = False
         self._row = (self._row + 1) % p.run_length
@@ -167,9 +189,15 @@ class PositionSensorCore:
         if match == self._streak_key:
             self._streak += 1
         else:
-            self._streak_key, self._streak = match, 1
-        if self._streak != p.min_consecutive_matches:
+            self._streak_key, self._streak, self._streak_decisive = match, 1, False
+            self._reported = False
+        # A held code only extends a streak: one snapshot of it must be decisive throughout
+        # (with 'invalid', every counted snapshot is)
+        self._streak_decisive = self._streak_decisive or decisive
+        if self._reported or self._streak < p.min_consecutive_matches \
+                or not self._streak_decisive:
             return None  # not yet, or already reported for this streak
+        self._reported = True
         self.recognitions = (self.recognitions + 1) & 0xFF
         if self.table == 'navigating':
             self.identity, self.stop_view = match, 0

@@ -37,6 +37,10 @@ class PositionSensorNode(CoreNode):
             run_length=p.integer('run_length', d.run_length, 'running-sum filter length in '
                                  'snapshots (thesis 5.2.2.2: 4; 2 reads markers to 2 m/s, '
                                  'bench/recognition_bench.py); thresholds scale by n/4', 1, 8),
+            invalid_band=p.choice('invalid_band', d.invalid_band, 'a detector between its '
+                                  'thresholds: invalid (thesis 5.2.3: no CODE that snapshot) or '
+                                  'hold (keeps its last decision; a recognition still needs one '
+                                  'snapshot with every detector decided)', ('invalid', 'hold')),
             variant=p.choice('variant', d.variant, "intended design, or the printed listing's "
                              'defects (black-test compare, EDGE search length 5)',
                              ('intended', 'as_listed')),
