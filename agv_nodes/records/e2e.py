@@ -37,7 +37,10 @@ def crc8_sae_j1850(data: bytes | bytearray, init: int = INIT) -> int:
 
 def record_crc(data_id: int, first15: bytes | bytearray) -> int:
     """The byte-16 CRC of a protected record: over data_id then bytes 1-15."""
-    return crc8_sae_j1850(bytes((data_id,)) + bytes(first15))
+    crc = _TABLE[INIT ^ data_id]  # = crc8_sae_j1850(bytes((data_id,)) + first15)
+    for byte in first15:
+        crc = _TABLE[crc ^ byte]
+    return crc ^ XOROUT
 
 
 class Sequence(enum.Enum):
