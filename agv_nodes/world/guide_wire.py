@@ -67,20 +67,21 @@ class GuideWirePickup:
             return out
         a, u, length, current = self._a[near], self._u[near], self._length[near], \
             self._current[near]
-        for k, (x, y) in enumerate(xy):
-            rel = np.array([x, y]) - a  # (n, 2), the segment in the floor plane z = 0
-            along = rel[:, 0] * u[:, 0] + rel[:, 1] * u[:, 1]
-            perp_xy = rel - along[:, None] * u
-            rho = np.sqrt(perp_xy[:, 0] ** 2 + perp_xy[:, 1] ** 2 + h * h)
-            ra = np.sqrt(along ** 2 + rho ** 2)
-            rb = np.sqrt((along - length) ** 2 + rho ** 2)
-            # |B| = I/(4 pi rho) (cos a1 - cos a2), direction u x rho_hat (rho_hat has z = h/rho).
-            mag = current * (along / ra - (along - length) / rb) / (4 * math.pi * rho)
-            # u = (ux, uy, 0), rho_vec = (px, py, h): u x rho = (uy h, -ux h, ux py - uy px)
-            bx = mag * u[:, 1] * h / rho
-            by = -mag * u[:, 0] * h / rho
-            bz = mag * (u[:, 0] * perp_xy[:, 1] - u[:, 1] * perp_xy[:, 0]) / rho
-            out[k] = (bx.sum(), by.sum(), bz.sum())
+        ux, uy = u[:, 0], u[:, 1]
+        # every point against every near segment at once: (k points, n segments)
+        rx = xy[:, 0:1] - a[:, 0]  # the segment in the floor plane z = 0
+        ry = xy[:, 1:2] - a[:, 1]
+        along = rx * ux + ry * uy
+        px, py = rx - along * ux, ry - along * uy
+        rho2 = px * px + py * py + h * h
+        beyond = along - length
+        # |B| = I/(4 pi rho) (cos a1 - cos a2), direction u x rho_hat (rho_hat has z = h/rho);
+        # u = (ux, uy, 0), rho_vec = (px, py, h): u x rho = (uy h, -ux h, ux py - uy px)
+        mag = current * (along / np.sqrt(along * along + rho2)
+                         - beyond / np.sqrt(beyond * beyond + rho2)) / (4 * math.pi * rho2)
+        out[:, 0] = (mag * uy).sum(axis=1) * h
+        out[:, 1] = -(mag * ux).sum(axis=1) * h
+        out[:, 2] = (mag * (ux * py - uy * px)).sum(axis=1)
         return out
 
     def coils(self, x: float, y: float, heading: float) -> tuple[int, int]:
