@@ -26,8 +26,11 @@ from agv_nodes.world.vehicles import ElectrukParams
 SPEEDS = {0.7: 55, 1.0: 80}  # m/s -> cruise demand (% duty)
 
 
-def one_stop(seed: int, demand: int, payload: float, mode: str) -> dict:
-    """One run; returns the stop error (mm) and the speed at the location marker."""
+def one_stop(seed: int, demand: int, payload: float, mode: str,
+             trace: list[str] | None = None) -> dict:
+    """One run; returns the stop error (mm) and the speed at the location marker. With
+    `trace`, every change of navigation's view or link while positioning is appended to it
+    with the ground truth (sensor axis past the centre, mm) and the truck's speed."""
     from agv_nodes.executive.core import ExecutiveParams
 
     wp = WorldParams(seed=seed, electruk=ElectrukParams(payload=payload))
@@ -40,9 +43,20 @@ def one_stop(seed: int, demand: int, payload: float, mode: str) -> dict:
     # Vary where the truck starts so the sampling phase at the markers varies run to run.
     h.world.vehicle.state.x -= (seed % 17) * 0.013
     submit(h, 'stop at 1 first')
-    ex = h.cores['executive']
+    ex, nav = h.cores['executive'], h.cores['navigation']
+    last = None
     while h.now < 120 and (ex.mode == 'running' or h.cores['communications'].queue):
         h.step()
+        if trace is None or nav.mode != 'positioning':
+            continue
+        link = nav.link
+        key = (nav.stop_view, link['reverse'], link['speed'], link['stop_in'])
+        if key != last:
+            last = key
+            _marker, along = h.world._nearest_stop_marker()
+            trace.append(f'{h.now:7.3f} s  view {nav.stop_view}  link reverse {link["reverse"]} '
+                         f'speed {link["speed"]:2d} stop_in {link["stop_in"]:3d}  truth '
+                         f'{along * 1000:+6.1f} mm  v {h.world.vehicle.state.speed:+.3f} m/s')
     stops = [e for e in h.events if e['event'] == 'stopped' and e['marker'] == 'S1.1']
     at_marker = [e for e in h.events if e['event'] == 'marker_passed' and e['marker'] == 'L1']
     return {'seed': seed, 'mode': mode, 'payload': payload, 'demand': demand,
@@ -57,7 +71,17 @@ def main() -> int:
     ap.add_argument('--runs', type=int, default=30)
     ap.add_argument('--csv', type=Path, default=Path('bench/results/stops.csv'))
     ap.add_argument('--modes', default='friction_1983,controlled')
+    ap.add_argument('--trace', default='', help='SEEDS:SPEED:PAYLOAD (e.g. 1,3:1.0:1000): '
+                    'print the positioning of these runs (controlled) instead of the tables')
     args = ap.parse_args()
+    if args.trace:
+        seeds, speed, payload = args.trace.split(':')
+        for seed in (int(x) for x in seeds.split(',')):
+            lines: list[str] = []
+            run = one_stop(seed, SPEEDS[float(speed)], float(payload), 'controlled', lines)
+            print(f'seed {seed}: stop error {run["error_mm"]} mm')
+            print('\n'.join(f'  {line}' for line in lines))
+        return 0
     rows = []
     print('| mode | speed (m/s) | payload (kg) | runs ok | mean error (mm) | sd (mm) | '
           '3 sd (mm) | min..max (mm) |')

@@ -1,0 +1,100 @@
+"""What one subscription costs a node process: the floor under issue 8's CPU per node.
+
+A publisher process sends /clock at RATE Hz; a subscriber process takes it with an empty
+callback, in each variant below, and its CPU (all threads: Python and Fast DDS) is read from
+/proc over SECONDS. Every graph node takes a /clock like this (113 Hz at clock_every 3) plus its
+records; position_sensor takes 340 ADC snapshots a second on top.
+
+Run: .venv/bin/python bench/rclpy_bench.py [--rate 113] [--seconds 20]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+import subprocess
+import sys
+import time
+
+from agv_nodes.launcher import claim_domain
+
+VARIANTS = {
+    'events': 'EventsExecutor, one reliable /clock reader (a node under ClockTimers)',
+    'events_raw': 'EventsExecutor, the same reader with raw=True (no message conversion)',
+    'events_two': "EventsExecutor, two readers (ClockTimers plus rclpy's TimeSource, as before)",
+    'single': 'SingleThreadedExecutor, one reader',
+}
+
+PUBLISHER = """
+import sys, time
+import rclpy
+from rosgraph_msgs.msg import Clock
+from agv_nodes import qos
+rclpy.init()
+node = rclpy.create_node('rclpy_bench_clock')
+pub = node.create_publisher(Clock, '/clock', qos.STREAM_WRITER)
+rate, t0, k = float(sys.argv[1]), time.monotonic(), 0
+while rclpy.ok():
+    k += 1
+    msg = Clock()
+    msg.clock.sec, msg.clock.nanosec = divmod(int(k / rate * 1e9), 1_000_000_000)
+    pub.publish(msg)
+    time.sleep(max(0.0, t0 + k / rate - time.monotonic()))
+"""
+
+SUBSCRIBER = """
+import sys
+import rclpy
+from rosgraph_msgs.msg import Clock
+from agv_nodes import qos
+from agv_nodes.core_node import make_executor
+variant = sys.argv[1]
+rclpy.init()
+node = rclpy.create_node('rclpy_bench_reader')
+readers = 2 if variant == 'events_two' else 1
+for _ in range(readers):
+    node.create_subscription(Clock, '/clock', lambda msg: None, qos.CLOCK_READER,
+                             raw=variant == 'events_raw')
+executor = make_executor('single' if variant == 'single' else 'events')
+executor.add_node(node)
+while rclpy.ok():
+    executor.spin_once(timeout_sec=0.1)
+"""
+
+
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU of a process, s."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--rate', type=float, default=113.3)
+    ap.add_argument('--seconds', type=float, default=20.0)
+    args = ap.parse_args()
+    domain, _lock = claim_domain()
+    env = {**os.environ, 'ROS_DOMAIN_ID': str(domain),
+           'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
+    print(f'/clock at {args.rate:g} Hz, {args.seconds:g} s per variant, ROS_DOMAIN_ID={domain}\n')
+    print('| subscriber | CPU (% of one core) | per message (us) |\n|---|---|---|')
+    for variant, label in VARIANTS.items():
+        quiet = {'env': env, 'stderr': subprocess.DEVNULL}  # (SIGTERM tracebacks)
+        pub = subprocess.Popen([sys.executable, '-c', PUBLISHER, str(args.rate)], **quiet)
+        sub = subprocess.Popen([sys.executable, '-c', SUBSCRIBER, variant], **quiet)
+        try:
+            time.sleep(4.0)  # discovery and start-up
+            c0, t0 = cpu_seconds(sub.pid), time.monotonic()
+            time.sleep(args.seconds)
+            used = (cpu_seconds(sub.pid) - c0) / (time.monotonic() - t0)
+        finally:
+            for proc in (sub, pub):
+                proc.terminate()
+                proc.wait(10)
+        print(f'| {label} | {100 * used:.1f} | {1e6 * used / args.rate:.0f} |', flush=True)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
