@@ -70,6 +70,45 @@ def run_belt(speed: float, standoff: float = 0.300, height: float = 0.0, angle: 
     return stats
 
 
+def show_misses(groups: int, speed: float, run_length: int, band: str) -> None:
+    """Each missed pass of the misread study's geometry, one snapshot per character while the
+    card is in front of the lens: '.' invalid, '-' a code of no template, else the template
+    matched (E = the stop-marker centre), with a '*' after a snapshot some detector held."""
+    rng = random.Random(7)
+    for k in range(groups):
+        standoff, height = rng.uniform(0.28, 0.32), rng.uniform(-0.01, 0.01)
+        lay = _rig_layout(speed, standoff, height, 0.0)
+        seed = 100 + k
+        prng = random.Random(seed)
+        skew = tuple(prng.uniform(-3.0, 3.0) / 1000 for _ in range(8))
+        for j in range(10):
+            world = WorldCore(lay, WorldParams(seed=seed * 1000 + j, sample_rate=340.0,
+                                               sensor=SensorParams(noise=2.0, skew=skew)))
+            world._rig_s = prng.uniform(0.0, 0.02)
+            sensor = PositionSensorCore(SensorProcessing(run_length=run_length,
+                                                         invalid_band=band))
+            marks: dict[str, list[str]] = {n: [] for n in EXPECTED}
+            seen: dict[str, set] = {n: set() for n in EXPECTED}
+            while not world.done_rig():
+                adc = world.step()['records']['adc_snapshot']
+                got = sensor.sample([adc[f'lit_{d}'] for d in range(1, 9)],
+                                    [adc[f'dark_{d}'] for d in range(1, 9)], world.time)
+                near = _nearest(world, lay)
+                if near is None:
+                    continue
+                match = None if sensor.invalid else sensor._templates.get(sensor.code)
+                mark = '.' if sensor.invalid else '-' if match is None else \
+                    'E' if match == EDIM else str(match)
+                held = not sensor.invalid and match is not None and not sensor._streak_decisive
+                marks[near].append(mark + ('*' if held else ''))
+                if got:
+                    seen[near].add(got['position_sensor_status']['identity'])
+            for name, want in EXPECTED.items():
+                if want is not None and want not in seen[name]:
+                    print(f'standoff {standoff * 1000:.0f} mm, height {height * 1000:+.1f} mm, '
+                          f'{name} missed: {"".join(marks[name])}')
+
+
 def _rig_layout(speed: float, standoff: float, height: float, angle: float):
     """sensor_rig with every card at the given standoff, height and angle."""
     lay = load_layout(layout_path('sensor_rig'))
@@ -100,7 +139,14 @@ def main() -> int:
     ap.add_argument('--misread-only', default='', help='only the misread study, for these '
                     'RUN_LENGTH:SPEED:MIN_CONSECUTIVE[:BAND] configurations, comma separated '
                     '(BAND: invalid, the thesis, or hold)')
+    ap.add_argument('--show-misses', default='', help='GROUPS:SPEED:RUN_LENGTH[:BAND]: '
+                    'print the snapshots of every missed pass of GROUPS x 10 passes per '
+                    'pattern of the misread study')
     args = ap.parse_args()
+    if args.show_misses:
+        groups, speed, run_length, *band = args.show_misses.split(':')
+        show_misses(int(groups), float(speed), int(run_length), band[0] if band else 'invalid')
+        return 0
     configs = [(4, 1.0, 1, 'invalid'), (4, 1.0, 2, 'invalid'), (2, 1.0, 1, 'invalid'),
                (2, 1.0, 2, 'invalid'), (2, 2.0, 2, 'invalid'), (4, 1.0, 2, 'hold'),
                (2, 2.0, 2, 'hold')]
