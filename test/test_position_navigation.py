@@ -154,7 +154,10 @@ def test_table_change_clears_the_filter():
 
 def test_heartbeat_reports_stale_and_saturated_adc():
     core = PositionSensorCore()
-    assert core.tick(0.0)['position_sensor_status']['adc_stale'] == 1  # nothing yet
+    # nothing yet: not stale until adc_timeout (50 ms) from the first heartbeat, then stale
+    assert core.tick(0.0)['position_sensor_status']['adc_stale'] == 0
+    assert core.tick(0.04)['position_sensor_status']['adc_stale'] == 0
+    assert core.tick(0.07)['position_sensor_status']['adc_stale'] == 1
     core.on_record('adc_snapshot', {**{f'lit_{d}': 255 for d in range(1, 9)},
                                     **{f'dark_{d}': 255 for d in range(1, 9)}}, 1.0)
     beat = core.tick(1.01)['position_sensor_status']

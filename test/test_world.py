@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import random
 
@@ -55,7 +56,7 @@ def drive_codec():
     schemas = []
     for s in c:
         if s.name in ('traction_drive', 'steering_command'):
-            s = type(s)(**{**s.__dict__, 'writer': 'test_drive'})
+            s = dataclasses.replace(s, writer='test_drive')
         schemas.append(s)
     return Codec(schemas)
 

@@ -110,6 +110,7 @@ class PositionSensorCore:
         self._reported = False  # this streak has been reported
         self._held: list[int | None] = [None] * 8  # each detector's last WHITE/BLACK decision
         self._last_adc: float | None = None
+        self._first_now: float | None = None  # the first time a status was made
         self._last_status: float | None = None  # sim time of the last status record
         self._since_status = 0  # snapshots since the last status record
         self._templates = self._table()
@@ -209,7 +210,13 @@ class PositionSensorCore:
     def status(self, recognised: bool = False, now: float = 0.0) -> dict[str, Any]:
         """The position_sensor_status record (restarts the heartbeat count)."""
         self._last_status, self._since_status = now, 0
-        stale = self._last_adc is None or now - self._last_adc > self.p.adc_timeout
+        if self._first_now is None:
+            self._first_now = now
+        # Stale: no snapshot for adc_timeout - counted from the first time this node kept
+        # time when none has come yet (a heartbeat due before the first snapshot of a run
+        # had called a healthy sensor stale, and navigation LOST, at every start-up).
+        last = self._last_adc if self._last_adc is not None else self._first_now
+        stale = now - last > self.p.adc_timeout
         return {
             'recognised': int(recognised),
             'invalid': int(self.invalid),
