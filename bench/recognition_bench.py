@@ -31,9 +31,13 @@ EXPECTED = {'L0': 0, 'L1': 1, 'L2': 2, 'L3': 3, 'S.1': EDIM, 'W': None}
 
 def run_belt(speed: float, standoff: float = 0.300, height: float = 0.0, angle: float = 0.0,
              passes: int = 10, seed: int = 1, consecutive: int = 2, skew_mm: float = 0.0,
-             noise: float = 1.0, run_length: int = 4,
-             band: str = 'invalid') -> dict[str, dict[str, float]]:
-    """Passes of the six patterns; per pattern: recognised fraction, matches, misreads."""
+             noise: float = 1.0, run_length: int = 4, band: str = 'invalid',
+             misses: list[str] | None = None) -> dict[str, dict[str, float]]:
+    """Passes of the six patterns; per pattern: recognised fraction, matches, misreads.
+
+    With `misses`, each missed pass is appended to it with one character per snapshot while
+    the card is in front of the lens: '.' invalid, '-' a code of no template, else the template
+    matched (E = the stop-marker centre), '*' after a match some detector held."""
     lay = _rig_layout(speed, standoff, height, angle)
     rng = random.Random(seed)
     skew = tuple(rng.uniform(-skew_mm, skew_mm) / 1000 for _ in range(8))
@@ -47,66 +51,67 @@ def run_belt(speed: float, standoff: float = 0.300, height: float = 0.0, angle: 
         sensor = PositionSensorCore(SensorProcessing(min_consecutive_matches=consecutive,
                                                      run_length=run_length,
                                                      invalid_band=band))
-        current: str | None = None
         seen: dict[str, set] = {n: set() for n in EXPECTED}
+        marks: dict[str, list[str]] = {n: [] for n in EXPECTED}
         while not world.done_rig():
-            out = world.step()
-            for e in out['events']:
-                current = e['marker'] if e['event'] == 'marker_passed' else current
-            lit = [out['records']['adc_snapshot'][f'lit_{d}'] for d in range(1, 9)]
-            dark = [out['records']['adc_snapshot'][f'dark_{d}'] for d in range(1, 9)]
+            adc = world.step()['records']['adc_snapshot']
             before = sensor._streak
-            got = sensor.sample(lit, dark, world.time)
+            got = sensor.sample([adc[f'lit_{d}'] for d in range(1, 9)],
+                                [adc[f'dark_{d}'] for d in range(1, 9)], world.time)
             near = _nearest(world, lay)
-            if sensor._streak > before and near is not None:
+            if near is None:
+                continue
+            if sensor._streak > before:
                 stats[near]['matches'] += 1
-            if got and near is not None:
+            if got:
                 seen[near].add(got['position_sensor_status']['identity'])
+            if misses is not None:
+                marks[near].append(_mark(sensor))
         for name, ids in seen.items():
             stats[name]['passes'] += 1
             want = EXPECTED[name]
-            stats[name]['recognised'] += int(want is None or want in ids)
+            found = want is None or want in ids
+            stats[name]['recognised'] += int(found)
             stats[name]['misreads'] += len(ids - {want})
+            if misses is not None and not found:
+                misses.append(f'standoff {standoff * 1000:.0f} mm, height '
+                              f'{height * 1000:+.1f} mm, {name} missed: {"".join(marks[name])}')
     return stats
 
 
-def show_misses(groups: int, speed: float, run_length: int, band: str) -> None:
-    """Each missed pass of the misread study's geometry, one snapshot per character while the
-    card is in front of the lens: '.' invalid, '-' a code of no template, else the template
-    matched (E = the stop-marker centre), with a '*' after a snapshot some detector held."""
+def _mark(sensor: PositionSensorCore) -> str:
+    """One snapshot for run_belt's `misses`."""
+    if sensor.invalid:
+        return '.'
+    match = sensor._templates.get(sensor.code)
+    if match is None:
+        return '-'
+    return ('E' if match == EDIM else str(match)) + ('' if sensor._streak_decisive else '*')
+
+
+def study_geometry(groups: int):
+    """The misread study's random geometry: (group, standoff, height) per 10 passes."""
     rng = random.Random(7)
     for k in range(groups):
-        standoff, height = rng.uniform(0.28, 0.32), rng.uniform(-0.01, 0.01)
-        lay = _rig_layout(speed, standoff, height, 0.0)
-        seed = 100 + k
-        prng = random.Random(seed)
-        skew = tuple(prng.uniform(-3.0, 3.0) / 1000 for _ in range(8))
-        for j in range(10):
-            world = WorldCore(lay, WorldParams(seed=seed * 1000 + j, sample_rate=340.0,
-                                               sensor=SensorParams(noise=2.0, skew=skew)))
-            world._rig_s = prng.uniform(0.0, 0.02)
-            sensor = PositionSensorCore(SensorProcessing(run_length=run_length,
-                                                         invalid_band=band))
-            marks: dict[str, list[str]] = {n: [] for n in EXPECTED}
-            seen: dict[str, set] = {n: set() for n in EXPECTED}
-            while not world.done_rig():
-                adc = world.step()['records']['adc_snapshot']
-                got = sensor.sample([adc[f'lit_{d}'] for d in range(1, 9)],
-                                    [adc[f'dark_{d}'] for d in range(1, 9)], world.time)
-                near = _nearest(world, lay)
-                if near is None:
-                    continue
-                match = None if sensor.invalid else sensor._templates.get(sensor.code)
-                mark = '.' if sensor.invalid else '-' if match is None else \
-                    'E' if match == EDIM else str(match)
-                held = not sensor.invalid and match is not None and not sensor._streak_decisive
-                marks[near].append(mark + ('*' if held else ''))
-                if got:
-                    seen[near].add(got['position_sensor_status']['identity'])
-            for name, want in EXPECTED.items():
-                if want is not None and want not in seen[name]:
-                    print(f'standoff {standoff * 1000:.0f} mm, height {height * 1000:+.1f} mm, '
-                          f'{name} missed: {"".join(marks[name])}')
+        yield k, rng.uniform(0.28, 0.32), rng.uniform(-0.01, 0.01)
+
+
+def study_group(k: int, standoff: float, height: float, speed: float, run_length: int,
+                consecutive: int = 2, band: str = 'invalid',
+                misses: list[str] | None = None) -> dict[str, dict[str, float]]:
+    """Ten passes of each pattern of the misread study (skew +-3 mm, noise 2 counts)."""
+    return run_belt(speed, standoff=standoff, height=height, passes=10, seed=100 + k,
+                    consecutive=consecutive, skew_mm=3.0, noise=2.0, run_length=run_length,
+                    band=band, misses=misses)
+
+
+def show_misses(groups: int, speed: float, run_length: int, band: str) -> None:
+    """Each missed pass of `groups` x 10 passes of the misread study (run_belt's `misses`)."""
+    for k, standoff, height in study_geometry(groups):
+        lines: list[str] = []
+        study_group(k, standoff, height, speed, run_length, band=band, misses=lines)
+        for line in lines:
+            print(line, flush=True)
 
 
 def _rig_layout(speed: float, standoff: float, height: float, angle: float):
@@ -196,13 +201,9 @@ def misreads(passes: int, configs: list[tuple[int, float, int, str]]) -> None:
           'misreads | missed |')
     print('|---|---|---|---|---|---|---|')
     for run_length, speed, consecutive, band in configs:
-        rng = random.Random(7)
         wrong = missed = total = 0
-        for k in range(passes // 10):
-            st = run_belt(speed, standoff=rng.uniform(0.28, 0.32),
-                          height=rng.uniform(-0.01, 0.01), passes=10, seed=100 + k,
-                          consecutive=consecutive, skew_mm=3.0, noise=2.0,
-                          run_length=run_length, band=band)
+        for k, standoff, height in study_geometry(passes // 10):
+            st = study_group(k, standoff, height, speed, run_length, consecutive, band)
             for n in names:
                 total += st[n]['passes']
                 wrong += st[n]['misreads']

@@ -113,13 +113,13 @@ class WorldNode(Node):
                                  'before the world moves')
         self.wait_pubs = p.texts('wait_for_publishers', [], 'topics that need a writer '
                                  'before the world moves')
-        self.wait_links = p.texts('wait_for_links', [], 'NODE:RECORD links whose reader must '
-                                  'have matched its writer before the world moves (graph/links;'
-                                  ' agv-launch names every link of the graph)')
-        for entry in self.wait_links:
-            node, _, record = entry.partition(':')
+        links = p.texts('wait_for_links', [], 'NODE:RECORD links whose reader must have '
+                        'matched its writer before the world moves (graph/links; agv-launch '
+                        'names every link of the graph)')
+        self.wait_links = [tuple(entry.partition(':')[::2]) for entry in links]
+        for entry, (node, record) in zip(links, self.wait_links, strict=True):
             if not node or record not in codec():
-                p.fail('wait_for_links', self.wait_links, f'{entry!r} is not NODE:RECORD')
+                p.fail('wait_for_links', links, f'{entry!r} is not NODE:RECORD')
         self.peer_timeout = p.number('peer_timeout', 60.0, 'seconds to wait for peers', 0.0,
                                      3600.0)
         self.duration = p.number('duration', 0.0, 'stop after this many simulated seconds '
@@ -351,15 +351,14 @@ class WorldNode(Node):
     def links_missing(self) -> list[str]:
         """`wait_for_links` entries not matched yet (the world's own, by its readers)."""
         missing = []
-        for entry in self.wait_links:
-            node, _, record = entry.partition(':')
+        for node, record in self.wait_links:
             if node == self.get_name():
                 count = self._own_links.get(record)
                 matched = count is not None and count() > 0
             else:
                 matched = record in self._links.get(node, ())
             if not matched:
-                missing.append(entry)
+                missing.append(f'{node}:{record}')
         return missing
 
     def run(self, executor: Any) -> int:
