@@ -9,8 +9,12 @@ study compares min_consecutive_matches 1 and 2 with detector skew (+-1 sample, t
 extra noise. Goals: 100 % recognition to 2 m/s; 0 misreads in 10,000 passes within
 300 +- 20 mm and +-10 mm height.
 
+The position sensor's `decoder` is compared too: `snapshot` (the thesis rule, one snapshot with
+every detector decided) and `sequence` (the default: each column reads the card in time).
+
 Run: .venv/bin/python bench/recognition_bench.py [--passes 20] [--misread-passes 2000]
-     [--misread-only 4:1.0:2,2:1.0:2]  (the misread study alone; 1,670 x 6 patterns = 10,020)
+     [--misread-only 4:1.0:2,2:1.0:2:invalid:sequence]  (the misread study alone;
+     1,670 x 6 patterns = 10,020)
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ from agv_nodes.markers import EDIM
 from agv_nodes.position_sensor.core import PositionSensorCore, SensorProcessing
 from agv_nodes.world.core import WorldCore, WorldParams
 from agv_nodes.world.layout import layout_path, load_layout
-from agv_nodes.world.marker_sensor import SensorParams
+from agv_nodes.world.marker_sensor import MarkerSensorModel, SensorParams
 
 EXPECTED = {'L0': 0, 'L1': 1, 'L2': 2, 'L3': 3, 'S.1': EDIM, 'W': None}
 
@@ -32,7 +36,8 @@ EXPECTED = {'L0': 0, 'L1': 1, 'L2': 2, 'L3': 3, 'S.1': EDIM, 'W': None}
 def run_belt(speed: float, standoff: float = 0.300, height: float = 0.0, angle: float = 0.0,
              passes: int = 10, seed: int = 1, consecutive: int = 2, skew_mm: float = 0.0,
              noise: float = 1.0, run_length: int = 4, band: str = 'invalid',
-             misses: list[str] | None = None) -> dict[str, dict[str, float]]:
+             misses: list[str] | None = None,
+             decoder: str = 'snapshot') -> dict[str, dict[str, float]]:
     """Passes of the six patterns; per pattern: recognised fraction, matches, misreads.
 
     With `misses`, each missed pass is appended to it with one character per snapshot while
@@ -50,7 +55,7 @@ def run_belt(speed: float, standoff: float = 0.300, height: float = 0.0, angle: 
         world._rig_s = rng.uniform(0.0, 0.02)  # a different sampling phase every pass
         sensor = PositionSensorCore(SensorProcessing(min_consecutive_matches=consecutive,
                                                      run_length=run_length,
-                                                     invalid_band=band))
+                                                     invalid_band=band, decoder=decoder))
         seen: dict[str, set] = {n: set() for n in EXPECTED}
         marks: dict[str, list[str]] = {n: [] for n in EXPECTED}
         while not world.done_rig():
@@ -97,21 +102,102 @@ def study_geometry(groups: int):
 
 
 def study_group(k: int, standoff: float, height: float, speed: float, run_length: int,
-                consecutive: int = 2, band: str = 'invalid',
-                misses: list[str] | None = None) -> dict[str, dict[str, float]]:
+                consecutive: int = 2, band: str = 'invalid', misses: list[str] | None = None,
+                decoder: str = 'snapshot') -> dict[str, dict[str, float]]:
     """Ten passes of each pattern of the misread study (skew +-3 mm, noise 2 counts)."""
     return run_belt(speed, standoff=standoff, height=height, passes=10, seed=100 + k,
                     consecutive=consecutive, skew_mm=3.0, noise=2.0, run_length=run_length,
-                    band=band, misses=misses)
+                    band=band, misses=misses, decoder=decoder)
 
 
-def show_misses(groups: int, speed: float, run_length: int, band: str) -> None:
+def show_misses(groups: int, speed: float, run_length: int, band: str,
+                decoder: str = 'snapshot') -> None:
     """Each missed pass of `groups` x 10 passes of the misread study (run_belt's `misses`)."""
     for k, standoff, height in study_geometry(groups):
         lines: list[str] = []
-        study_group(k, standoff, height, speed, run_length, band=band, misses=lines)
+        study_group(k, standoff, height, speed, run_length, band=band, misses=lines,
+                    decoder=decoder)
         for line in lines:
             print(line, flush=True)
+
+
+MOTIONS = {
+    'stop': 'brakes (0.3-2 m/s^2) to rest within 0.1 m of the card centre, waits 0-1 s, goes on',
+    'reverse': 'passes, stops up to 0.15 m beyond, backs over it at 0.05-0.3 m/s, goes on',
+    'jerky': 'a new speed in 0-1.5 m/s at random, every 50 snapshots on average',
+}
+
+
+def lens_track(kind: str, rng: random.Random, centre: float, dt: float = 1 / 340):
+    """Lens positions along the belt, one per snapshot, for a truck moving as MOTIONS[kind]
+    says past a card at `centre` from 0.4 m before it to 0.4 m after (cruise 0.3-1.2 m/s)."""
+    v0, acc, s = rng.uniform(0.3, 1.2), rng.uniform(0.3, 2.0), centre - 0.4
+    if kind == 'stop':
+        stop_at, v = centre + rng.uniform(-0.1, 0.1), v0
+        while s < stop_at - v0 * v0 / (2 * acc):
+            s += v * dt
+            yield s
+        while v > 0:
+            v = max(0.0, v - acc * dt)
+            s += v * dt
+            yield s
+        for _ in range(int(rng.uniform(0.0, 1.0) / dt)):
+            yield s
+        while s < centre + 0.4:
+            v = min(v0, v + acc * dt)
+            s += v * dt
+            yield s
+    elif kind == 'reverse':
+        beyond, back = centre + rng.uniform(0.0, 0.15), rng.uniform(0.05, 0.3)
+        target = centre - rng.uniform(0.0, 0.15)
+        while s < beyond:
+            s += v0 * dt
+            yield s
+        while s > target:
+            s -= back * dt
+            yield s
+        while s < centre + 0.4:
+            s += v0 * dt
+            yield s
+    else:
+        v = v0
+        while s < centre + 0.4:
+            if rng.random() < 0.02:
+                v = rng.uniform(0.0, 1.5)
+            s += v * dt
+            yield s
+
+
+def motion_study(trials: int, decoders: tuple[str, ...] = ('snapshot', 'sequence')) -> None:
+    """Cards met while the truck stops, reverses or changes speed over them: each trial draws
+    a standoff (280-320 mm), height (+-10 mm), detector skew (+-3 mm) and one track per card;
+    every decoder sees the same snapshots."""
+    print(f'\nCards met at changing speed ({trials} trials x 6 patterns per motion; noise 2 '
+          'counts)\n')
+    print('| motion | decoder | cards | recognised | misreads |\n|---|---|---|---|---|')
+    for kind in MOTIONS:
+        rng = random.Random(11)
+        right = {d: 0 for d in decoders}
+        wrong = {d: 0 for d in decoders}
+        for t in range(trials):
+            lay = _rig_layout(1.0, rng.uniform(0.28, 0.32), rng.uniform(-0.01, 0.01), 0.0)
+            skew = tuple(rng.uniform(-0.003, 0.003) for _ in range(8))
+            model = MarkerSensorModel(SensorParams(noise=2.0, skew=skew), random.Random(t))
+            for m in lay.markers:
+                cores = {d: PositionSensorCore(SensorProcessing(decoder=d)) for d in decoders}
+                seen: dict[str, set] = {d: set() for d in decoders}
+                for k, s in enumerate(lens_track(kind, rng, m.at)):
+                    lit, dark = model.snapshot((s, 0.0), 0.0, [m], 0.0)
+                    for d, core in cores.items():
+                        out = core.sample(lit, dark, k / 340)
+                        if out:
+                            seen[d].add(out['position_sensor_status']['identity'])
+                want = EXPECTED[m.name]
+                for d in decoders:
+                    right[d] += want is None or want in seen[d]
+                    wrong[d] += len(seen[d] - {want})
+        for d in decoders:
+            print(f'| {kind} | {d} | {6 * trials} | {right[d]} | {wrong[d]} |', flush=True)
 
 
 def _rig_layout(speed: float, standoff: float, height: float, angle: float):
@@ -142,74 +228,90 @@ def main() -> int:
     ap.add_argument('--passes', type=int, default=10)
     ap.add_argument('--misread-passes', type=int, default=200)
     ap.add_argument('--misread-only', default='', help='only the misread study, for these '
-                    'RUN_LENGTH:SPEED:MIN_CONSECUTIVE[:BAND] configurations, comma separated '
-                    '(BAND: invalid, the thesis, or hold)')
-    ap.add_argument('--show-misses', default='', help='GROUPS:SPEED:RUN_LENGTH[:BAND]: '
+                    'RUN_LENGTH:SPEED:MIN_CONSECUTIVE[:BAND[:DECODER]] configurations, comma '
+                    'separated (BAND: invalid, the thesis, or hold; DECODER: snapshot, the '
+                    'thesis, or sequence)')
+    ap.add_argument('--show-misses', default='', help='GROUPS:SPEED:RUN_LENGTH[:BAND[:DECODER]]: '
                     'print the snapshots of every missed pass of GROUPS x 10 passes per '
                     'pattern of the misread study')
+    ap.add_argument('--motion', type=int, default=0, metavar='TRIALS',
+                    help='only the changing-speed study (stop, reverse, jerky), TRIALS x 6 '
+                    'cards per motion')
     args = ap.parse_args()
-    if args.show_misses:
-        groups, speed, run_length, *band = args.show_misses.split(':')
-        show_misses(int(groups), float(speed), int(run_length), band[0] if band else 'invalid')
+    if args.motion:
+        motion_study(args.motion)
         return 0
-    configs = [(4, 1.0, 1, 'invalid'), (4, 1.0, 2, 'invalid'), (2, 1.0, 1, 'invalid'),
-               (2, 1.0, 2, 'invalid'), (2, 2.0, 2, 'invalid'), (4, 1.0, 2, 'hold'),
-               (2, 2.0, 2, 'hold')]
+    if args.show_misses:
+        groups, speed, run_length, *rest = args.show_misses.split(':')
+        rest += ['invalid', 'snapshot'][len(rest):]
+        show_misses(int(groups), float(speed), int(run_length), rest[0], rest[1])
+        return 0
+    configs = [(4, 1.0, 1, 'invalid', 'snapshot'), (4, 1.0, 2, 'invalid', 'snapshot'),
+               (2, 1.0, 1, 'invalid', 'snapshot'), (2, 1.0, 2, 'invalid', 'snapshot'),
+               (2, 2.0, 2, 'invalid', 'snapshot'), (4, 1.0, 2, 'hold', 'snapshot'),
+               (2, 2.0, 2, 'hold', 'snapshot'), (4, 1.0, 2, 'invalid', 'sequence'),
+               (4, 2.0, 2, 'invalid', 'sequence')]
     if args.misread_only:
-        configs = [(int(n), float(v), int(c), rest[0] if rest else 'invalid')
-                   for n, v, c, *rest in
-                   (item.split(':') for item in args.misread_only.split(','))]
+        configs = []
+        for item in args.misread_only.split(','):
+            n, v, c, *rest = item.split(':')
+            rest += ['invalid', 'snapshot'][len(rest):]
+            configs.append((int(n), float(v), int(c), rest[0], rest[1]))
         misreads(args.misread_passes, configs)
         return 0
     names = list(EXPECTED)
-    for run_length in (4, 2):
-        print(f'Recognised passes (%) by speed (run_length {run_length}, standoff 300 mm, '
-              'height 0, angle 0)\n')
+    for decoder, run_length in (('snapshot', 4), ('snapshot', 2), ('sequence', 4)):
+        print(f'Recognised passes (%) by speed (decoder {decoder}, run_length {run_length}, '
+              'standoff 300 mm, height 0, angle 0)\n')
         print('| speed (m/s) | ' + ' | '.join(names) + ' | mean matches/pass (L0..L3) |')
         print('|---' * (len(names) + 2) + '|')
-        for speed in (0.1, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 2.5):
-            st = run_belt(speed, passes=args.passes, run_length=run_length)
+        for speed in (0.1, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 2.5, 3.0):
+            st = run_belt(speed, passes=args.passes, run_length=run_length, decoder=decoder)
             cells = [f'{100 * st[n]["recognised"] / st[n]["passes"]:.0f}' for n in names]
             matches = [st[n]['matches'] / st[n]['passes'] for n in ('L0', 'L1', 'L2', 'L3')]
-            print(f'| {speed} | ' + ' | '.join(cells) + ' | '
-                  + ', '.join(f'{m:.1f}' for m in matches) + ' |', flush=True)
+            shown = ('-' if decoder == 'sequence'  # it matches no snapshot in navigating
+                     else ', '.join(f'{m:.1f}' for m in matches))
+            print(f'| {speed} | ' + ' | '.join(cells) + f' | {shown} |', flush=True)
         print()
-    print('\nRecognised passes (%) at 1 m/s by standoff, height and angle\n')
-    print('| setting | ' + ' | '.join(names) + ' |')
-    print('|---' * (len(names) + 1) + '|')
+    print('\nRecognised passes (%) at 1 m/s by standoff, height and angle (run_length 4)\n')
+    print('| setting | decoder | ' + ' | '.join(names) + ' |')
+    print('|---' * (len(names) + 2) + '|')
     settings = [('standoff 260 mm', dict(standoff=0.260)), ('standoff 280 mm',
                 dict(standoff=0.280)), ('standoff 320 mm', dict(standoff=0.320)),
                 ('standoff 340 mm', dict(standoff=0.340)), ('height +10 mm', dict(height=0.010)),
                 ('height -10 mm', dict(height=-0.010)), ('angle +10 deg', dict(angle=10.0)),
                 ('angle -10 deg', dict(angle=-10.0)), ('angle +15 deg', dict(angle=15.0)),
                 ('angle -15 deg', dict(angle=-15.0))]
-    for label, kw in settings:
-        st = run_belt(1.0, passes=args.passes, **kw)
-        print(f'| {label} | ' + ' | '.join(
+    for (label, kw), decoder in ((setting, dec) for setting in settings
+                                 for dec in ('snapshot', 'sequence')):
+        st = run_belt(1.0, passes=args.passes, decoder=decoder, **kw)
+        print(f'| {label} | {decoder} | ' + ' | '.join(
             f'{100 * st[n]["recognised"] / st[n]["passes"]:.0f}' for n in names) + ' |',
             flush=True)
     misreads(args.misread_passes, configs)
+    motion_study(max(1, args.passes * 5))
     return 0
 
 
-def misreads(passes: int, configs: list[tuple[int, float, int, str]]) -> None:
+def misreads(passes: int, configs: list[tuple[int, float, int, str, str]]) -> None:
     """The misread study: passes of each pattern per configuration."""
     names = list(EXPECTED)
     print(f'\nMisreads in {passes} passes of each pattern (random standoff '
           '280-320 mm and height +-10 mm per pass, detector skew +-3 mm, noise 2 counts)\n')
-    print('| run_length | speed (m/s) | min_consecutive_matches | invalid_band | passes | '
-          'misreads | missed |')
-    print('|---|---|---|---|---|---|---|')
-    for run_length, speed, consecutive, band in configs:
+    print('| decoder | run_length | speed (m/s) | min_consecutive_matches | invalid_band | '
+          'passes | misreads | missed |')
+    print('|---|---|---|---|---|---|---|---|')
+    for run_length, speed, consecutive, band, decoder in configs:
         wrong = missed = total = 0
         for k, standoff, height in study_geometry(passes // 10):
-            st = study_group(k, standoff, height, speed, run_length, consecutive, band)
+            st = study_group(k, standoff, height, speed, run_length, consecutive, band,
+                             decoder=decoder)
             for n in names:
                 total += st[n]['passes']
                 wrong += st[n]['misreads']
                 missed += st[n]['passes'] - st[n]['recognised']
-        print(f'| {run_length} | {speed} | {consecutive} | {band} | {total} | {wrong} | '
-              f'{missed} |', flush=True)
+        print(f'| {decoder} | {run_length} | {speed} | {consecutive} | {band} | {total} | '
+              f'{wrong} | {missed} |', flush=True)
 
 
 if __name__ == '__main__':

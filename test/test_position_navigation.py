@@ -4,9 +4,18 @@ from __future__ import annotations
 
 import pytest
 
-from agv_nodes.markers import LOCATION_PATTERNS, STOP_STRIP, THRESHOLDS, code_of, stop_view_columns
+from agv_nodes.markers import (
+    EDIM,
+    LOCATION_PATTERNS,
+    LOCATION_TABLE,
+    STOP_STRIP,
+    THRESHOLDS,
+    code_of,
+    stop_view_columns,
+)
 from agv_nodes.navigation.core import NavigationCore, NavigationParams
 from agv_nodes.position_sensor.core import PositionSensorCore, SensorProcessing
+from agv_nodes.position_sensor.sequence import SequenceDecoder
 
 WHITE = THRESHOLDS['sensor1']['white']
 BLACK = THRESHOLDS['sensor1']['black']
@@ -34,8 +43,13 @@ def feed(core: PositionSensorCore, code: int, n: int, t0: float = 0.0) -> list[d
 
 
 # -- position sensor ---------------------------------------------------------------------------
+def snapshot_core(**settings) -> PositionSensorCore:
+    """A position sensor reading the navigating table by the thesis's snapshot rule alone."""
+    return PositionSensorCore(SensorProcessing(decoder='snapshot', **settings))
+
+
 def test_running_sum_needs_four_snapshots_after_a_reset():
-    core = PositionSensorCore(SensorProcessing(min_consecutive_matches=1))
+    core = snapshot_core(min_consecutive_matches=1)
     lit, dark = snapshot_for(0x78)
     results = [core.sample(lit, dark, k / 340) for k in range(4)]
     assert results[:3] == [None, None, None]  # partial sums read dark or invalid: no match
@@ -44,7 +58,7 @@ def test_running_sum_needs_four_snapshots_after_a_reset():
 
 @pytest.mark.parametrize('run_length', [2, 3])
 def test_shorter_running_sum_fills_sooner_with_scaled_thresholds(run_length):
-    core = PositionSensorCore(SensorProcessing(min_consecutive_matches=1, run_length=run_length))
+    core = snapshot_core(min_consecutive_matches=1, run_length=run_length)
     lit, dark = snapshot_for(0x78)  # per-snapshot levels: thresholds scale by run_length / 4
     results = [core.sample(lit, dark, k / 340) for k in range(run_length)]
     assert results[:-1] == [None] * (run_length - 1)
@@ -54,7 +68,7 @@ def test_shorter_running_sum_fills_sooner_with_scaled_thresholds(run_length):
 
 @pytest.mark.parametrize('identity', [0, 1, 2, 3])
 def test_location_markers_recognised_with_two_consecutive_matches(identity):
-    core = PositionSensorCore()
+    core = snapshot_core()
     got = feed(core, code_of(LOCATION_PATTERNS[identity]), 8)
     assert len(got) == 1  # one report per streak
     rec = got[0]
@@ -64,8 +78,7 @@ def test_location_markers_recognised_with_two_consecutive_matches(identity):
 
 
 def test_single_misread_is_ignored_with_two_consecutive_rule():
-    strict, listing = PositionSensorCore(), PositionSensorCore(
-        SensorProcessing(min_consecutive_matches=1))
+    strict, listing = snapshot_core(), snapshot_core(min_consecutive_matches=1)
     for core in (strict, listing):
         feed(core, 0x00, 4)
         core.sample(*snapshot_for(0x1E), 0.1)  # one stray 'location 3' snapshot ...
@@ -80,7 +93,7 @@ def test_single_misread_is_ignored_with_two_consecutive_rule():
 
 
 def test_invalid_band_gives_no_code():
-    core = PositionSensorCore()
+    core = snapshot_core()
     lit, dark = snapshot_for(0x78)
     mid = (WHITE[0] + BLACK[0]) / 8  # detector 1 between its thresholds
     lit[0] = int(mid) + 10
@@ -92,7 +105,7 @@ def test_invalid_band_gives_no_code():
 def test_hold_band_extends_a_streak_but_needs_one_decided_snapshot():
     """invalid_band = hold: a detector in its band keeps its last decision; held codes alone
     never make a recognition, one fully decided snapshot completes the streak."""
-    hold, thesis = (PositionSensorCore(SensorProcessing(run_length=1, invalid_band=band))
+    hold, thesis = (snapshot_core(run_length=1, invalid_band=band)
                     for band in ('hold', 'invalid'))
     blurred, dark = snapshot_for(0x1E)  # location 3, detector 1 (BLACK in it) in its band
     blurred[0] = int((WHITE[0] + BLACK[0]) / 8) + 10
@@ -110,7 +123,7 @@ def test_hold_band_extends_a_streak_but_needs_one_decided_snapshot():
 
 @pytest.mark.parametrize('view', range(1, 8))
 def test_stop_views_in_positioning_table(view):
-    core = PositionSensorCore()
+    core = snapshot_core()
     core.on_record('position_sensor_command', {'table': 'positioning', 'epoch': 1}, 0.0)
     got = feed(core, code_of(STOP_STRIP, stop_view_columns(view)), 6)
     assert [g['stop_view'] for g in got] == [view]
@@ -118,7 +131,7 @@ def test_stop_views_in_positioning_table(view):
 
 
 def test_as_listed_variant_never_matches_views_6_and_7():
-    core = PositionSensorCore(SensorProcessing(variant='as_listed'))
+    core = snapshot_core(variant='as_listed')
     core.on_record('position_sensor_command', {'table': 'positioning', 'epoch': 1}, 0.0)
     for view in (6, 7):
         assert feed(core, code_of(STOP_STRIP, stop_view_columns(view)), 6) == []
@@ -130,21 +143,123 @@ def test_as_listed_black_test_compares_high_bytes_only():
     listed (its band disappears, spec 2.4)."""
     lit, dark = snapshot_for(0x78)
     lit[5] = 75 + 10  # 4 x 75 = 300
-    intended = PositionSensorCore(SensorProcessing(min_consecutive_matches=1))
-    listed = PositionSensorCore(SensorProcessing(min_consecutive_matches=1, variant='as_listed'))
+    intended = snapshot_core(min_consecutive_matches=1)
+    listed = snapshot_core(min_consecutive_matches=1, variant='as_listed')
     for core in (intended, listed):
         for _ in range(4):
             core.sample(lit, dark, 0.0)
     assert intended.invalid and listed.recognitions == 1 and listed.identity == 0
 
 
-def test_centre_view_in_navigating_table_is_edim():
+def passing_card(code: int, element: float = 7.0, before: int = 10, reverse: bool = False,
+                 stretch_at: int | None = None) -> list[list[float]]:
+    """Band-unit snapshots (white 2.0, black -0.6) of a card with `code` crossing the image
+    from C1 to C4 (C4's element first in time), `element` snapshots per element; `stretch_at`
+    holds the card still for 40 snapshots from that snapshot on (a truck stopping on it)."""
+    frames, t, k = [], 0.0, 0
+    end = before + 8 * element + 20
+    while t < end:
+        z = []
+        for row in (0, 1):
+            for c in range(4):
+                j = int((t - before - c * element) // element)  # element in view, time order
+                column = 3 - j if not reverse else j  # C4's element first (forward)
+                inside = 0 <= j < 4
+                z.append(2.0 if inside and code >> (7 - 4 * row - column) & 1 else -0.6)
+        frames.append(z)
+        k += 1
+        if stretch_at is None or not stretch_at <= k < stretch_at + 40:
+            t += 1.0
+    return frames
+
+
+@pytest.mark.parametrize('identity,code', [(i, c) for c, i in LOCATION_TABLE])
+def test_sequence_decoder_reads_each_card_of_the_navigating_table(identity, code):
+    decoder = SequenceDecoder(dict(LOCATION_TABLE))
+    reads = [r for r in (decoder.sample(z) for z in passing_card(code)) if r is not None]
+    assert reads == [code]  # once, when the third column has read it
+
+
+@pytest.mark.parametrize('code', [c for c, _i in LOCATION_TABLE])
+def test_sequence_decoder_reads_nothing_in_reverse_or_when_the_card_stops(code):
+    for frames in (passing_card(code, reverse=True), passing_card(code, stretch_at=30),
+                   passing_card(code, stretch_at=45)):
+        decoder = SequenceDecoder(dict(LOCATION_TABLE))
+        assert all(decoder.sample(z) is None for z in frames)
+
+
+def test_a_window_out_of_step_with_the_column_delays_is_not_read():
+    """One column's read alone (agree 1) of a card the truck stopped on once all four columns
+    had it in view: every window is stretched alike, so only their length against the
+    columns' delays gives the stop away (without that check L0 reads as L3)."""
+    frames = passing_card(0x78, stretch_at=32)
+    checked, unchecked = (SequenceDecoder(dict(LOCATION_TABLE), agree=1, stretch=s)
+                          for s in (1.5, 99.0))
+    assert [r for r in (checked.sample(z) for z in frames) if r] == []
+    assert [r for r in (unchecked.sample(z) for z in frames) if r] == [0x1E]
+
+
+def test_sequence_decoder_does_not_read_a_card_in_view_at_reset():
+    decoder = SequenceDecoder(dict(LOCATION_TABLE))
+    frames = passing_card(0x78)
+    assert all(decoder.sample(z) is None for z in frames[20:])  # started mid-card
+    assert [r for r in (decoder.sample(z) for z in frames) if r] == [0x78]  # the next pass
+
+
+def test_sequence_decoder_reads_fast_off_focus_passes_the_snapshot_rule_misses():
+    """The belt rig at 2.5 m/s with +-3 mm detector skew: the default (sequence) reads all
+    five cards, the white control as nothing; the thesis rule alone reads none of them."""
+    import random
+
+    from agv_nodes.world.core import WorldCore, WorldParams
+    from agv_nodes.world.layout import layout_path, load_layout
+    from agv_nodes.world.marker_sensor import SensorParams
+
+    lay = load_layout(layout_path('sensor_rig'))
+    lay.rig.update(speed=2.5)
+    rng = random.Random(4)
+    skew = tuple(rng.uniform(-0.003, 0.003) for _ in range(8))
+    world = WorldCore(lay, WorldParams(seed=3, sample_rate=340.0,
+                                       sensor=SensorParams(noise=2.0, skew=skew)))
+    default, thesis = PositionSensorCore(), snapshot_core()
+    found: dict[str, list[int]] = {'default': [], 'thesis': []}
+    while not world.done_rig():
+        adc = world.step()['records']['adc_snapshot']
+        lit = [adc[f'lit_{d}'] for d in range(1, 9)]
+        dark = [adc[f'dark_{d}'] for d in range(1, 9)]
+        for name, core in (('default', default), ('thesis', thesis)):
+            out = core.sample(lit, dark, world.time)
+            if out:
+                found[name].append(out['position_sensor_status']['identity'])
+    assert found == {'default': [0, 1, 2, 3, EDIM], 'thesis': []}
+
+
+def test_one_report_per_card_when_both_rules_read_it():
+    """At 0.5 m/s the thesis rule reads the card first; the sequence decoder's read of the
+    same card and passage is not reported again."""
     core = PositionSensorCore()
+    assert core.p.decoder == 'sequence'
+    levels = {1: WHITE, 0: BLACK}
+    out = []
+    for k, z in enumerate(passing_card(0x3C, element=14.0)):
+        # band units back to counts: x4 TOTAL = black + z (white - black), one quarter each
+        lit = [int(round((BLACK[d] + z[d] * (levels[1][d] - BLACK[d])) / 4)) + 10
+               if z[d] > 0 else 10 for d in range(8)]
+        got = core.sample(lit, [10] * 8, k / 340)
+        if got:
+            out.append(got['position_sensor_status']['identity'])
+    assert out == [1]
+    assert SensorProcessing(decoder='both').check()[0][0] == 'decoder'
+    assert SensorProcessing(sequence_agree=5).check()[0][0] == 'sequence_agree'
+
+
+def test_centre_view_in_navigating_table_is_edim():
+    core = snapshot_core()
     assert feed(core, 0xA3, 6)[0]['identity'] == 0x0E
 
 
 def test_table_change_clears_the_filter():
-    core = PositionSensorCore(SensorProcessing(min_consecutive_matches=1))
+    core = snapshot_core(min_consecutive_matches=1)
     feed(core, 0xA3, 6)
     core.on_record('position_sensor_command', {'table': 'positioning', 'epoch': 7}, 0.0)
     assert core._total == [0] * 8 and core.epoch == 7
@@ -153,7 +268,7 @@ def test_table_change_clears_the_filter():
 
 
 def test_heartbeat_reports_stale_and_saturated_adc():
-    core = PositionSensorCore()
+    core = snapshot_core()
     # nothing yet: not stale until adc_timeout (50 ms) from the first heartbeat, then stale
     assert core.tick(0.0)['position_sensor_status']['adc_stale'] == 0
     assert core.tick(0.04)['position_sensor_status']['adc_stale'] == 0
@@ -166,7 +281,7 @@ def test_heartbeat_reports_stale_and_saturated_adc():
 
 
 def test_heartbeat_counts_snapshots_while_they_arrive_and_the_timer_covers_silence():
-    core = PositionSensorCore()
+    core = snapshot_core()
     lit, dark = snapshot_for(0x00)
     adc = {**{f'lit_{d}': v for d, v in enumerate(lit, 1)},
            **{f'dark_{d}': v for d, v in enumerate(dark, 1)}}

@@ -19,6 +19,13 @@ last decision instead of invalidating the snapshot, so a blurred card (standoff 
 passes) yields more matching snapshots; a recognition still needs one snapshot of the streak
 with every detector decided, which keeps the held codes from making misreads.
 
+`decoder = sequence` (a modern option, the default; `snapshot` is the thesis's rule above): in
+the navigating table each detector column reads the passing card's four elements in time
+(`sequence.SequenceDecoder`), so no single snapshot needs all eight detectors decided at once;
+the positioning table (stop views at creep speed, each view's timing drives the stop) always
+uses the snapshot rule. The snapshot CODE and `invalid` are still worked out for the status
+record either way.
+
 `variant = as_listed` keeps the listing's defects (spec 2.4, 2.6, register items 1 and 14): the
 black test compares only the high bytes of TOTAL and THROFF, and the EDGE search covers LEN = 5
 entries, so stop views 6 and 7 never match. The default `intended` is the design as described.
@@ -30,6 +37,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from agv_nodes.markers import LOCATION_TABLE, STOP_VIEWS, THRESHOLDS
+from agv_nodes.position_sensor.sequence import SequenceDecoder
 
 
 @dataclass
@@ -49,6 +57,23 @@ class SensorProcessing:
     # crosses the other threshold). A held code only extends a streak of matches: one snapshot
     # of the streak must have every detector decided (bench/recognition_bench.py).
     invalid_band: str = 'invalid'
+    # How the navigating table is read: 'sequence' (modern, default: each column reads the
+    # passing card's elements in time; bench/recognition_bench.py: no miss and no misread in
+    # 10,020 passes across the tolerance band at 1 and 2 m/s, where the thesis rule missed
+    # 974 and 4,528) or 'snapshot' (thesis 5.2.3: one snapshot with every detector decided,
+    # min_consecutive_matches times in a row).
+    decoder: str = 'sequence'
+    # Columns that must read the same card, of 4 (none of the others may read it otherwise).
+    # With 2, before the column-delay checks of sequence.py, a truck stopping or changing
+    # speed over a card misread it 3 times in 1,800 scripted passes (bench --motion); with
+    # those checks neither 2, 3 nor 4 misread in 2,700, and 4 missed 1 of 10,020 passes at
+    # 2 m/s where 3 missed none.
+    sequence_agree: int = 3
+    # The sequence decoder's own running sum, snapshots: it reads each element at its middle,
+    # and a 20 mm element lasts 3.4 snapshots at 2 m/s, so it wants less smear than THRESH's
+    # run_length 4 (10,020 passes at 2 m/s: 335 missed with 4, none with 2 or 1).
+    sequence_run_length: int = 2
+    sequence_margin: float = 0.25  # band units an element's reading must keep from mid-band
     heartbeat: float = 0.020  # s between heartbeat status records
     # While snapshots arrive the heartbeat is counted in snapshots (6 at 340 Hz = 17.6 ms, just
     # inside the 20 ms period so the timer stays quiet), so its sample_count keeps reaching the
@@ -74,6 +99,14 @@ class SensorProcessing:
             bad.append(('variant', self.variant, 'not intended or as_listed'))
         if self.invalid_band not in ('invalid', 'hold'):
             bad.append(('invalid_band', self.invalid_band, 'not invalid or hold'))
+        if self.decoder not in ('sequence', 'snapshot'):
+            bad.append(('decoder', self.decoder, 'not sequence or snapshot'))
+        if not 1 <= self.sequence_agree <= 4:
+            bad.append(('sequence_agree', self.sequence_agree, 'outside 1..4'))
+        if not 0.0 <= self.sequence_margin < 0.5:
+            bad.append(('sequence_margin', self.sequence_margin, 'outside 0..0.5'))
+        if not 1 <= self.sequence_run_length <= 8:
+            bad.append(('sequence_run_length', self.sequence_run_length, 'outside 1..8'))
         if not 1 <= self.run_length <= 8:
             bad.append(('run_length', self.run_length, 'outside 1..8'))
         if not 1 <= self.min_consecutive_matches <= 10:
@@ -114,6 +147,17 @@ class PositionSensorCore:
         self._last_status: float | None = None  # sim time of the last status record
         self._since_status = 0  # snapshots since the last status record
         self._templates = self._table()
+        self._sequence = SequenceDecoder(self._templates, self.p.sequence_agree,
+                                         self.p.sequence_margin)
+        m = self.p.sequence_run_length / 4  # its thresholds, like THRESH's, scale by n/4
+        self._seq_black = [b * m for b in self.p.black]
+        self._seq_band = [max(1e-6, (w - b) * m) for w, b in zip(self.p.white, self.p.black,
+                                                                  strict=True)]
+        self._seq_oldest = [[0] * 8 for _ in range(self.p.sequence_run_length)]
+        self._seq_total = [0] * 8
+        self._seq_row = 0
+        self._passage = -1  # the sequence decoder's passage the set below belongs to
+        self._passage_found: set[int] = set()  # identities reported during it
 
     # -- tables -----------------------------------------------------------------------------
     def _table(self) -> dict[int, int]:
@@ -130,6 +174,15 @@ class PositionSensorCore:
         self._row = 0
         self._streak_key, self._streak = None, 0
         self._held = [None] * 8
+        self._sequence.templates = self._templates
+        self._sequence.reset()
+        self._seq_oldest = [[0] * 8 for _ in range(self.p.sequence_run_length)]
+        self._seq_total = [0] * 8
+        self._seq_row = 0
+
+    @property
+    def _reads_sequence(self) -> bool:
+        return self.p.decoder == 'sequence' and self.table == 'navigating'
 
     # -- inputs -----------------------------------------------------------------------------
     def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
@@ -179,10 +232,30 @@ class PositionSensorCore:
                 valid = False
         self._row = (self._row + 1) % p.run_length
         self.invalid = not valid
+        match = self._snapshot_rule(code, valid, decisive)
+        if valid:
+            self.code = code
+        if not self._reads_sequence:
+            return None if match is None else self._recognised(match, now)
+        # The sequence decoder adds its reads of passing cards to the thesis rule's (which
+        # still reads a card at rest or crawling); one report per card and passage.
+        read = self._sequence.sample(self._sequence_levels(lit, dark))
+        if self._sequence.passage != self._passage:
+            self._passage, self._passage_found = self._sequence.passage, set()
+        if match is None and read is not None:
+            match = self._templates[read]
+            self.code = read
+        if match is None or match in self._passage_found:
+            return None
+        self._passage_found.add(match)
+        return self._recognised(match, now)
+
+    def _snapshot_rule(self, code: int, valid: bool, decisive: bool) -> int | None:
+        """TARGET and the consecutive-match count (thesis 7.1.4): a match to report, or None."""
+        p = self.p
         if not valid:
             self._streak_key, self._streak = None, 0
             return None
-        self.code = code
         match = self._templates.get(code)
         if match is None:
             self._streak_key, self._streak = None, 0
@@ -199,6 +272,22 @@ class PositionSensorCore:
                 or not self._streak_decisive:
             return None  # not yet, or already reported for this streak
         self._reported = True
+        return match
+
+    def _sequence_levels(self, lit: list[int], dark: list[int]) -> list[float]:
+        """The sequence decoder's running sum, in band units (0 = THROFF, 1 = THRON)."""
+        row, total = self._seq_oldest[self._seq_row], self._seq_total
+        self._seq_row = (self._seq_row + 1) % self.p.sequence_run_length
+        for d in range(8):
+            x = lit[d] - dark[d]
+            x = x if x > 0 else 0
+            total[d] += x - row[d]
+            row[d] = x
+        return [(t - b) / n for t, b, n in zip(total, self._seq_black, self._seq_band,
+                                                strict=True)]
+
+    def _recognised(self, match: int, now: float) -> dict[str, Any]:
+        """A recognition: identity (navigating) or stop view (positioning) and its status."""
         self.recognitions = (self.recognitions + 1) & 0xFF
         if self.table == 'navigating':
             self.identity, self.stop_view = match, 0

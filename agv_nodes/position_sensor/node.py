@@ -41,6 +41,18 @@ class PositionSensorNode(CoreNode):
                                   'thresholds: invalid (thesis 5.2.3: no CODE that snapshot) or '
                                   'hold (keeps its last decision; a recognition still needs one '
                                   'snapshot with every detector decided)', ('invalid', 'hold')),
+            decoder=p.choice('decoder', d.decoder, 'how the navigating table is read: '
+                             'sequence (each detector column reads the passing card in time, '
+                             'besides the thesis rule) or snapshot (thesis 5.2.3 only)',
+                             ('sequence', 'snapshot')),
+            sequence_agree=p.integer('sequence_agree', d.sequence_agree, 'detector columns '
+                                     'that must read the same card (sequence decoder)', 1, 4),
+            sequence_margin=p.number('sequence_margin', d.sequence_margin, 'band units an '
+                                     "element's reading must keep from mid-band (sequence "
+                                     'decoder)', 0.0, 0.49),
+            sequence_run_length=p.integer('sequence_run_length', d.sequence_run_length,
+                                          "the sequence decoder's running-sum length in "
+                                          'snapshots', 1, 8),
             variant=p.choice('variant', d.variant, "intended design, or the printed listing's "
                              'defects (black-test compare, EDGE search length 5)',
                              ('intended', 'as_listed')),

@@ -1,0 +1,175 @@
+"""Sequence decoding of the navigating table: each detector column reads a passing card in time.
+
+The thesis decides a card from one snapshot in which all eight detectors are outside their
+invalid band at once (5.2.3, spec 2.4-2.7). Off focus (blur), with the detectors' along-track
+skew (thesis 7.1.3: +-1 sample) and at speed (a 20 mm element lasts 6.8 snapshots at 1 m/s,
+3.4 at 2 m/s), such a snapshot is rare or absent: across 280-320 mm standoff and +-10 mm
+height the thesis rule missed 974 of 10,020 passes at 1 m/s (bench/recognition_bench.py).
+
+Yet every column sees every element of its row go by. Each card of the navigating table, the
+four location markers (spec 3.2) and the stop marker's centre view (3.3), is four elements
+long with white, in one row or the other, in its first and last element. So each column sees
+one white-bounded window four elements long; read at the middle of each quarter of that
+window, the column's two detectors give the card's whole CODE by themselves, at their own time
+(skew cannot split them), and the four columns give four reads of the same card. A card is
+recognised when `agree` columns have read the same template of the table, no column that read
+the card cleanly read anything else, and every such window is as long as four elements at the
+speed the columns' start times give (a 20 mm column pitch apart): a truck that stops, reverses
+or changes speed over a card stretches its windows out of step with that, and misread L1 as L3
+(bench/recognition_bench.py --motion) before this check.
+
+Time order: a card passing in forward travel crosses the image from C1 to C4 (world
+marker_sensor), so every column sees the card's C4 element first. In reverse the read is
+mirrored, and no mirrored navigating card is a template (78H -> E1H, 3CH -> C3H, 5AH -> A5H,
+1EH -> 87H, A3H -> C5H): a reversing truck recognises nothing (it only reverses positioning).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+ELEMENTS = 4  # elements of a navigating-table card along the track (spec 3.2, 3.3)
+LEVEL = 0.5  # the middle of the invalid band, in band units (0 = THROFF, 1 = THRON)
+# Adjacent columns' windows open one element apart; with +-3 mm detector skew the three delays
+# of a clean pass differ by up to 1.9x (2,400 passes at 1 and 2 m/s); a stop between two
+# columns' openings makes one delay many times the others.
+DELAY_SPREAD = 2.5
+LONGEST = 2000  # snapshots (5.9 s): a window this long is given up (truck at rest on a card)
+
+
+@dataclass
+class _Column:
+    """One detector column's window on the passing card."""
+
+    armed: bool = False  # its presence has been low since the last reset
+    rise: float | None = None  # sample index where the window opened (interpolated)
+    fall: float | None = None  # where it last closed
+    low: int = 0  # snapshots since it last closed
+    start: int = 0  # sample index of rows[0]
+    rows: list[tuple[float, float]] = field(default_factory=list)  # (R1, R2) band units
+    last: float | None = None  # presence of the previous snapshot
+
+
+class SequenceDecoder:
+    """Snapshots in (as band-unit values per detector), recognitions (CODE) out."""
+
+    def __init__(self, templates: dict[int, int], agree: int = 3, margin: float = 0.25,
+                 stretch: float = 1.5) -> None:
+        self.templates = templates  # CODE -> identity
+        self.agree = agree
+        self.margin = margin
+        # A window may be up to `stretch` times longer or shorter than four column delays (in
+        # 24,000 clean reads at 1 and 2 m/s across 280-320 mm: 0.83-1.30; the misreads: 2.5).
+        self.stretch = stretch
+        self.passage = 0
+        self.reset()
+
+    def reset(self) -> None:
+        """A new table or a filter reset: a card already in view is not read."""
+        self._columns = [_Column() for _ in range(4)]
+        self._sample = -1
+        self._new_passage()
+
+    def _new_passage(self) -> None:
+        self.passage += 1  # the card now passing (numbered, for the caller's bookkeeping)
+        self._rises: list[float | None] = [None] * 4
+        self._reads: list[tuple[int | None, float]] = []  # (CODE or None, window length)
+        self._reported = False
+
+    def sample(self, z: list[float]) -> int | None:
+        """One snapshot: z[d] = (TOTAL - THROFF) / (THRON - THROFF) per detector 1-8.
+
+        Returns a CODE of the table when this snapshot completes a recognition."""
+        self._sample += 1
+        i = self._sample
+        out = None
+        for c, col in enumerate(self._columns):
+            pair = (z[c], z[c + 4])
+            p = pair[0] if pair[0] > pair[1] else pair[1]  # white in either row
+            last, col.last = col.last, p
+            if col.rise is None:
+                if p <= LEVEL:
+                    col.armed = True
+                elif col.armed and last is not None and last <= LEVEL:
+                    if all(k.rise is None for k in self._columns):
+                        self._new_passage()
+                    col.rise = i - 1 + (LEVEL - last) / (p - last)
+                    col.fall, col.low, col.start = None, 0, i - 1
+                    col.rows = [col.rows[-1] if col.rows else pair, pair]
+                    self._rises[c] = col.rise
+                    continue
+                col.rows = [pair]  # only the previous snapshot is needed to open a window
+                continue
+            col.rows.append(pair)
+            if p > LEVEL:
+                col.fall, col.low = None, 0
+                if len(col.rows) > LONGEST:
+                    col.rise, col.armed = None, False
+                continue
+            if col.fall is None:
+                col.fall = i - 1 + (last - LEVEL) / (last - p)
+            col.low += 1
+            # A card may be black in both rows for one element inside (the stop centre view):
+            # the window closes after 1.5 elements of black.
+            if col.low > 1.5 * self._element(col) + 1:
+                self._reads.append((self._read(col), col.fall - col.rise))
+                col.rise = None
+                col.rows = [pair]
+                out = self._verdict() if out is None else out
+        return out
+
+    def _column_delay(self) -> float | None:
+        """Snapshots between adjacent columns' windows opening (one element's travel)."""
+        r = self._rises
+        gaps = [r[c + 1] - r[c] for c in range(3)
+                if r[c] is not None and r[c + 1] is not None and r[c + 1] > r[c]]
+        return sum(gaps) / len(gaps) if gaps else None
+
+    def _element(self, col: _Column) -> float:
+        """Snapshots per element: the column delay, or a quarter of this window so far."""
+        delay = self._column_delay()
+        if delay is not None:
+            return delay
+        return ((col.fall if col.fall is not None else col.rise) - col.rise) / ELEMENTS
+
+    def _read(self, col: _Column) -> int | None:
+        """The CODE one column read (C1 in bit 3 of each nibble), or None if any element is
+        inside `margin` of the band's middle."""
+        length = col.fall - col.rise
+        if length < 2.0:
+            return None
+        element = length / ELEMENTS
+        code = 0
+        for row in (0, 1):
+            bits = 0
+            for j in range(ELEMENTS):  # time order: C4's element first
+                t = col.rise + (j + 0.5) * element - col.start
+                k = int(t)
+                if k + 1 >= len(col.rows):
+                    return None
+                f = t - k
+                v = col.rows[k][row] * (1.0 - f) + col.rows[k + 1][row] * f
+                if abs(v - LEVEL) < self.margin:
+                    return None
+                bits |= (v > LEVEL) << j  # C4 -> bit 0 ... C1 -> bit 3
+            code = code << 4 | bits
+        return code
+
+    def _verdict(self) -> int | None:
+        if self._reported:
+            return None
+        clean = [(code, n) for code, n in self._reads if code is not None]
+        if len(clean) < self.agree or any(code != clean[0][0] for code, _n in clean):
+            return None
+        if clean[0][0] not in self.templates:
+            return None
+        delay = self._column_delay()
+        r = self._rises
+        gaps = [r[c + 1] - r[c] for c in range(3) if r[c] is not None and r[c + 1] is not None]
+        if len(gaps) > 1 and max(gaps) > DELAY_SPREAD * min(gaps):
+            return None
+        if delay is None or any(not 1.0 / self.stretch <= n / (ELEMENTS * delay) <= self.stretch
+                                for _code, n in clean):
+            return None
+        self._reported = True
+        return clean[0][0]
