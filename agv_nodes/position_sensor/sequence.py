@@ -47,6 +47,7 @@ class _Column:
     low: int = 0  # snapshots since it last closed
     start: int = 0  # sample index of rows[0]
     rows: list[tuple[float, float]] = field(default_factory=list)  # (R1, R2) band units
+    before: tuple[float, float] | None = None  # the snapshot before, while no window is open
     last: float | None = None  # presence of the previous snapshot
 
 
@@ -95,10 +96,10 @@ class SequenceDecoder:
                         self._new_passage()
                     col.rise = i - 1 + (LEVEL - last) / (p - last)
                     col.fall, col.low, col.start = None, 0, i - 1
-                    col.rows = [col.rows[-1] if col.rows else pair, pair]
+                    col.rows = [col.before or pair, pair]
                     self._rises[c] = col.rise
                     continue
-                col.rows = [pair]  # only the previous snapshot is needed to open a window
+                col.before = pair  # only the previous snapshot is needed to open a window
                 continue
             col.rows.append(pair)
             if p > LEVEL:
@@ -113,8 +114,7 @@ class SequenceDecoder:
             # the window closes after 1.5 elements of black.
             if col.low > 1.5 * self._element(col) + 1:
                 self._reads.append((self._read(col), col.fall - col.rise))
-                col.rise = None
-                col.rows = [pair]
+                col.rise, col.before = None, pair
                 out = self._verdict() if out is None else out
         return out
 
