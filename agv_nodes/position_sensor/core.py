@@ -278,13 +278,14 @@ class PositionSensorCore:
         """The sequence decoder's running sum, in band units (0 = THROFF, 1 = THRON)."""
         row, total = self._seq_oldest[self._seq_row], self._seq_total
         self._seq_row = (self._seq_row + 1) % self.p.sequence_run_length
+        z = []
         for d in range(8):
             x = lit[d] - dark[d]
             x = x if x > 0 else 0
-            total[d] += x - row[d]
-            row[d] = x
-        return [(t - b) / n for t, b, n in zip(total, self._seq_black, self._seq_band,
-                                                strict=True)]
+            t = total[d] + x - row[d]
+            total[d], row[d] = t, x
+            z.append((t - self._seq_black[d]) / self._seq_band[d])
+        return z
 
     def _recognised(self, match: int, now: float) -> dict[str, Any]:
         """A recognition: identity (navigating) or stop view (positioning) and its status."""

@@ -47,8 +47,6 @@ class _Column:
     low: int = 0  # snapshots since it last closed
     start: int = 0  # sample index of rows[0]
     rows: list[tuple[float, float]] = field(default_factory=list)  # (R1, R2) band units
-    before: tuple[float, float] | None = None  # the snapshot before, while no window is open
-    last: float | None = None  # presence of the previous snapshot
 
 
 class SequenceDecoder:
@@ -69,6 +67,9 @@ class SequenceDecoder:
         """A new table or a filter reset: a card already in view is not read."""
         self._columns = [_Column() for _ in range(4)]
         self._sample = -1
+        self._before: list[float] | None = None  # the previous snapshot
+        self._open = 0  # columns with a window open
+        self._all_armed = False
         self._new_passage()
 
     def _new_passage(self) -> None:
@@ -82,30 +83,40 @@ class SequenceDecoder:
 
         Returns a CODE of the table when this snapshot completes a recognition."""
         self._sample += 1
+        before, self._before = self._before, z
+        if self._open == 0 and max(z) <= LEVEL:  # nothing white in view: the usual case
+            if not self._all_armed:
+                for col in self._columns:
+                    col.armed = True
+                self._all_armed = True
+            return None
         i = self._sample
         out = None
         for c, col in enumerate(self._columns):
             pair = (z[c], z[c + 4])
             p = pair[0] if pair[0] > pair[1] else pair[1]  # white in either row
-            last, col.last = col.last, p
+            last = None if before is None else max(before[c], before[c + 4])
             if col.rise is None:
                 if p <= LEVEL:
                     col.armed = True
                 elif col.armed and last is not None and last <= LEVEL:
-                    if all(k.rise is None for k in self._columns):
+                    if self._open == 0:
                         self._new_passage()
                     col.rise = i - 1 + (LEVEL - last) / (p - last)
                     col.fall, col.low, col.start = None, 0, i - 1
-                    col.rows = [col.before or pair, pair]
+                    col.rows = [(before[c], before[c + 4]), pair]
                     self._rises[c] = col.rise
-                    continue
-                col.before = pair  # only the previous snapshot is needed to open a window
+                    self._open += 1
+                else:
+                    self._all_armed = False  # white since before it was armed
                 continue
             col.rows.append(pair)
             if p > LEVEL:
                 col.fall, col.low = None, 0
-                if len(col.rows) > LONGEST:
+                if len(col.rows) > LONGEST:  # at rest on a card: give the window up
                     col.rise, col.armed = None, False
+                    self._open -= 1
+                    self._all_armed = False
                 continue
             if col.fall is None:
                 col.fall = i - 1 + (last - LEVEL) / (last - p)
@@ -114,7 +125,8 @@ class SequenceDecoder:
             # the window closes after 1.5 elements of black.
             if col.low > 1.5 * self._element(col) + 1:
                 self._reads.append((self._read(col), col.fall - col.rise))
-                col.rise, col.before = None, pair
+                col.rise = None
+                self._open -= 1
                 out = self._verdict() if out is None else out
         return out
 
