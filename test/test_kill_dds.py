@@ -29,10 +29,13 @@ import pytest
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
 DRIVE_OFF_WITHIN = 0.200  # simulated s from the kill to the drive no longer pushing (issue 9)
-# Traction itself silent: the world's trip relay drops 200 ms after the last retrigger (thesis
-# B.2.1's monostable), seen at the next 340 Hz sample, and the last retrigger can fall on the
-# kill's own loop pass; world_event stamps are whole milliseconds.
-RELAY_DROPS_WITHIN = 0.200 + 1 / 340 + 0.001
+# Traction itself silent: the world's trip relay drops 200 ms after the last retrigger it
+# received (thesis B.2.1's monostable), seen at the next 340 Hz sample. A retrigger traction
+# sent just before the kill can reach the world after it: the paced world runs at most
+# max_lag (10 ms, config/agv_demo.yaml) ahead of a node's records, so it is stamped at most
+# that late (a loaded rehearsal saw 0.206 s). world_event stamps are whole milliseconds.
+MAX_LAG = 0.010
+RELAY_DROPS_WITHIN = 0.200 + MAX_LAG + 1 / 340 + 0.001
 
 CASES = [  # victim, at rest within (sim s), executive report, /diagnostics ERROR row, words
     ('route_following', 3.0, 'FAILED: stale status (route)', 'route', 'old'),
