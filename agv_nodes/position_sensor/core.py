@@ -153,9 +153,7 @@ class PositionSensorCore:
         self._seq_black = [b * m for b in self.p.black]
         self._seq_band = [max(1e-6, (w - b) * m) for w, b in zip(self.p.white, self.p.black,
                                                                   strict=True)]
-        self._seq_oldest = [[0] * 8 for _ in range(self.p.sequence_run_length)]
-        self._seq_total = [0] * 8
-        self._seq_row = 0
+        self._clear_sequence_sum()
         self._passage = -1  # the sequence decoder's passage the set below belongs to
         self._passage_found: set[int] = set()  # identities reported during it
 
@@ -176,6 +174,10 @@ class PositionSensorCore:
         self._held = [None] * 8
         self._sequence.templates = self._templates
         self._sequence.reset()
+        self._clear_sequence_sum()
+
+    def _clear_sequence_sum(self) -> None:
+        """The sequence decoder's running sum, cleared with THRESH's (SAMIC / EDGIC)."""
         self._seq_oldest = [[0] * 8 for _ in range(self.p.sequence_run_length)]
         self._seq_total = [0] * 8
         self._seq_row = 0
@@ -239,7 +241,7 @@ class PositionSensorCore:
             return None if match is None else self._recognised(match, now)
         # The sequence decoder adds its reads of passing cards to the thesis rule's (which
         # still reads a card at rest or crawling); one report per card and passage.
-        read = self._sequence.sample(self._sequence_levels(lit, dark))
+        read = self._sequence.sample(self._sequence_levels(row))  # row: this x
         if self._sequence.passage != self._passage:
             self._passage, self._passage_found = self._sequence.passage, set()
         if match is None and read is not None:
@@ -274,16 +276,15 @@ class PositionSensorCore:
         self._reported = True
         return match
 
-    def _sequence_levels(self, lit: list[int], dark: list[int]) -> list[float]:
-        """The sequence decoder's running sum, in band units (0 = THROFF, 1 = THRON)."""
+    def _sequence_levels(self, x: list[int]) -> list[float]:
+        """The sequence decoder's running sum of this snapshot's d.c.-removed `x` (as SUBT
+        made it for THRESH), in band units (0 = THROFF, 1 = THRON)."""
         row, total = self._seq_oldest[self._seq_row], self._seq_total
         self._seq_row = (self._seq_row + 1) % self.p.sequence_run_length
         z = []
         for d in range(8):
-            x = lit[d] - dark[d]
-            x = x if x > 0 else 0
-            t = total[d] + x - row[d]
-            total[d], row[d] = t, x
+            t = total[d] + x[d] - row[d]
+            total[d], row[d] = t, x[d]
             z.append((t - self._seq_black[d]) / self._seq_band[d])
         return z
 
