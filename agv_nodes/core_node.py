@@ -73,7 +73,8 @@ class CoreNode(Node):
                         for s in reads}
         for reader in self.readers.values():
             reader.on_reject = self._on_reject(reader)
-        self.links = LinkAnnouncer(self, self.readers)  # the world moves once all have matched
+        # the world moves once every link has matched at both ends
+        self.links = LinkAnnouncer(self, self.readers, self.writers)
         if hasattr(core, 'on_radio_stop'):
             self.create_subscription(Bool, 'hw/radio_stop', self._radio_stop,
                                      qos.RECORD_READER)

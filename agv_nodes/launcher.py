@@ -102,25 +102,44 @@ def wait_lists(graph: Graph, world: bool, recording: bool) -> tuple[list[str], l
     only one let the world's own pacing reader satisfy the wait while traction had not yet
     matched the executive, so traction missed the 00H that arms it (a start-up trip).
     """
+    subs, pubs = [], []
+    for name, n in record_readers(graph, world, recording).items():
+        s = codec()[name]
+        pubs.append(s.topic)
+        subs.append(f'{s.topic}:{n}' if n > 1 else s.topic)
+    return sorted(set(subs)), sorted(set(pubs))
+
+
+def record_readers(graph: Graph, world: bool, recording: bool) -> dict[str, int]:
+    """Each record whose writer and at least one reader run -> its number of readers (the
+    graph's, the world's pacing reader of a record it does not read itself, the recorder)."""
     running = {n.name for n in graph.nodes if n.role == 'node' or (n.role == 'world' and world)}
     paced = set(paced_records(graph)) if world else set()
-    subs, pubs = [], []
+    out = {}
     for s in codec():
         if s.kind == 'ground_truth':
             continue
         readers_up = [r for r in s.readers if r in running]
         if s.writer in running and readers_up:
-            pubs.append(s.topic)
-            n = len(readers_up) + (s.name in paced and 'world' not in s.readers) + recording
-            subs.append(f'{s.topic}:{n}' if n > 1 else s.topic)
-    return sorted(set(subs)), sorted(set(pubs))
+            pacing = s.name in paced and 'world' not in s.readers
+            out[s.name] = len(readers_up) + pacing + recording
+    return out
 
 
-def wait_links(graph: Graph) -> list[str]:
-    """The world's `wait_for_links`: every 'reader:record' link of the graph (both ends
-    launched), the world's pacing readers included. Counting readers from the world's side
-    (wait_lists) says the writers have matched them, not that they have matched the writers:
-    navigation once took a task before its first sensor status (ros_ports.LinkAnnouncer)."""
+def wait_links(graph: Graph, recording: bool = False) -> list[str]:
+    """The world's `wait_for_links`: both ends of every record link of the graph.
+
+    'reader:record' - the reader's node has matched the record's writer - for each reader of
+    each record (both ends launched), the world's pacing readers included; and
+    'writer>record:N' - the writer has matched all N readers (record_readers). Discovery is
+    two-sided and either side may lag: a writer that has not matched a reader sends it nothing
+    (a volatile reader never sees what went before), and a reader that has not matched the
+    writer drops what comes. Counting readers from the world's side (wait_lists) said neither.
+    With the reader ends only, a CI run's navigation still had no sensor status when its
+    first task came (0.7 s of sim time) and called the sensor lost, as one fresh-clone
+    rehearsal had before; an unmatched writer's end is the one gap left that explains both
+    (not caught in the act).
+    """
     running = {n.name for n in graph.nodes if n.role in ('node', 'world')}
     links = set()
     for s in codec():
@@ -129,6 +148,8 @@ def wait_links(graph: Graph) -> list[str]:
         links.update(f'{r}:{s.name}' for r in s.readers if r in running)
     if 'world' in running:
         links.update(f'world:{name}' for name in paced_records(graph))
+    for name, n in record_readers(graph, 'world' in running, recording).items():
+        links.add(f'{codec()[name].writer}>{name}:{n}')
     return sorted(links)
 
 
@@ -191,7 +212,7 @@ def node_parameters(graph: Graph, spec: NodeSpec, options: Options) -> dict[str,
         subs, pubs = wait_lists(graph, True, options.bag is not None)
         out.update(time_factor=float(options.time_factor), publish_clock=options.use_sim_time,
                    wait_for_subscribers=subs, wait_for_publishers=pubs,
-                   wait_for_links=wait_links(graph),
+                   wait_for_links=wait_links(graph, options.bag is not None),
                    pace_on=paced_records(graph))
         if options.faults:
             out['pace_slack'] = pace_slack(options.faults)

@@ -142,39 +142,56 @@ LINKS_TOPIC = 'graph/links'
 
 
 class LinkAnnouncer:
-    """Says on `graph/links` which of a node's record inputs have matched their writer.
+    """Says on `graph/links` which of a node's record links have matched, at both ends.
 
     Discovery is two-sided: a writer may match a reader (and the world may count it) before
-    the reader has matched the writer, and a volatile reader drops what comes in meanwhile. A
-    run that started then lost its first records (navigation saw a task before any sensor
-    status and called the sensor lost). So each node polls its own readers on a steady timer
-    (sim time stands still until the world moves) and publishes `"<node> rec1 rec2 ..."`
-    (latched) each time the matched set grows, until all are matched; the world waits for the
-    links the launcher names (`wait_for_links`) before it moves.
+    the reader has matched the writer, and a volatile reader drops what comes in meanwhile; a
+    reader may match a writer before the writer has matched it, and the writer sends it
+    nothing meanwhile. Runs that started then lost their first records (navigation saw a task
+    before any sensor status and called the sensor lost). So each node polls its own readers
+    and writers on a steady timer (sim time stands still until the world moves) and publishes
+    `"<node> rec1 rec2 ... out1>N1 out2>N2 ..."` (latched) each time it changes: the inputs that
+    have matched a writer, and how many readers each output has matched. The world waits for
+    the links the launcher names (`wait_for_links`) before it moves. Polling ends once every
+    input has matched and the node's clock runs (the world has moved).
     """
 
     def __init__(self, node: Node, readers: Mapping[str, RecordSubscription],
+                 writers: Mapping[str, RecordPublisher] | None = None,
                  period: float = 0.02) -> None:
         self._node = node
         self._readers = readers
-        self._said: set[str] | None = None
+        self._writers = writers or {}
+        self._now_ns = node_time(node)
+        self._said: str | None = None
         self._pub = node.create_publisher(String, LINKS_TOPIC, qos.LATCHED)
         self._timer = node.create_timer(period, self.poll,
                                         clock=RosClock(clock_type=ClockType.STEADY_TIME))
 
     def poll(self) -> None:
-        """Publish the matched inputs if they changed; stop once every input is matched."""
+        """Publish the matched links if they changed; stop once inputs match and time runs."""
         matched = {name for name, r in self._readers.items() if r.publisher_count() > 0}
-        if matched != self._said:
-            self._said = matched
-            words = [self._node.get_name(), *sorted(matched)]
-            self._pub.publish(String(data=' '.join(words)))
-        if len(matched) == len(self._readers) and self._timer is not None:
+        words = [self._node.get_name(), *sorted(matched),
+                 *(f'{name}>{w.subscription_count}' for name, w in sorted(self._writers.items()))]
+        text = ' '.join(words)
+        if text != self._said:
+            self._said = text
+            self._pub.publish(String(data=text))
+        if (len(matched) == len(self._readers) and self._now_ns() > 0
+                and self._timer is not None):
             self._node.destroy_timer(self._timer)
             self._timer = None
 
 
-def parse_links(text: str) -> tuple[str, set[str]]:
-    """`"<node> rec1 rec2 ..."` (LinkAnnouncer) -> (node, {records})."""
+def parse_links(text: str) -> tuple[str, set[str], dict[str, int]]:
+    """`"<node> rec1 rec2 ... out1>N1 ..."` (LinkAnnouncer) -> (node, {inputs matched},
+    {output: readers matched})."""
     words = text.split()
-    return (words[0] if words else ''), set(words[1:])
+    inputs, outputs = set(), {}
+    for word in words[1:]:
+        name, sep, count = word.partition('>')
+        if not sep:
+            inputs.add(word)
+        elif count.isdigit():
+            outputs[name] = int(count)
+    return (words[0] if words else ''), inputs, outputs

@@ -12,6 +12,7 @@ import pytest
 import yaml
 
 from agv_nodes.launcher import Launch, Options, load_graph, node_parameters
+from agv_nodes.records import codec
 
 from conftest import REPO
 
@@ -157,18 +158,39 @@ def test_fault_option_reaches_the_writer_and_the_world():
 
 
 def test_world_waits_for_every_link_whose_two_ends_are_launched():
-    """wait_for_links: each reader of each record once both ends run (LinkAnnouncer)."""
+    """wait_for_links: each reader of each record once both ends run (LinkAnnouncer), and each
+    writer's end with as many readers as the world waits for on its topic."""
     from dataclasses import replace
 
-    from agv_nodes.launcher import wait_links
+    from agv_nodes.launcher import wait_links, wait_lists
+    from agv_nodes.ros_ports import parse_links
+    from agv_nodes.world.node import parse_link_entry
 
     graph = load_graph()
-    links = wait_links(graph)
+    links = wait_links(graph, recording=True)
     assert {'navigation:position_sensor_status', 'position_sensor:adc_snapshot',
             'traction:traction_command', 'executive:navigation_status',
             'world:traction_drive'} <= set(links)
-    assert node_parameters(graph, graph.node('world'), Options())['wait_for_links'] == links
+    # the writer's end: navigation, the world's pacing reader and the recorder
+    assert 'position_sensor>position_sensor_status:3' in links
+    assert 'world>adc_snapshot:2' in links and 'world>wheel_odometry:4' in links
+    subs, _pubs = wait_lists(graph, True, True)
+    topics = {codec()[name].topic: name for name in codec().names()}
+    for entry in subs:  # the same reader counts as wait_for_subscribers
+        topic, _, n = entry.partition(':')
+        name = topics[topic]
+        assert f'{codec()[name].writer}>{name}:{n or 1}' in links
+    assert all(parse_link_entry(entry) is not None for entry in links)
+    assert parse_link_entry('navigation>nonsense:2') is None
+    assert parse_link_entry('navigation>navigation_status:x') is None
+    assert parse_link_entry('navigation>navigation_status:0') is None
+    assert parse_links('navigation position_sensor_status navigation_status>3') == (
+        'navigation', {'position_sensor_status'}, {'navigation_status': 3})
+    assert node_parameters(graph, graph.node('world'), Options())['wait_for_links'] == \
+        wait_links(graph, recording=False)
+    assert node_parameters(graph, graph.node('world'), Options(bag=Path('b')))[
+        'wait_for_links'] == links
     partial = replace(graph, nodes=[n for n in graph.nodes if n.name != 'position_sensor'])
     assert not [x for x in wait_links(partial)
-                if x.startswith('position_sensor:') or x.endswith(':position_sensor_status')]
+                if x.startswith('position_sensor') or 'position_sensor_status' in x]
     assert 'navigation:wheel_odometry' in wait_links(partial)

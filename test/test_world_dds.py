@@ -87,31 +87,47 @@ def test_world_pause_step_resume_services():
 
 def test_world_waits_for_every_link_it_is_told_of():
     """wait_for_links: no move (and a message naming the link) until the reader's node says
-    on graph/links that it has matched its writer."""
+    on graph/links that it has matched its writer, the writer's node that its writer has
+    matched all its readers, and the world's own writer has matched its readers."""
     import rclpy
-    from std_msgs.msg import String
+    from std_msgs.msg import String, UInt8MultiArray
 
     from agv_nodes import qos
     from agv_nodes.ros_ports import LINKS_TOPIC
 
     args = [WORLD, '--ros-args', '-p', 'layout:=straight_track', '-p', 'time_factor:=0.0',
             '-p', 'duration:=0.5',
-            '-p', "wait_for_links:=['navigation:position_sensor_status']"]
+            '-p', "wait_for_links:=['navigation:position_sensor_status', "
+                  "'navigation>navigation_status:2', 'world>wheel_odometry:1']"]
     alone = subprocess.run([*args, '-p', 'peer_timeout:=3.0'], capture_output=True, text=True,
                            timeout=60)
     assert alone.returncode == 1, alone.stdout + alone.stderr
-    assert "links still missing: ['navigation:position_sensor_status']" in alone.stderr
+    assert ("links still missing: ['navigation:position_sensor_status', "
+            "'navigation>navigation_status:2 (has 0)', 'world>wheel_odometry:1 (has 0)']"
+            in alone.stderr)
     assert 'moving' not in alone.stdout + alone.stderr
 
     rclpy.init()
     node = rclpy.create_node('navigation')  # stands in for the node that reads the record
     try:
         pub = node.create_publisher(String, LINKS_TOPIC, qos.LATCHED)
-        pub.publish(String(data='navigation position_sensor_status wheel_odometry'))
+        # its reader has matched, but its writer only one of two readers; nobody reads the
+        # world's wheel odometry yet
+        pub.publish(String(data='navigation position_sensor_status wheel_odometry '
+                                'navigation_status>1'))
+        half = subprocess.run([*args, '-p', 'peer_timeout:=3.0'], capture_output=True,
+                              text=True, timeout=60)
+        pub.publish(String(data='navigation position_sensor_status wheel_odometry '
+                                'navigation_status>2'))
+        node.create_subscription(UInt8MultiArray, 'hw/wheel_odometry', lambda _m: None,
+                                 qos.STREAM_READER)
         told = subprocess.run([*args, '-p', 'peer_timeout:=30.0'], capture_output=True,
                               text=True, timeout=60)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
+    assert half.returncode == 1, half.stdout + half.stderr
+    assert ("links still missing: ['navigation>navigation_status:2 (has 1)', "
+            "'world>wheel_odometry:1 (has 0)']" in half.stderr)
     assert told.returncode == 0, told.stdout + told.stderr
-    assert 'moving at time_factor 0' in told.stdout + told.stderr
+    assert 'moving at time_factor 0 (3 links matched at both ends' in told.stdout + told.stderr

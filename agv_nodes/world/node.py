@@ -54,6 +54,20 @@ NODE = 'world'
 INPUTS = ('traction_drive', 'steering_command', 'conveyor_command')
 
 
+def parse_link_entry(entry: str) -> tuple[str, str, int | None] | None:
+    """A `wait_for_links` entry: 'NODE:RECORD' -> (node, record, None); 'NODE>RECORD:N' ->
+    (node, record, N); None when it is neither (or names no record)."""
+    if '>' in entry:
+        node, _, rest = entry.partition('>')
+        record, _, count = rest.partition(':')
+        readers = int(count) if count.isdigit() and int(count) > 0 else None
+        if not node or record not in codec() or readers is None:
+            return None
+        return node, record, readers
+    node, _, record = entry.partition(':')
+    return (node, record, None) if node and record in codec() else None
+
+
 def _counts_samples(schema: RecordSchema) -> bool:
     """A record that reports how many world samples its writer has consumed."""
     return any(f.name == 'sample_count' for f in schema.fields)
@@ -113,13 +127,17 @@ class WorldNode(Node):
                                  'before the world moves')
         self.wait_pubs = p.texts('wait_for_publishers', [], 'topics that need a writer '
                                  'before the world moves')
-        links = p.texts('wait_for_links', [], 'NODE:RECORD links whose reader must have '
-                        'matched its writer before the world moves (graph/links; agv-launch '
-                        'names every link of the graph)')
-        self.wait_links = [tuple(entry.partition(':')[::2]) for entry in links]
-        for entry, (node, record) in zip(links, self.wait_links, strict=True):
-            if not node or record not in codec():
-                p.fail('wait_for_links', links, f'{entry!r} is not NODE:RECORD')
+        links = p.texts('wait_for_links', [], "links that must have matched before the world "
+                        "moves: NODE:RECORD (NODE's reader has matched the record's writer) or "
+                        "NODE>RECORD:N (NODE's writer has matched N readers); graph/links, "
+                        'agv-launch names every link of the graph')
+        self.wait_links: list[tuple[str, str, int | None]] = []
+        for entry in links:
+            link = parse_link_entry(entry)
+            if link is None:
+                p.fail('wait_for_links', links, f'{entry!r} is not NODE:RECORD or '
+                       'NODE>RECORD:N')
+            self.wait_links.append(link)
         self.peer_timeout = p.number('peer_timeout', 60.0, 'seconds to wait for peers', 0.0,
                                      3600.0)
         self.duration = p.number('duration', 0.0, 'stop after this many simulated seconds '
@@ -170,6 +188,7 @@ class WorldNode(Node):
                 self._own_links[name] = sub.get_publisher_count
         self.create_subscription(Bool, 'hw/radio_stop', self._radio_stop, qos.RECORD_READER)
         self._links: dict[str, set[str]] = {}  # node -> its inputs matched (graph/links)
+        self._link_outputs: dict[str, dict[str, int]] = {}  # node -> readers its outputs matched
         self.create_subscription(String, LINKS_TOPIC, self._on_links, qos.LINKS_READER)
         self.clock_pub = self.create_publisher(Clock, '/clock', qos.STREAM_WRITER)
         self.pose_pub = self.create_publisher(PoseStamped, 'world/pose', qos.STREAM_WRITER)
@@ -211,8 +230,9 @@ class WorldNode(Node):
         return on_msg
 
     def _on_links(self, msg: String) -> None:
-        node, records = parse_links(msg.data)
-        self._links[node] = records
+        node, inputs, outputs = parse_links(msg.data)
+        self._links[node] = inputs
+        self._link_outputs[node] = outputs
 
     def _set_at_run_time(self, params: list) -> SetParametersResult:
         """Faults switched while the world runs: ambient light and the wire generator."""
@@ -349,12 +369,22 @@ class WorldNode(Node):
         return subs_ok and pubs_ok and not self.links_missing()
 
     def links_missing(self) -> list[str]:
-        """`wait_for_links` entries not matched yet (the world's own, by its readers)."""
+        """`wait_for_links` entries not matched yet (the world's own by its own readers and
+        writers, the others as their nodes say on graph/links)."""
         missing = []
-        for node, record in self.wait_links:
+        for node, record, readers in self.wait_links:
+            if readers is not None:  # the writer's end
+                if node == self.get_name():
+                    writer = self.out.get(record)
+                    count = writer.subscription_count if writer is not None else 0
+                else:
+                    count = self._link_outputs.get(node, {}).get(record, 0)
+                if count < readers:
+                    missing.append(f'{node}>{record}:{readers} (has {count})')
+                continue
             if node == self.get_name():
-                count = self._own_links.get(record)
-                matched = count is not None and count() > 0
+                count_of = self._own_links.get(record)
+                matched = count_of is not None and count_of() > 0
             else:
                 matched = record in self._links.get(node, ())
             if not matched:
@@ -363,7 +393,8 @@ class WorldNode(Node):
 
     def run(self, executor: Any) -> int:
         """Wait for peers, then step the world until shut down (or `duration`)."""
-        deadline = time.monotonic() + self.peer_timeout
+        started = time.monotonic()
+        deadline = started + self.peer_timeout
         while rclpy.ok() and not self.peers_ready():
             if self.publish_clock:
                 self.clock_pub.publish(Clock(clock=self.stamp()))
@@ -375,7 +406,8 @@ class WorldNode(Node):
                     f'{self.links_missing()})')
                 return 1
         self.get_logger().info(f'layout {self.layout.name}: moving at time_factor '
-                               f'{self.time_factor:g}')
+                               f'{self.time_factor:g} ({len(self.wait_links)} links matched at '
+                               f'both ends after {time.monotonic() - started:.2f} s)')
         wall0, sim0 = time.monotonic(), self.core.time
         while rclpy.ok():
             self.drain(executor)
