@@ -123,7 +123,10 @@ class CoreNode(Node):
         self.publish(self.core.tick(self.now_s()))
 
     def publish(self, outputs: dict[str, dict[str, Any]] | None) -> None:
-        """Publish the records a core returned."""
+        """Publish the records a core returned (and log the warnings it noted)."""
+        warnings = getattr(self.core, 'warnings', None)
+        while warnings:
+            self.get_logger().warn(warnings.pop(0))
         for record, fields in (outputs or {}).items():
             if record == self.fault_record:
                 self._faulty(record, fields)

@@ -45,11 +45,22 @@ def run_demo(out: Path, *extra: str, timeout: float = 900) -> subprocess.Complet
     return subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr)
 
 
+def node_warnings(out: Path, limit: int = 25) -> str:
+    """The world's start line and the nodes' warnings and errors from a demo's logs: a failed
+    run's CI output then says what each node saw, not only what agv-demo heard."""
+    lines = []
+    for log in sorted((out / 'logs').glob('*.log')):
+        for line in log.read_text(errors='replace').splitlines():
+            if '[WARN]' in line or '[ERROR]' in line or 'moving at' in line:
+                lines.append(f'{log.stem}: {line[:300]}')
+    return '\nnode logs (warnings, errors, start):\n' + '\n'.join(lines[-limit:])
+
+
 @pytest.fixture(scope='module')
 def quick(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp('demo_quick')
     res = run_demo(out, '--quick')
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:] + node_warnings(out)
     return out
 
 
@@ -147,7 +158,8 @@ def test_full_demonstration_programme_over_dds(tmp_path):
     0.079-0.097 s, and the test is in the default run.
     """
     res = run_demo(tmp_path)
-    assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-3000:]
+    assert res.returncode == 0, (res.stdout[-3000:] + res.stderr[-2000:]
+                                 + node_warnings(tmp_path))
     summary = json.loads((tmp_path / 'demo.json').read_text())
     assert all(t['result'] == 'completed' for t in summary['tasks'])
     # Simulated time really ran the programme (its speed is measured in bench/, not tested).

@@ -459,6 +459,9 @@ def test_sensor_silence_reports_lost_and_requests_speed_0():
     assert n.statuses[-1][0] & 0x08  # LOST bit
     status = n.core.status()
     assert status['sensor_lost'] == 1
+    # the node logs why, once
+    assert len(n.core.warnings) == 1 and 'the last position sensor status came at' in \
+        n.core.warnings[0]
 
 
 def test_a_task_with_no_sensor_ever_heard_ends_lost_after_the_timeout():
@@ -475,6 +478,8 @@ def test_a_task_with_no_sensor_ever_heard_ends_lost_after_the_timeout():
         n.t = round(n.t + 0.005, 6)
     assert n.core.sensor_lost and n.core.mode == 'idle' and n.links[-1] == 0x00
     assert n.statuses[-1][0] & 0x08  # LOST bit
+    assert [w.split(': ', 1)[1] for w in n.core.warnings] == [
+        'sensor lost: no position sensor status since the task came at 0.000 s (none heard yet)']
 
 
 def test_via_executive_puts_the_request_in_the_status_record():

@@ -103,6 +103,7 @@ class NavigationCore:
         self.input_fault = False
         self._sensor_time: float | None = None
         self._task_since: float | None = None  # first tick of a task before any sensor status
+        self.warnings: list[str] = []  # why the sensor was called lost (the node logs them)
         self._seen_recognitions: int | None = None
         self._blind_until = 0.0
         self._guard = False  # ignore the centre view until another view is seen
@@ -231,6 +232,9 @@ class NavigationCore:
 
     def _sensor_status(self, fields: dict[str, Any], now: float) -> None:
         lost = bool(fields['adc_stale'] or fields['saturated'])
+        if lost and not self.sensor_lost:
+            self.warnings.append(f'{now:.3f} s: sensor lost: the position sensor reports '
+                                 + ('no ADC snapshot' if fields['adc_stale'] else 'saturation'))
         self._set_lost(lost)
         count = fields['recognitions']
         if self._seen_recognitions is None:
@@ -333,9 +337,14 @@ class NavigationCore:
                 self._task_since = None
             elif self._task_since is None:
                 self._task_since = now
-            elif now - self._task_since > self.p.sensor_timeout:
+            elif now - self._task_since > self.p.sensor_timeout and not self.sensor_lost:
+                self.warnings.append(f'{now:.3f} s: sensor lost: no position sensor status '
+                                     f'since the task came at {self._task_since:.3f} s (none '
+                                     'heard yet)')
                 self._set_lost(True)
-        elif now - self._sensor_time > self.p.sensor_timeout:
+        elif now - self._sensor_time > self.p.sensor_timeout and not self.sensor_lost:
+            self.warnings.append(f'{now:.3f} s: sensor lost: the last position sensor status '
+                                 f'came at {self._sensor_time:.3f} s')
             self._set_lost(True)
         if self.mode == 'positioning' and self.p.stopping == 'controlled':
             self._controlled(now)
