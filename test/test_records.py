@@ -234,3 +234,30 @@ def test_inputs_report_puts_the_nodes_own_verdict_first():
     assert level == 2 and message.startswith('trip relay open: stale_command (the executive')
     assert values['traction_command age (s)'] == 'never'
     assert TractionCore().health()[0] == 1  # tripped at start-up: a warning, not a fault
+
+
+def test_report_reads_record_bytes_straight_from_their_cdr():
+    """agv-report's fast path gives exactly what rosbags' deserializer gives, and declines
+    (None: the general path) any message it does not fully understand."""
+    import numpy as np
+    from rosbags.typesys import Stores, get_typestore
+
+    from agv_nodes.report import uint8_array_data
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    msg_type = 'std_msgs/msg/UInt8MultiArray'
+    array, layout = store.types[msg_type], store.types['std_msgs/msg/MultiArrayLayout']
+    dim = store.types['std_msgs/msg/MultiArrayDimension']
+    for data in (bytes(range(16)), b'', bytes(range(15)), bytes([0xFF] * 40)):
+        raw = store.serialize_cdr(array(layout=layout(dim=[], data_offset=0),
+                                        data=np.frombuffer(data, dtype=np.uint8)), msg_type)
+        assert uint8_array_data(raw) == data
+        assert uint8_array_data(memoryview(raw)) == data
+        assert uint8_array_data(raw[:-1]) is None  # truncated
+        assert bytes(store.deserialize_cdr(raw, msg_type).data) == data
+    with_dims = store.serialize_cdr(array(layout=layout(dim=[dim(label='x', size=16, stride=16)],
+                                                        data_offset=0),
+                                          data=np.arange(16, dtype=np.uint8)), msg_type)
+    assert uint8_array_data(with_dims) is None
+    big_endian = b'\x00\x00\x00\x00' + bytes(28)  # CDR_BE encapsulation
+    assert uint8_array_data(big_endian) is None
