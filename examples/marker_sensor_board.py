@@ -19,6 +19,7 @@ import sys
 import time
 
 import rclpy
+from rclpy.executors import SingleThreadedExecutor
 
 from agv_nodes.records import RecordError, codec
 from agv_nodes.ros_ports import RecordPublisher
@@ -59,6 +60,9 @@ def main() -> int:
     schema = codec()['adc_snapshot']
     rclpy.init()
     node = rclpy.create_node('marker_sensor_board')
+    # one executor for the run: rclpy.spin_once(node) adds and removes the node each call
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
     pub = RecordPublisher(node, schema)
     frames = frames_from_serial(args.serial, args.baud) if args.serial else \
         frames_from_bag(args.bag)
@@ -80,7 +84,7 @@ def main() -> int:
                     time.sleep(delay)
             pub.publish(fields)
             sent += 1
-            rclpy.spin_once(node, timeout_sec=0.0)
+            executor.spin_once(timeout_sec=0.0)
     except KeyboardInterrupt:
         pass
     finally:

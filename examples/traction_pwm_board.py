@@ -68,12 +68,16 @@ def replay(bag: Path) -> Board:
 
 def live() -> None:
     import rclpy
+    from rclpy.executors import SingleThreadedExecutor
     from std_msgs.msg import UInt8MultiArray
 
     from agv_nodes import qos
 
     rclpy.init()
     node = rclpy.create_node('traction_pwm_board')
+    # one executor for the run: rclpy.spin_once(node) adds and removes the node each call
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
     board = Board()
     now = lambda: node.get_clock().now().nanoseconds * 1e-9  # noqa: E731
     node.create_subscription(UInt8MultiArray, 'hw/traction/drive',
@@ -82,7 +86,7 @@ def live() -> None:
     printed = 0
     try:
         while rclpy.ok():
-            rclpy.spin_once(node, timeout_sec=0.1)
+            executor.spin_once(timeout_sec=0.1)
             for line in board.log[printed:]:
                 print(line)
             printed = len(board.log)

@@ -8,6 +8,7 @@ import sys
 import time
 
 import rclpy
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
@@ -21,6 +22,9 @@ def main() -> int:
     seconds, duty = float(sys.argv[1]), int(sys.argv[2])
     rclpy.init()
     node = Node('world_probe')
+    # one executor for the run: rclpy.spin_once(node) adds and removes the node each call
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
     c = codec()
     drive = RecordPublisher(node, c['traction_drive'])
     steer = RecordPublisher(node, c['steering_command'])
@@ -53,7 +57,7 @@ def main() -> int:
     node.create_timer(0.01, tick)
     deadline = time.monotonic() + 120
     while rclpy.ok() and state['clock'] < seconds and time.monotonic() < deadline:
-        rclpy.spin_once(node, timeout_sec=0.05)
+        executor.spin_once(timeout_sec=0.05)
     print(json.dumps(state), flush=True)
     node.destroy_node()
     rclpy.try_shutdown()
