@@ -7,6 +7,7 @@ world:=none:
 
     python examples/marker_sensor_board.py --serial /dev/ttyUSB0      # 16 bytes per sample
     python examples/marker_sensor_board.py --bag runs/demo-*/bag      # replay a recorded run
+    python examples/marker_sensor_board.py --bag BAG --start 8 --end 11  # a stretch of it
 
 A serial frame is 16 raw bytes (lit 1-8, dark 1-8); a frame that does not decode is counted
 and dropped, never published. Replay keeps the recorded spacing of the samples.
@@ -56,6 +57,11 @@ def main() -> int:
     src.add_argument('--serial')
     src.add_argument('--bag')
     ap.add_argument('--baud', type=int, default=115200)
+    ap.add_argument('--start', type=float, default=0.0, help='replay from this recorded time, s')
+    ap.add_argument('--end', type=float, default=float('inf'),
+                    help='replay up to this recorded time, s')
+    ap.add_argument('--reader-timeout', type=float, default=10.0,
+                    help='replay: seconds to wait for a reader before sending (0: do not wait)')
     args = ap.parse_args()
     schema = codec()['adc_snapshot']
     rclpy.init()
@@ -68,8 +74,16 @@ def main() -> int:
         frames_from_bag(args.bag)
     rejected = sent = 0
     start_wall = start_rec = None
+    if args.bag:  # a replay starts once the position sensor listens (what went before is lost)
+        deadline = time.monotonic() + args.reader_timeout
+        while pub.subscription_count == 0 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
     try:
         for stamp, frame in frames:
+            if stamp is not None and stamp < args.start:
+                continue
+            if stamp is not None and stamp > args.end:
+                break
             try:
                 fields = schema.decode(frame)
             except RecordError as exc:

@@ -11,6 +11,7 @@ import json
 from pathlib import Path
 import signal
 import subprocess
+import time
 
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
@@ -19,7 +20,7 @@ import yaml
 
 from agv_nodes.records import codec
 
-from conftest import PYTHON
+from conftest import PYTHON, REPO
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 DEMO = str(Path(PYTHON).parent / 'agv-demo')
@@ -173,3 +174,72 @@ def test_full_demonstration_programme_over_dds(tmp_path):
     assert len(finals) == 8 and all(': completed' in t for t in finals)
     order = [int(t.split()[1]) for t in finals]
     assert order == sorted(order)  # the reports arrive in task order
+
+
+def test_traction_board_example_replays_the_recorded_drive(quick):
+    """examples/traction_pwm_board.py offline on the quick run's bag: every traction_drive
+    decodes, and the main contactor closes once traction's watchdog count runs."""
+    res = subprocess.run([PYTHON, str(REPO / 'examples' / 'traction_pwm_board.py'), '--bag',
+                          str(quick / 'bag')], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
+    assert 'main contactor CLOSED' in res.stdout
+    events, refused = res.stdout.strip().splitlines()[-1].split(' board events, ')
+    assert int(events) > 1000 and refused == '0 records refused'
+
+
+def test_marker_board_example_drives_a_real_position_sensor(quick):
+    """Swap the world for the marker-sensor board (world:=none): the example replays the quick
+    run's ADC snapshots around the first location marker into a position_sensor node of its own
+    (wall time), which reads L0 from them as it did in the run."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rosbags.highlevel import AnyReader
+
+    from agv_nodes.ros_ports import RecordSubscription
+
+    c = codec()
+    first = None
+    with AnyReader([quick / 'bag']) as reader:
+        conns = [x for x in reader.connections if x.topic == '/position_sensor/status']
+        for conn, stamp, raw in reader.messages(connections=conns):
+            fields = c.decode('position_sensor_status',
+                              bytes(reader.deserialize(raw, conn.msgtype).data))
+            if fields['recognised'] and fields['table'] == 'navigating':
+                first = (stamp * 1e-9, fields['identity'])
+                break
+    assert first is not None and first[1] == 0, first  # the run read L0 first
+    sensor = subprocess.Popen([str(Path(PYTHON).parent / 'position_sensor'), '--ros-args',
+                               '-p', 'use_sim_time:=false'],
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    rclpy.init()
+    node = rclpy.create_node('board_probe')
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    seen: list[dict] = []
+    RecordSubscription(node, c['position_sensor_status'], callback=seen.append)
+    board = None
+    try:
+        board = subprocess.Popen(
+            [PYTHON, str(REPO / 'examples' / 'marker_sensor_board.py'), '--bag',
+             str(quick / 'bag'), '--start', f'{first[0] - 1.5:.3f}', '--end',
+             f'{first[0] + 1.0:.3f}', '--reader-timeout', '30'],
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and board.poll() is None:
+            executor.spin_once(timeout_sec=0.1)
+        out, _ = board.communicate(timeout=30)
+        for _ in range(10):  # the statuses still on their way
+            executor.spin_once(timeout_sec=0.05)
+    finally:
+        if board is not None and board.poll() is None:
+            board.kill()
+        node.destroy_node()
+        rclpy.try_shutdown()
+        sensor.send_signal(signal.SIGINT)
+        sensor.communicate(timeout=20)
+    assert board.returncode == 0, out
+    sent = int(out.split('marker_sensor_board: ')[1].split()[0])
+    assert 800 <= sent <= 900 and ', 0 frames dropped' in out  # 2.5 s of 340 Hz
+    read = [s['identity'] for s in seen if s['recognised'] and s['table'] == 'navigating']
+    assert read == [0], (read, seen[-1:] if seen else 'no status')
+    assert max(s['sample_count'] for s in seen) >= 0.9 * sent  # it took the stream
