@@ -16,9 +16,10 @@ import os
 from pathlib import Path
 import sys
 import time
+from typing import Any
 
 from agv_nodes.harness import DEMO_PROGRAMME
-from agv_nodes.launcher import GraphError, Launch, Options
+from agv_nodes.launcher import GraphError, Launch, Options, wait_links
 
 QUICK = DEMO_PROGRAMME[:2]
 STATUS_REPLY = 'comms: status:'
@@ -45,6 +46,34 @@ def comms_handshake(spin_once: Callable[[], None], send: Callable[[str], None],
         spin_once()
 
 
+def silent_links(links: list[str], accepted: dict[str, dict[str, int]]) -> list[str]:
+    """The 'reader:record' links of `links` whose reader has accepted no record yet, from the
+    readers' `/diagnostics` inputs rows (`accepted`: node -> record -> count). A node's row
+    lists only the records it decodes (the world's pacing readers are not in it), and a node
+    not heard from yet has every link silent."""
+    silent = []
+    for link in links:
+        node, sep, record = link.partition(':')
+        if not sep or '>' in node:
+            continue  # a writer's end ('node>record:N')
+        row = accepted.get(node)
+        if row is None or row.get(record, 1 if node == 'world' else 0) == 0:
+            silent.append(link)
+    return silent
+
+
+def inputs_accepted(msg: Any) -> dict[str, dict[str, int]]:
+    """node -> record -> accepted, from the `agv[/ns]/<node>/inputs` rows of a DiagnosticArray."""
+    out: dict[str, dict[str, int]] = {}
+    for status in msg.status:
+        parts = status.name.split('/')
+        if len(parts) < 3 or parts[0] != 'agv' or parts[-1] != 'inputs':
+            continue
+        out[parts[-2]] = {kv.key[:-len(' accepted')]: int(kv.value) for kv in status.values
+                          if kv.key.endswith(' accepted') and kv.value.isdigit()}
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
     """Launch, drive the programme, stop, report; exit status."""
     out = Path(args.out or f'runs/demo-{time.strftime("%Y%m%d-%H%M%S")}')
@@ -57,6 +86,7 @@ def run(args: argparse.Namespace) -> int:
         print(f'agv-demo: {exc}', file=sys.stderr)
         return 2
     os.environ.update(ROS_DOMAIN_ID=str(launch.domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import PoseStamped
     import rclpy  # after the domain is chosen: this process joins the graph
     from std_msgs.msg import String
@@ -96,6 +126,9 @@ def run(args: argparse.Namespace) -> int:
     # more reader cost the world's publisher and this process more than progress lines need.
     node.create_subscription(PoseStamped, 'world/pose', on_pose, qos.STREAM_READER)
     node.create_subscription(String, 'comms/report', on_report, qos.EVENTS)
+    accepted: dict[str, dict[str, int]] = {}
+    node.create_subscription(DiagnosticArray, '/diagnostics',
+                             lambda msg: accepted.update(inputs_accepted(msg)), qos.EVENTS)
     task_pub = node.create_publisher(String, 'comms/task', qos.EVENTS)
     wall0 = time.monotonic()
     launch.start()
@@ -110,7 +143,18 @@ def run(args: argparse.Namespace) -> int:
         comms_handshake(lambda: executor.spin_once(timeout_sec=0.05),
                         lambda text: task_pub.publish(String(data=text)), state['lines'],
                         alive=lambda: not launch.poll())
-        print(f'agv-demo: graph up in {time.monotonic() - wall0:.1f} s; sending the programme')
+        # Every link has carried records before the programme goes: the world moved only once
+        # both ends of each had matched, but a run whose navigation still had no sensor status
+        # at its first task must fail here, naming the link, and not as a task's `sensor lost`.
+        links = wait_links(launch.graph, recording=True)
+        deadline = time.monotonic() + 60
+        while silent := silent_links(links, accepted):
+            if launch.poll() or time.monotonic() > deadline:
+                raise RuntimeError(f'no record yet on {", ".join(silent)} (the readers\' '
+                                   '/diagnostics inputs rows)')
+            executor.spin_once(timeout_sec=0.1)
+        print(f'agv-demo: graph up in {time.monotonic() - wall0:.1f} s, every link carrying '
+              f'records at {state["sim"]:.1f} s; sending the programme')
         moving_wall, sim0 = time.monotonic(), state['sim']
         for text in tasks:
             task_pub.publish(String(data=text))

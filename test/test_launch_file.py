@@ -194,3 +194,39 @@ def test_world_waits_for_every_link_whose_two_ends_are_launched():
     assert not [x for x in wait_links(partial)
                 if x.startswith('position_sensor') or 'position_sensor_status' in x]
     assert 'navigation:wheel_odometry' in wait_links(partial)
+
+
+def test_demo_waits_until_every_link_has_carried_a_record():
+    """agv-demo sends the programme only once each reader's /diagnostics inputs row shows a
+    record accepted on each of its links (the world's pacing readers are not in its row)."""
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+    from agv_nodes.demo import inputs_accepted, silent_links
+    from agv_nodes.launcher import wait_links
+
+    def row(name: str, **accepted: int) -> DiagnosticStatus:
+        values = [KeyValue(key=f'{k} accepted', value=str(v)) for k, v in accepted.items()]
+        values.append(KeyValue(key='rejected', value='0'))
+        return DiagnosticStatus(name=name, values=values)
+
+    links = wait_links(load_graph(), recording=True)
+    msg = DiagnosticArray(status=[
+        row('agv/navigation/inputs', navigation_command=19, position_sensor_status=0,
+            wheel_odometry=101),
+        row('agv/world/inputs', traction_drive=98, steering_command=98, conveyor_command=19),
+        row('agv/executive/display')])
+    accepted = inputs_accepted(msg)
+    assert accepted['navigation'] == {'navigation_command': 19, 'position_sensor_status': 0,
+                                      'wheel_odometry': 101}
+    silent = silent_links(links, accepted)
+    assert 'navigation:position_sensor_status' in silent  # nothing yet on the sensor's link
+    assert 'navigation:wheel_odometry' not in silent
+    assert not [x for x in silent if x.startswith('world:')]  # pacing readers: not in its row
+    assert 'position_sensor:adc_snapshot' in silent  # not heard from yet
+    assert not [x for x in silent if '>' in x]
+    every = {link.partition(':')[0]: {} for link in links if '>' not in link}
+    for link in links:
+        node, sep, record = link.partition(':')
+        if sep and '>' not in node:
+            every[node][record] = 1
+    assert silent_links(links, every) == []
