@@ -96,6 +96,12 @@ class GraphProbe:
             if label.endswith('/inputs'):
                 self.inputs[st.hardware_id] = {kv.key: kv.value for kv in st.values}
 
+    def accepted(self) -> dict[str, dict[str, int]]:
+        """node -> record -> records accepted, from the latest /diagnostics inputs rows."""
+        return {node: {k[:-len(' accepted')]: int(v) for k, v in values.items()
+                       if k.endswith(' accepted') and v.isdigit()}
+                for node, values in self.inputs.items()}
+
     # -- driving ----------------------------------------------------------------------------
     def spin_until(self, condition, wall_limit: float, what: str) -> None:
         """Spin until `condition()`; fail on a timeout or an unexpected dead node."""
@@ -112,7 +118,8 @@ class GraphProbe:
         """Wait for the graph, send a task, and (optionally) wait until it runs at speed."""
         from std_msgs.msg import String
 
-        from agv_nodes.demo import comms_handshake
+        from agv_nodes.demo import comms_handshake, silent_links
+        from agv_nodes.launcher import wait_links
 
         self.spin_until(lambda: self.launch.moving.is_set()
                         and self.task_pub.get_subscription_count() > 0, 120, 'the graph')
@@ -120,6 +127,10 @@ class GraphProbe:
                         lambda words: self.task_pub.publish(String(data=words)), self.reports,
                         alive=lambda: not [n for n in self.launch.poll()
                                            if n not in self.expected_dead])
+        # as agv-demo: every link has carried a record before the task goes
+        links = wait_links(self.launch.graph)
+        self.spin_until(lambda: not silent_links(links, self.accepted()), 60,
+                        'every link to carry a record')
         self.task_pub.publish(String(data=text))
         if cruise is not None:
             self.spin_until(lambda: self.speed > cruise, 90, f'the truck to exceed {cruise}')
