@@ -14,6 +14,7 @@ import sys
 
 from diagnostic_msgs.msg import DiagnosticArray
 import rclpy
+from rclpy.executors import SingleThreadedExecutor
 
 from agv_nodes import qos
 
@@ -79,6 +80,8 @@ def main(argv: list[str] | None = None) -> int:
     args, ros_args = ap.parse_known_args(argv)
     rclpy.init(args=['agv-diag', *ros_args])
     node = rclpy.create_node('agv_diag')
+    executor = SingleThreadedExecutor()  # once, not rclpy.spin_once(node) per turn
+    executor.add_node(node)
     got = Merged()
     node.create_subscription(DiagnosticArray, '/diagnostics', got, qos.EVENTS)
     code = 0
@@ -88,10 +91,10 @@ def main(argv: list[str] | None = None) -> int:
 
             deadline = time.monotonic() + args.timeout
             while not got.fresh and time.monotonic() < deadline:
-                rclpy.spin_once(node, timeout_sec=0.1)
+                executor.spin_once(timeout_sec=0.1)
             end = time.monotonic() + 1.5  # the other publishers' rows (1 Hz each)
             while got.fresh and time.monotonic() < end:
-                rclpy.spin_once(node, timeout_sec=0.1)
+                executor.spin_once(timeout_sec=0.1)
             if not got.fresh:
                 print('agv-diag: no /diagnostics received', file=sys.stderr)
                 code = 1
@@ -99,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(render(got.array(), args.detail, colour=False))
         else:
             while rclpy.ok():
-                rclpy.spin_once(node, timeout_sec=0.2)
+                executor.spin_once(timeout_sec=0.2)
                 if got.fresh:
                     sys.stdout.write('\033[2J\033[H' + render(got.array(), args.detail) + '\n')
                     sys.stdout.flush()
