@@ -6,7 +6,7 @@ import pytest
 
 from agv_nodes.communications.core import CommunicationsCore, TaskError, parse_task
 from agv_nodes.executive.core import ExecutiveCore, ExecutiveParams, itinerary
-from agv_nodes.executive.diagnostics import ERROR, OK, HealthMonitor
+from agv_nodes.executive.diagnostics import ERROR, OK, WARN, HealthMonitor
 from agv_nodes.harness import DEMO_PROGRAMME, submit, truck
 from agv_nodes.load_handling.core import LoadHandlingCore
 from agv_nodes.navigation.core import NavigationParams
@@ -325,6 +325,26 @@ def test_diagnostics_rows_for_a_healthy_truck():
     assert nav['in (hex)'].startswith('0B00') and len(nav['in (hex)']) == 32
     assert len(nav['out (hex)']) == 32 and 'task_location=0' in nav['out']
     assert float(rows['traction'].values['rate (Hz)']) == pytest.approx(20, abs=2)
+
+
+def test_traction_start_up_trip_is_a_warning_and_a_fault_trip_an_error():
+    """Before the first task traction's relay is open by design (power-on, awaiting 00H then
+    non-zero): WARN, as in traction's own row, so agv-report lists no fault for a healthy
+    start-up. A trip from a fault stays ERROR."""
+    h = truck('demo_1983', seed=1)
+    ex = h.cores['executive']
+    member = next(m for m in h.members if m.core is ex)
+    monitor = HealthMonitor()
+    h.run(1.0)
+    rows = {r.name: r for r in monitor.update(h.now, member.readers, member.writers, ex)}
+    assert rows['traction'].level == WARN and rows['traction'].message == \
+        'trip relay open: startup'
+    assert all(r.level == OK for n, r in rows.items() if n != 'traction'), \
+        {n: r.message for n, r in rows.items()}
+    traction = member.readers['traction_status']
+    traction.fields = dict(traction.fields, trip_cause='stale_command')
+    rows = {r.name: r for r in monitor.update(h.now, member.readers, member.writers, ex)}
+    assert rows['traction'].level == ERROR
 
 
 def test_agv_diag_renders_the_32_byte_display():

@@ -113,7 +113,11 @@ class HealthMonitor:
             bad = value == 'lost' if (name, key) == ('route', 'state') else \
                 value == 'failed' if (name, key) == ('load', 'state') else bool(value)
             if bad:
-                level = max(level, WARN if key in ('input_fault',) else ERROR)
+                # traction's start-up trip is its power-on state until the executive arms it
+                # (00H then non-zero), a warning as in traction's own row, not a fault
+                startup = (name, key) == ('traction', 'tripped') and \
+                    fields.get('trip_cause') == 'startup'
+                level = max(level, WARN if key == 'input_fault' or startup else ERROR)
                 reasons.append(text)
         recent = self._recent_rejects.get(name, 0)
         if recent:
