@@ -47,6 +47,7 @@ class CoreNode(Node):
                                   'inter-processor records (none: a legacy peer sending plain '
                                   'thesis records)', ('e2e', 'none'))
         self.core = core
+        self._warnings: list[str] = getattr(core, 'warnings', [])  # the core's notes to log
         if not self.has_parameter('executor'):  # (the executive declares it earlier)
             self.executor_kind = declare_executor(params)
         if self.executor_kind == 'events' and self.get_parameter('use_sim_time').value:
@@ -124,9 +125,8 @@ class CoreNode(Node):
 
     def publish(self, outputs: dict[str, dict[str, Any]] | None) -> None:
         """Publish the records a core returned (and log the warnings it noted)."""
-        warnings = getattr(self.core, 'warnings', None)
-        while warnings:
-            self.get_logger().warn(warnings.pop(0))
+        while self._warnings:
+            self.get_logger().warn(self._warnings.pop(0))
         for record, fields in (outputs or {}).items():
             if record == self.fault_record:
                 self._faulty(record, fields)

@@ -62,6 +62,12 @@ def silent_links(links: list[str], accepted: dict[str, dict[str, int]]) -> list[
     return silent
 
 
+def accepted_counts(values: dict[str, str]) -> dict[str, int]:
+    """record -> records accepted, from one inputs row's values (`'<record> accepted'`)."""
+    return {key[:-len(' accepted')]: int(value) for key, value in values.items()
+            if key.endswith(' accepted') and value.isdigit()}
+
+
 def inputs_accepted(msg: Any) -> dict[str, dict[str, int]]:
     """node -> record -> accepted, from the `agv[/ns]/<node>/inputs` rows of a DiagnosticArray."""
     out: dict[str, dict[str, int]] = {}
@@ -69,8 +75,7 @@ def inputs_accepted(msg: Any) -> dict[str, dict[str, int]]:
         parts = status.name.split('/')
         if len(parts) < 3 or parts[0] != 'agv' or parts[-1] != 'inputs':
             continue
-        out[parts[-2]] = {kv.key[:-len(' accepted')]: int(kv.value) for kv in status.values
-                          if kv.key.endswith(' accepted') and kv.value.isdigit()}
+        out[parts[-2]] = accepted_counts({kv.key: kv.value for kv in status.values})
     return out
 
 

@@ -77,7 +77,7 @@ def read_bag(bag: Path) -> dict[str, Any]:
                     record = bytes(reader.deserialize(raw, conn.msgtype).data)
                 try:
                     fields = schema.decode(record, integrity='none' if not
-                                           schema.protected else _integrity(record))
+                                           schema.protected else record_integrity(record))
                 except RecordError:
                     data['rejected'][schema.name] += 1
                     continue
@@ -103,7 +103,7 @@ def read_bag(bag: Path) -> dict[str, Any]:
     return data
 
 
-def _integrity(raw: bytes) -> str:
+def record_integrity(raw: bytes) -> str:
     """Protected records in a bag: e2e when bytes 15-16 are set, else a plain (none) peer."""
     return 'e2e' if raw[14] or raw[15] else 'none'
 

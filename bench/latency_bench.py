@@ -27,7 +27,7 @@ from pathlib import Path
 import sys
 
 from agv_nodes.records import codec
-from agv_nodes.report import uint8_array_data
+from agv_nodes.report import record_integrity, uint8_array_data
 
 TOPICS = {'/hw/position_sensor/adc': 'adc_snapshot',
           '/position_sensor/status': 'position_sensor_status',
@@ -50,8 +50,7 @@ def read(bag: Path) -> dict[str, list]:
                 out[name].append(t)
                 continue
             data = uint8_array_data(raw) or bytes(reader.deserialize(raw, conn.msgtype).data)
-            integrity = 'e2e' if data[14] or data[15] else 'none'
-            out[name].append((t, c.decode(name, data, integrity=integrity)))
+            out[name].append((t, c.decode(name, data, integrity=record_integrity(data))))
     return out
 
 
@@ -71,13 +70,12 @@ def hops(run: dict[str, list]) -> dict[str, list[float]]:
         if 0 < count <= len(adc):
             out['adc_to_status'].append(t - adc[count - 1])
     link_times = [t for t, _f in links]
-    previous = {i: links[i - 1][1] if i else None for i in range(len(links))}
     for (t, f), (_t, count) in zip(statuses, processed, strict=True):
         if not f['recognised'] or not 0 < count <= len(adc):
             continue
         i = bisect.bisect_right(link_times, t)
         # the first link after the recognition; it counts when its contents are new
-        if i >= len(links) or links[i][1] == previous[i] or links[i][0] - t > 0.2:
+        if i >= len(links) or (i and links[i][1] == links[i - 1][1]) or links[i][0] - t > 0.2:
             continue
         j = bisect.bisect_right(drive, links[i][0])
         if j >= len(drive):

@@ -98,9 +98,9 @@ class GraphProbe:
 
     def accepted(self) -> dict[str, dict[str, int]]:
         """node -> record -> records accepted, from the latest /diagnostics inputs rows."""
-        return {node: {k[:-len(' accepted')]: int(v) for k, v in values.items()
-                       if k.endswith(' accepted') and v.isdigit()}
-                for node, values in self.inputs.items()}
+        from agv_nodes.demo import accepted_counts
+
+        return {node: accepted_counts(values) for node, values in self.inputs.items()}
 
     # -- driving ----------------------------------------------------------------------------
     def spin_until(self, condition, wall_limit: float, what: str) -> None:
