@@ -15,16 +15,29 @@ so the bag holds each hop of the chain the 1983 truck ran on a recognition:
    runs every 10 ms, so this is the loop's wait, not a measured reaction).
 
 Sensor-to-traction is 1 + 2 + 3 for each recognition that changed the link. Under sim time every
-node's clock moves in /clock steps (3 samples, 8.8 ms), which quantises hops 2 and 3.
-Prints Markdown tables: n, p50, p99, max per hop, in ms of sim time.
+node's clock moves in /clock steps (3 samples, 8.8 ms), which quantises hops 2 and 3 in a bag.
+
+`--live` measures the same hops in wall time on a running graph instead (issue 8's "live graph
+at real time"): it launches the graph (recorder included, as in the demo) at `--time-factor`,
+runs the first `--tasks` tasks of the demonstration programme (default 2, the quick programme:
+two stops and a landmark each), and a probe in this process
+keeps every message's DDS source timestamp: the wall time its writer sent it, one host, one
+clock, so the probe's own lag does not count. The probe reads the ADC at 340 Hz too (a load
+the demo does not have).
+
+Prints Markdown tables: n, p50, p99, max per hop, in ms (sim time from a bag, wall time live).
 """
 
 from __future__ import annotations
 
 import argparse
 import bisect
+import math
+import os
 from pathlib import Path
 import sys
+import tempfile
+import time
 
 from agv_nodes.records import codec
 from agv_nodes.report import record_integrity, uint8_array_data
@@ -67,11 +80,11 @@ def hops(run: dict[str, list]) -> dict[str, list[float]]:
         count = n if last is None else count + ((n - last) & 0xFFFF)
         last = n
         processed.append((t, count))
-        if 0 < count <= len(adc):
+        if 0 < count <= len(adc) and not math.isnan(adc[count - 1]):
             out['adc_to_status'].append(t - adc[count - 1])
     link_times = [t for t, _f in links]
     for (t, f), (_t, count) in zip(statuses, processed, strict=True):
-        if not f['recognised'] or not 0 < count <= len(adc):
+        if not f['recognised'] or not 0 < count <= len(adc) or math.isnan(adc[count - 1]):
             continue
         i = bisect.bisect_right(link_times, t)
         # the first link after the recognition; it counts when its contents are new
@@ -103,10 +116,127 @@ def table(name: str, result: dict[str, list[float]]) -> str:
     return '\n'.join(lines)
 
 
+def align(run: dict[str, list]) -> dict[str, list]:
+    """Put a gap (NaN) where the probe missed snapshots the position sensor counted, so that
+    status count n is snapshot n again.
+
+    The probe's reader may match the world late or lose samples when it is starved (its queue
+    is 100 deep, as every stream reader's). Up to each status the sensor has counted no more
+    snapshots than were sent before that status went out; when it has counted more, the probe
+    missed the difference, and they are put in the widest gap between the snapshots it did see
+    since the previous status (at the start when it matched late).
+    """
+    adc, statuses = run['adc_snapshot'], run['position_sensor_status']
+    fixed: list[float] = []
+    taken, count, last, missed = 0, 0, None, 0
+    for t, f in statuses:
+        n = f['sample_count']
+        count = n if last is None else count + ((n - last) & 0xFFFF)
+        last = n
+        upto = bisect.bisect_right(adc, t)
+        chunk = adc[taken:upto]
+        gap = count - len(fixed) - len(chunk)
+        if gap > 0:
+            times = ([fixed[-1]] if fixed else [-math.inf]) + chunk
+            widest = max(range(len(chunk) + 1), key=lambda k: times[k + 1] - times[k]
+                         if k < len(chunk) else (-1.0 if fixed else -math.inf))
+            chunk = chunk[:widest] + [math.nan] * gap + chunk[widest:]
+            missed += gap
+        fixed += chunk
+        taken = upto
+    fixed += adc[taken:]
+    if missed:
+        print(f'note: the probe missed {missed} of {len(fixed)} snapshots (placed as gaps)',
+              file=sys.stderr)
+    run['adc_snapshot'] = fixed
+    return run
+
+
+def live(time_factor: float, extra: dict[str, list[str]], tasks: int = 2) -> dict[str, list]:
+    """Run the first `tasks` tasks of the demonstration programme on a launched graph; every
+    message's send time (wall s)."""
+    from agv_nodes.demo import comms_handshake
+    from agv_nodes.harness import DEMO_PROGRAMME
+
+    programme = DEMO_PROGRAMME[:tasks]
+    from agv_nodes.launcher import Launch, Options
+
+    out = Path(tempfile.mkdtemp(prefix='agv_latency_bench_'))
+    launch = Launch(Options(time_factor=time_factor, bag=out / 'bag', quiet=True, extra=extra))
+    os.environ.update(ROS_DOMAIN_ID=str(launch.domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from std_msgs.msg import String, UInt8MultiArray
+
+    from agv_nodes import qos
+
+    c = codec()
+    run: dict[str, list] = {name: [] for name in TOPICS.values()}
+    rclpy.init()
+    node = rclpy.create_node('latency_probe')
+    for topic, name in TOPICS.items():
+        def on_msg(raw: bytes, info: dict, name: str = name) -> None:
+            sent = (info.get('source_timestamp') or 0) * 1e-9
+            run[name].append(sent if name in ('adc_snapshot', 'traction_drive')
+                             else (sent, uint8_array_data(raw)))
+        # (msg, info) callbacks need the single-threaded executor in rclpy 7.1.6
+        node.create_subscription(UInt8MultiArray, topic.lstrip('/'), on_msg,
+                                 qos.reader_qos(c[name]), raw=True)
+    lines: list[str] = []
+    pub = node.create_publisher(String, 'comms/task', qos.EVENTS)
+    node.create_subscription(String, 'comms/report', lambda m: lines.append(m.data), qos.EVENTS)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    launch.start()
+    try:
+        deadline = time.monotonic() + 120
+        while not launch.moving.is_set() or pub.get_subscription_count() == 0:
+            executor.spin_once(timeout_sec=0.1)
+            if launch.poll() or time.monotonic() > deadline:
+                raise RuntimeError('the graph did not come up')
+        comms_handshake(lambda: executor.spin_once(timeout_sec=0.05),
+                        lambda text: pub.publish(String(data=text)), lines)
+        for text in programme:
+            pub.publish(String(data=text))
+        deadline = time.monotonic() + 60 + 120 * len(programme)
+        while sum(': completed' in x or ': FAILED' in x for x in lines) < len(programme):
+            executor.spin_once(timeout_sec=0.1)
+            if launch.poll() or time.monotonic() > deadline:
+                raise RuntimeError('the quick programme did not finish')
+        for _ in range(20):  # the last statuses and drives in flight
+            executor.spin_once(timeout_sec=0.01)
+    finally:
+        executor.remove_node(node)
+        node.destroy_node()
+        rclpy.try_shutdown()
+        launch.stop()
+    for line in lines:
+        if line.startswith('task '):
+            print(f'  {line}', file=sys.stderr)
+    for name in ('position_sensor_status', 'traction_link'):
+        run[name] = [(t, c.decode(name, data, integrity=record_integrity(data)))
+                     for t, data in run[name]]
+    return align(run)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument('bags', nargs='+', type=Path)
+    ap.add_argument('bags', nargs='*', type=Path)
+    ap.add_argument('--live', action='store_true', help='measure a running graph (wall time)')
+    ap.add_argument('--time-factor', type=float, default=1.0)
+    ap.add_argument('--tasks', type=int, default=2, help='live: the first N tasks of the '
+                    'demonstration programme (2: the quick programme; 8: all of it)')
+    ap.add_argument('-p', '--param', action='append', default=[],
+                    help='NODE:NAME:=VALUE for one node, e.g. traction:link_reaction:=loop')
     args = ap.parse_args()
+    if args.live:
+        extra: dict[str, list[str]] = {}
+        for spec in args.param:
+            node, _, arg = spec.partition(':')
+            extra.setdefault(node, []).append(arg)
+        run = live(args.time_factor, extra, args.tasks)
+        print(table(f'live graph, time_factor {args.time_factor:g}, {args.tasks} tasks '
+                    f'{" ".join(args.param)} (wall time)', hops(run)))
     for bag in args.bags:
         print(table(f'{bag} (sim time)', hops(read(bag))))
     return 0

@@ -27,7 +27,7 @@ SPEEDS = {0.7: 55, 1.0: 80}  # m/s -> cruise demand (% duty)
 
 
 def one_stop(seed: int, demand: int, payload: float, mode: str,
-             trace: list[str] | None = None) -> dict:
+             trace: list[str] | None = None, link_reaction: str = 'at_once') -> dict:
     """One run; returns the stop error (mm) and the speed at the location marker. With
     `trace`, every change of navigation's view or link while positioning is appended to it
     with the ground truth (sensor axis past the centre, mm) and the truck's speed."""
@@ -36,7 +36,8 @@ def one_stop(seed: int, demand: int, payload: float, mode: str,
     wp = WorldParams(seed=seed, electruk=ElectrukParams(payload=payload))
     controlled = mode == 'controlled'
     h = truck('straight_track', seed=seed, world_params=wp,
-              traction=TractionParams(control='closed_loop' if controlled else 'open_loop_1983'),
+              traction=TractionParams(control='closed_loop' if controlled else 'open_loop_1983',
+                                      link_reaction=link_reaction),
               navigation=NavigationParams(stopping='controlled' if controlled
                                           else 'friction_1983'),
               executive=ExecutiveParams(cruise_demand=demand))
@@ -73,12 +74,15 @@ def main() -> int:
     ap.add_argument('--modes', default='friction_1983,controlled')
     ap.add_argument('--trace', default='', help='SEEDS:SPEED:PAYLOAD (e.g. 1,3:1.0:1000): '
                     'print the positioning of these runs (controlled) instead of the tables')
+    ap.add_argument('--link-reaction', default='at_once', choices=('at_once', 'loop'),
+                    help="traction's link_reaction (agv_nodes/traction/core.py)")
     args = ap.parse_args()
     if args.trace:
         seeds, speed, payload = args.trace.split(':')
         for seed in (int(x) for x in seeds.split(',')):
             lines: list[str] = []
-            run = one_stop(seed, SPEEDS[float(speed)], float(payload), 'controlled', lines)
+            run = one_stop(seed, SPEEDS[float(speed)], float(payload), 'controlled', lines,
+                           args.link_reaction)
             print(f'seed {seed}: stop error {run["error_mm"]} mm')
             print('\n'.join(f'  {line}' for line in lines))
         return 0
@@ -89,7 +93,8 @@ def main() -> int:
     for mode in args.modes.split(','):
         for speed, demand in SPEEDS.items():
             for payload in (0.0, 1000.0):
-                results = [one_stop(seed, demand, payload, mode) for seed in range(args.runs)]
+                results = [one_stop(seed, demand, payload, mode, link_reaction=args.link_reaction)
+                           for seed in range(args.runs)]
                 rows += results
                 errors = [r['error_mm'] for r in results if r['ok']]
                 if not errors:

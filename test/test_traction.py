@@ -178,6 +178,38 @@ def test_immediate_emergency_stop_acts_on_the_record_not_the_next_pass(control):
     assert as_listed.core.on_record('traction_command', cmd(0), as_listed.t) is None
 
 
+@pytest.mark.parametrize('reaction', ['at_once', 'loop'])
+def test_a_new_link_is_acted_on_at_once_in_the_closed_loop(reaction):
+    b = Bench(control='closed_loop', link_reaction=reaction)
+    b.arm()
+    b.command = cmd(60)
+    b.link = link(speed=40)  # Position priority, forward 40 %
+    b.run(4.0)
+    cruising = b.log[-1][1]['armature_duty']
+    assert cruising > 0 and b.core.source == 'position'
+    t = b.t - DT / 2  # between two loop passes
+    passes = b.core.watchdog
+    # the same contents again (navigation's 20 ms repeat) change nothing: no extra pass
+    assert b.core.on_record('traction_link', link(speed=40), t) is None
+    out = b.core.on_record('traction_link', {**link(speed=40), 'stop_in': 5}, t)
+    if reaction == 'loop':
+        assert out is None  # the listing: the next pass of START reads it
+        return
+    # a controlled stop 5 mm ahead at 0.5 m/s: the drive is cut in this very record
+    assert out['traction_drive']['armature_enable'] == 0
+    assert out['traction_drive']['armature_duty'] == 0 and out['traction_drive']['contactor']
+    assert b.core.watchdog == (passes + 1) & 0xFF  # that record's own pass
+
+
+def test_the_open_loop_keeps_the_listings_passes_for_a_new_link():
+    b = Bench(control='open_loop_1983', link_reaction='at_once')
+    b.arm()
+    b.command = cmd(60)
+    b.link = link(speed=40)
+    b.run(4.0)
+    assert b.core.on_record('traction_link', link(speed=0), b.t - DT / 2) is None
+
+
 def test_manual_bypasses_emergency_and_radio_stop():
     b = Bench()
     b.arm()

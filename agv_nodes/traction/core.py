@@ -65,6 +65,14 @@ class TractionParams:
     # abandons any wait, then FLIPs and plug-brakes as the listing does; `as_listed` keeps
     # the slew. Issue 9 wants the drive off within 200 ms of a fault.
     emergency_stop: str = 'immediate'
+    # A traction_link with new contents (navigation's slow-down, stop, or a controlled stop's
+    # new distance to go) waits up to one loop_period for the next pass of START in the
+    # listing (`loop`). `at_once` (modern, the default) runs a pass of the closed loop the
+    # moment it arrives, so a recognition reaches the drive in one chain of messages (issue
+    # 8: sensor-to-traction latency; bench/latency_bench.py --live). The open loop always
+    # keeps the listing's passes: its SUM slews 16 % per pass, so an extra pass would steepen
+    # its ramp.
+    link_reaction: str = 'at_once'
     command_timeout: float = 0.200  # s
     link_timeout: float = 0.200  # s
     # A command or link older than its timeout is stale only once this many wheel_odometry
@@ -97,6 +105,8 @@ class TractionParams:
             bad.append(('arithmetic', self.arithmetic, 'not saturating or faithful_8bit'))
         if self.emergency_stop not in ('immediate', 'as_listed'):
             bad.append(('emergency_stop', self.emergency_stop, 'not immediate or as_listed'))
+        if self.link_reaction not in ('at_once', 'loop'):
+            bad.append(('link_reaction', self.link_reaction, 'not at_once or loop'))
         if self.control not in ('open_loop_1983', 'closed_loop'):
             bad.append(('control', self.control, 'not open_loop_1983 or closed_loop'))
         if not 0 < self.field_duty <= 100:
@@ -168,6 +178,7 @@ class TractionCore:
                 self._cut_armature(now)
                 return {'traction_drive': self.drive()}
         elif record == 'traction_link':
+            news = fields != self.link
             self.link, self.link_time = fields, now
             stop_in = fields.get('stop_in', 0)
             if stop_in:  # a controlled stop: `stop_in` mm from here, in the link's direction
@@ -175,6 +186,10 @@ class TractionCore:
                 self.stop_target = self.odometer + way * stop_in / 1000.0
             else:
                 self.stop_target = None
+            if news and self.p.link_reaction == 'at_once' and self.p.control == 'closed_loop' \
+                    and self._last_tick is not None:
+                self._odometry_at[record] = self._odometry_count
+                return self.tick(now)  # a pass now, not at the next loop (see link_reaction)
         elif record == 'wheel_odometry':
             self.measured_speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
             self._odometry_count += 1

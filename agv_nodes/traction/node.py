@@ -44,6 +44,10 @@ class TractionNode(CoreNode):
                                     'that must arrive after a command or link before its age '
                                     'alone trips (0 = the timeout alone, as on the hardware)',
                                     0, 1000),
+            link_reaction=p.choice('link_reaction', d.link_reaction, 'a traction_link with '
+                                   'new contents: run a closed-loop pass at once (at_once), or '
+                                   'wait for the next loop pass as the listing does (loop)',
+                                   ('at_once', 'loop')),
             link_timeout=p.number('link_timeout', d.link_timeout, 'trip when the Position link '
                                   'being obeyed is older than this, s', 0.02, 5.0),
             stall_limit=p.number('stall_limit', d.stall_limit, 'trip when two loop passes are '
