@@ -128,6 +128,7 @@ def align(run: dict[str, list]) -> dict[str, list]:
     """
     adc, statuses = run['adc_snapshot'], run['position_sensor_status']
     fixed: list[float] = []
+    backlog: list[int] = []  # per status: snapshots sent before it that it had not counted
     taken, count, last, missed = 0, 0, None, 0
     for t, f in statuses:
         n = f['sample_count']
@@ -142,6 +143,7 @@ def align(run: dict[str, list]) -> dict[str, list]:
                          if k < len(chunk) else (-1.0 if fixed else -math.inf))
             chunk = chunk[:widest] + [math.nan] * gap + chunk[widest:]
             missed += gap
+        backlog.append(max(0, -gap))
         fixed += chunk
         taken = upto
     fixed += adc[taken:]
@@ -149,7 +151,21 @@ def align(run: dict[str, list]) -> dict[str, list]:
         print(f'note: the probe missed {missed} of {len(fixed)} snapshots (placed as gaps)',
               file=sys.stderr)
     run['adc_snapshot'] = fixed
+    run['backlog'] = backlog
     return run
+
+
+def backlog_table(backlog: list[int]) -> str:
+    """How far behind the world's 340 Hz the position sensor was when it sent each status."""
+    s = sorted(backlog)
+    behind = sum(1 for b in s if b > 0)
+    return ('\n| position_sensor at its statuses | value |\n|---|---|\n'
+            f'| statuses | {len(s)} |\n'
+            f'| snapshots sent but not yet counted (in flight or queued), p50 / p99 / max | '
+            f'{s[len(s) // 2]} / '
+            f'{s[min(len(s) - 1, int(0.99 * len(s)))]} / {s[-1]} |\n'
+            f'| statuses sent with at least one such snapshot | {behind} '
+            f'({100 * behind / len(s):.2f} %) |')
 
 
 def live(time_factor: float, extra: dict[str, list[str]], tasks: int = 2) -> dict[str, list]:
@@ -237,6 +253,7 @@ def main() -> int:
         run = live(args.time_factor, extra, args.tasks)
         print(table(f'live graph, time_factor {args.time_factor:g}, {args.tasks} tasks '
                     f'{" ".join(args.param)} (wall time)', hops(run)))
+        print(backlog_table(run['backlog']))
     for bag in args.bags:
         print(table(f'{bag} (sim time)', hops(read(bag))))
     return 0
