@@ -48,6 +48,7 @@ from rosgraph_msgs.msg import Clock
 
 from agv_nodes.core_node import spin_main
 from agv_nodes.params import Parameters
+from agv_nodes.records.carrier import clock_ns
 from agv_nodes.sent_time import SentTimeline
 
 SKIP = {'/parameter_events'}
@@ -132,6 +133,7 @@ class Recorder(Node):
         self._held: list[tuple[int, str, bytes, int]] = []  # (sent ns, topic, raw, held since)
         self._polled = PolledGroup() if self.poll_period else None
         self._time_source_fed: Any = None  # rclpy's TimeSource, fed from the polled /clock
+        self._clock_msg = Clock()  # re-filled from each /clock sample's CDR
         self._open()
         self.create_timer(0.5, self._discover, clock=self._wall_clock())
         if self.poll_period:
@@ -252,8 +254,13 @@ class Recorder(Node):
             for raw, info in _queued(sub, 1000):
                 sent_ns = info.get('source_timestamp') or 0
                 if topic == '/clock':
-                    clock = deserialize_message(raw, Clock)
-                    self.timeline.clock(sent_ns, clock.clock.sec + clock.clock.nanosec * 1e-9)
+                    ns = clock_ns(raw)
+                    clock = deserialize_message(raw, Clock) if ns is None else self._clock_msg
+                    if ns is None:
+                        ns = clock.clock.sec * 1_000_000_000 + clock.clock.nanosec
+                    else:
+                        clock.clock.sec, clock.clock.nanosec = divmod(ns, 1_000_000_000)
+                    self.timeline.clock(sent_ns, ns * 1e-9)
                     if self._time_source_fed is not None:
                         self._time_source_fed.clock_callback(clock)
                 if not sim_time:

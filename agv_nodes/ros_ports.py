@@ -13,32 +13,35 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.clock import Clock as RosClock
 from rclpy.clock import ClockType
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 from std_msgs.msg import String, UInt8MultiArray
 
 from agv_nodes import qos
+from agv_nodes.records.carrier import uint8_array_cdr, uint8_array_data
 from agv_nodes.records.codec import RecordSchema
 from agv_nodes.records.ports import RecordReader, RecordWriter, inputs_report
 
 
 class RecordPublisher(RecordWriter):
-    """Publishes one record topic; `publish(fields)` packs and sends 16 bytes."""
+    """Publishes one record topic; `publish(fields)` packs and sends 16 bytes.
+
+    The UInt8MultiArray goes out already serialized (agv_nodes.records.carrier): the same bytes
+    rclpy would write, without building a Python message for each record.
+    """
 
     def __init__(self, node: Node, schema: RecordSchema, integrity: str = 'e2e') -> None:
         super().__init__(schema, integrity if schema.protected else 'none')
         self._pub = node.create_publisher(UInt8MultiArray, schema.topic, qos.writer_qos(schema))
-        self._msg = UInt8MultiArray()
 
     def publish(self, fields: Mapping[str, Any]) -> bytes:
         """Pack `fields` and publish them; returns the 16 bytes sent."""
         raw = self.pack(fields)
-        self._msg.data = raw
-        self._pub.publish(self._msg)
+        self._pub.publish(uint8_array_cdr(raw))
         return raw
 
     def publish_raw(self, raw: bytes) -> None:
         """Send bytes as they are (fault injection and foreign-writer tests only)."""
-        self._msg.data = bytes(raw)
-        self._pub.publish(self._msg)
+        self._pub.publish(uint8_array_cdr(bytes(raw)))
 
     @property
     def subscription_count(self) -> int:
@@ -55,8 +58,22 @@ def node_time(node: Node) -> Callable[[], int]:
     return lambda: node.get_clock().now().nanoseconds
 
 
+def record_bytes(raw: bytes) -> bytes:
+    """The record in a serialized UInt8MultiArray: read straight from the CDR when it has the
+    shape this package sends, else through rclpy's deserializer (a foreign writer's layout)."""
+    data = uint8_array_data(raw)
+    if data is None:
+        data = bytes(deserialize_message(raw, UInt8MultiArray).data)
+    return data
+
+
 class RecordSubscription(RecordReader):
-    """Subscribes one record topic; calls `callback(fields)` for each record accepted."""
+    """Subscribes one record topic; calls `callback(fields)` for each record accepted.
+
+    It takes the messages serialized (`raw=True`) and reads the 16 bytes from the CDR
+    (`record_bytes`): a 340 Hz reader costs a node a third less CPU that way
+    (agv_nodes.records.carrier).
+    """
 
     def __init__(self, node: Node, schema: RecordSchema, integrity: str = 'e2e',
                  callback: Callable[[dict[str, Any]], None] | None = None,
@@ -71,18 +88,18 @@ class RecordSubscription(RecordReader):
         # 7.1.6's EventsExecutor fails ("SystemError: null argument") on (msg, info) callbacks.
         self._sub = node.create_subscription(
             UInt8MultiArray, schema.topic, self._on_msg_info if sent_stamps else self._on_msg,
-            qos.reader_qos(schema))
+            qos.reader_qos(schema), raw=True)
 
     def publisher_count(self) -> int:
         """Writers this reader has matched (its own side of the link)."""
         return self._sub.get_publisher_count()
 
-    def _on_msg_info(self, msg: UInt8MultiArray, info: Mapping[str, Any]) -> None:
+    def _on_msg_info(self, raw: bytes, info: Mapping[str, Any]) -> None:
         self.sent_ns = info.get('source_timestamp') or 0
-        self._on_msg(msg)
+        self._on_msg(raw)
 
-    def _on_msg(self, msg: UInt8MultiArray) -> None:
-        fields = self.accept(bytes(msg.data), self._now_ns())
+    def _on_msg(self, raw: bytes) -> None:
+        fields = self.accept(record_bytes(raw), self._now_ns())
         if fields is None:
             if self.on_reject is not None:
                 self.on_reject()

@@ -40,7 +40,8 @@ import tempfile
 import time
 
 from agv_nodes.records import codec
-from agv_nodes.report import record_integrity, uint8_array_data
+from agv_nodes.records.carrier import uint8_array_data
+from agv_nodes.report import record_integrity
 
 TOPICS = {'/hw/position_sensor/adc': 'adc_snapshot',
           '/position_sensor/status': 'position_sensor_status',

@@ -1,11 +1,13 @@
 """What one subscription costs a node process: the floor under issue 8's CPU per node.
 
-A publisher process sends /clock at RATE Hz; a subscriber process takes it with an empty
-callback, in each variant below, and its CPU (all threads: Python and Fast DDS) is read from
-/proc over SECONDS. Every graph node takes a /clock like this (113 Hz at clock_every 3) plus its
-records; position_sensor takes 340 ADC snapshots a second on top.
+A publisher process sends /clock (or, with `--message record`, a 16-byte record as a
+std_msgs/UInt8MultiArray) at RATE Hz; a subscriber process takes it with an empty callback, in
+each variant below, and its CPU (all threads: Python and Fast DDS) is read from /proc over
+SECONDS. Every graph node takes a /clock like this (113 Hz at clock_every 3) plus its records;
+position_sensor takes 340 ADC snapshots a second on top.
 
-Run: .venv/bin/python bench/rclpy_bench.py [--rate 113] [--seconds 20]
+Run: .venv/bin/python bench/rclpy_bench.py [--rate 113] [--seconds 20] [--message record]
+     [--variants events,events_raw]
 """
 
 from __future__ import annotations
@@ -30,15 +32,21 @@ PUBLISHER = """
 import sys, time
 import rclpy
 from rosgraph_msgs.msg import Clock
+from std_msgs.msg import UInt8MultiArray
 from agv_nodes import qos
 rclpy.init()
 node = rclpy.create_node('rclpy_bench_clock')
-pub = node.create_publisher(Clock, '/clock', qos.STREAM_WRITER)
+record = sys.argv[2] == 'record'
+pub = node.create_publisher(UInt8MultiArray if record else Clock,
+                            'hw/position_sensor/adc' if record else '/clock', qos.STREAM_WRITER)
 rate, t0, k = float(sys.argv[1]), time.monotonic(), 0
 while rclpy.ok():
     k += 1
-    msg = Clock()
-    msg.clock.sec, msg.clock.nanosec = divmod(int(k / rate * 1e9), 1_000_000_000)
+    if record:
+        msg = UInt8MultiArray(data=bytes(16))
+    else:
+        msg = Clock()
+        msg.clock.sec, msg.clock.nanosec = divmod(int(k / rate * 1e9), 1_000_000_000)
     pub.publish(msg)
     time.sleep(max(0.0, t0 + k / rate - time.monotonic()))
 """
@@ -47,14 +55,17 @@ SUBSCRIBER = """
 import sys
 import rclpy
 from rosgraph_msgs.msg import Clock
+from std_msgs.msg import UInt8MultiArray
 from agv_nodes import qos
 from agv_nodes.core_node import make_executor
-variant = sys.argv[1]
+variant, record = sys.argv[1], sys.argv[2] == 'record'
 rclpy.init()
 node = rclpy.create_node('rclpy_bench_reader')
 readers = 2 if variant == 'events_two' else 1
 for _ in range(readers):
-    node.create_subscription(Clock, '/clock', lambda msg: None, qos.CLOCK_READER,
+    node.create_subscription(UInt8MultiArray if record else Clock,
+                             'hw/position_sensor/adc' if record else '/clock', lambda msg: None,
+                             qos.STREAM_READER if record else qos.CLOCK_READER,
                              raw=variant == 'events_raw')
 executor = make_executor('single' if variant == 'single' else 'events')
 executor.add_node(node)
@@ -73,16 +84,23 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--rate', type=float, default=113.3)
     ap.add_argument('--seconds', type=float, default=20.0)
+    ap.add_argument('--message', choices=('clock', 'record'), default='clock',
+                    help='what is sent: /clock (rosgraph_msgs/Clock) or a 16-byte record '
+                    '(std_msgs/UInt8MultiArray on hw/position_sensor/adc)')
+    ap.add_argument('--variants', default=','.join(VARIANTS))
     args = ap.parse_args()
     domain, _lock = claim_domain()
     env = {**os.environ, 'ROS_DOMAIN_ID': str(domain),
            'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
-    print(f'/clock at {args.rate:g} Hz, {args.seconds:g} s per variant, ROS_DOMAIN_ID={domain}\n')
+    print(f'{args.message} at {args.rate:g} Hz, {args.seconds:g} s per variant, '
+          f'ROS_DOMAIN_ID={domain}\n')
     print('| subscriber | CPU (% of one core) | per message (us) |\n|---|---|---|')
-    for variant, label in VARIANTS.items():
+    for variant in args.variants.split(','):
+        label = VARIANTS[variant]
         quiet = {'env': env, 'stderr': subprocess.DEVNULL}  # (SIGTERM tracebacks)
-        pub = subprocess.Popen([sys.executable, '-c', PUBLISHER, str(args.rate)], **quiet)
-        sub = subprocess.Popen([sys.executable, '-c', SUBSCRIBER, variant], **quiet)
+        pub = subprocess.Popen([sys.executable, '-c', PUBLISHER, str(args.rate), args.message],
+                               **quiet)
+        sub = subprocess.Popen([sys.executable, '-c', SUBSCRIBER, variant, args.message], **quiet)
         try:
             time.sleep(4.0)  # discovery and start-up
             c0, t0 = cpu_seconds(sub.pid), time.monotonic()

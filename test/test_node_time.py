@@ -7,6 +7,7 @@ from typing import Any
 
 import pytest
 import rclpy
+from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 
 from agv_nodes.core_node import ClockTimers, make_executor
@@ -21,15 +22,17 @@ class _Node:
     def __init__(self) -> None:
         self.callback = None
 
-    def create_subscription(self, _type: Any, topic: str, callback, _qos: Any) -> None:
-        assert topic == '/clock'
+    def create_subscription(self, _type: Any, topic: str, callback, _qos: Any,
+                            raw: bool = False) -> None:
+        assert topic == '/clock' and raw  # taken serialized (agv_nodes.records.carrier)
         self.callback = callback
 
 
-def _clock(ns: int) -> Clock:
+def _clock(ns: int) -> bytes:
+    """A /clock sample as the reader takes it: serialized by rclpy's own serializer."""
     msg = Clock()
     msg.clock.sec, msg.clock.nanosec = divmod(ns, 1_000_000_000)
-    return msg
+    return serialize_message(msg)
 
 
 def _timers(*periods: float) -> tuple[ClockTimers, _Node, dict[float, list[int]]]:

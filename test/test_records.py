@@ -236,13 +236,14 @@ def test_inputs_report_puts_the_nodes_own_verdict_first():
     assert TractionCore().health()[0] == 1  # tripped at start-up: a warning, not a fault
 
 
-def test_report_reads_record_bytes_straight_from_their_cdr():
-    """agv-report's fast path gives exactly what rosbags' deserializer gives, and declines
-    (None: the general path) any message it does not fully understand."""
+def test_carriers_read_and_written_straight_as_cdr():
+    """The nodes' and agv-report's serialized carriers (agv_nodes.records.carrier) give exactly
+    what rosbags' (de)serializer gives, and decline (None: the general path) any message they
+    do not fully understand."""
     import numpy as np
     from rosbags.typesys import Stores, get_typestore
 
-    from agv_nodes.report import uint8_array_data
+    from agv_nodes.records.carrier import clock_ns, uint8_array_cdr, uint8_array_data
 
     store = get_typestore(Stores.ROS2_JAZZY)
     msg_type = 'std_msgs/msg/UInt8MultiArray'
@@ -254,6 +255,7 @@ def test_report_reads_record_bytes_straight_from_their_cdr():
         assert uint8_array_data(raw) == data
         assert uint8_array_data(memoryview(raw)) == data
         assert uint8_array_data(raw[:-1]) is None  # truncated
+        assert uint8_array_cdr(data) == raw  # what the nodes publish
         assert bytes(store.deserialize_cdr(raw, msg_type).data) == data
     with_dims = store.serialize_cdr(array(layout=layout(dim=[dim(label='x', size=16, stride=16)],
                                                         data_offset=0),
@@ -261,3 +263,11 @@ def test_report_reads_record_bytes_straight_from_their_cdr():
     assert uint8_array_data(with_dims) is None
     big_endian = b'\x00\x00\x00\x00' + bytes(28)  # CDR_BE encapsulation
     assert uint8_array_data(big_endian) is None
+    clock = store.types['rosgraph_msgs/msg/Clock']
+    time = store.types['builtin_interfaces/msg/Time']
+    for sec, nanosec in ((0, 0), (381, 999_999_999), (2**31 - 1, 5)):
+        raw = store.serialize_cdr(clock(clock=time(sec=sec, nanosec=nanosec)),
+                                  'rosgraph_msgs/msg/Clock')
+        assert clock_ns(raw) == sec * 1_000_000_000 + nanosec
+    assert clock_ns(b'\x00\x00\x00\x00' + bytes(8)) is None  # big endian
+    assert clock_ns(bytes(raw[:11])) is None

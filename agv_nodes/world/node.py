@@ -37,6 +37,7 @@ from agv_nodes import qos
 from agv_nodes.core_node import declare_executor, spin_main
 from agv_nodes.params import Parameters
 from agv_nodes.records import codec
+from agv_nodes.records.carrier import clock_cdr
 from agv_nodes.records.codec import RecordError, RecordSchema
 from agv_nodes.ros_ports import (
     LINKS_TOPIC,
@@ -44,6 +45,7 @@ from agv_nodes.ros_ports import (
     RecordPublisher,
     RecordSubscription,
     parse_links,
+    record_bytes,
 )
 from agv_nodes.world.core import WorldCore, WorldParams
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
@@ -184,7 +186,8 @@ class WorldNode(Node):
         for name in pace_on:  # only the arrival (and a sample count) matter: read raw
             if name not in INPUTS:
                 sub = self.create_subscription(UInt8MultiArray, c[name].topic,
-                                               self._paced(c[name]), qos.reader_qos(c[name]))
+                                               self._paced(c[name]), qos.reader_qos(c[name]),
+                                               raw=True)
                 self._own_links[name] = sub.get_publisher_count
         self.create_subscription(Bool, 'hw/radio_stop', self._radio_stop, qos.RECORD_READER)
         self._links: dict[str, set[str]] = {}  # node -> its inputs matched (graph/links)
@@ -216,13 +219,14 @@ class WorldNode(Node):
     def _paced(self, schema: RecordSchema):
         counted = _counts_samples(schema)
 
-        def on_msg(msg: UInt8MultiArray) -> None:
+        def on_msg(raw: bytes) -> None:
             self._work += 1
             count = None
             if counted:  # pacing only: a record that does not decode just counts as heard
+                data = record_bytes(raw)
                 for integrity in ('e2e', 'none'):
                     try:
-                        count = schema.decode(msg.data, integrity=integrity)['sample_count']
+                        count = schema.decode(data, integrity=integrity)['sample_count']
                         break
                     except RecordError:
                         continue
@@ -274,17 +278,23 @@ class WorldNode(Node):
             return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
         return self.get_clock().now().to_msg()
 
+    def publish_clock_now(self) -> None:
+        """/clock at the world's time, serialized here (the world's busiest publisher: 116 Hz
+        to every node; a Python Clock message per sample cost more than the bytes)."""
+        self.clock_pub.publish(clock_cdr(round(self.core.time * 1e9)))
+
     def publish_step(self, out: dict) -> None:
         """Publish what one core step produced."""
-        stamp = self.stamp()
         if self.publish_clock and self.core.sample % self.clock_every == 0:
-            self.clock_pub.publish(Clock(clock=stamp))
+            self.publish_clock_now()
         for name, fields in out['records'].items():
             self.out[name].publish(fields)
         for event in out['events']:
             self.out['world_event'].publish({**{k: event[k] for k in (
                 'event', 'marker_kind', 'identity', 'error', 'speed', 'lateral', 'count',
                 'station')}, 'time_ms': round(event['time'] * 1000) & 0xFFFF})
+        stamp = self.stamp() if out['frames'] or self.core.sample % self._pose_every == 0 \
+            else None
         for name, frame in out['frames'].items():
             img = Image()
             img.header.stamp = stamp
@@ -397,7 +407,7 @@ class WorldNode(Node):
         deadline = started + self.peer_timeout
         while rclpy.ok() and not self.peers_ready():
             if self.publish_clock:
-                self.clock_pub.publish(Clock(clock=self.stamp()))
+                self.publish_clock_now()
             executor.spin_once(timeout_sec=0.05)
             if time.monotonic() > deadline:
                 self.get_logger().error(
@@ -428,7 +438,7 @@ class WorldNode(Node):
                         # The same time again: a node that missed the last /clock (or took
                         # it before its timer could see it) gets another look; timers that
                         # already ran at this time do not run twice.
-                        self.clock_pub.publish(Clock(clock=self.stamp()))
+                        self.publish_clock_now()
                         nudge = time.monotonic() + 0.05
                 if late:
                     lost = self.pacer.give_up(late)

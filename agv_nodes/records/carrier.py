@@ -1,0 +1,50 @@
+"""The carriers of the records on the wire, in their serialized CDR form (ROS-free).
+
+Every record travels as a std_msgs/UInt8MultiArray with an empty layout; the world's clock is
+rosgraph_msgs/Clock. The nodes publish and take both serialized (rclpy's `raw=True`), and the
+report reads bags the same way: rclpy 7.1.6 spends more turning a UInt8MultiArray into a Python
+message than taking it at all. A bare 340 Hz reader of 16-byte records took 7.7-9.1 % of a
+core, raw 4.3-4.9 % (bench/rclpy_bench.py --message record); rosbags' general deserializer
+took 6.8 of the 18.6 s a profiled report of the whole programme spent.
+
+Only the shapes this package sends are read here (CDR little endian, as every DDS on x86 and
+ARM writes by default); anything else returns None and the caller falls back to a general
+deserializer, so a foreign writer's valid message is never refused for its form.
+"""
+
+from __future__ import annotations
+
+import struct
+
+CDR_LE = b'\x00\x01\x00\x00'  # encapsulation: plain CDR, little endian, no options
+_EMPTY_LAYOUT_LE = CDR_LE + bytes(8)  # layout.dim = [] (u32 0), layout.data_offset = 0 (u32)
+_CLOCK = struct.Struct('<iI')  # builtin_interfaces/Time: int32 sec, uint32 nanosec
+
+
+def uint8_array_data(raw: bytes | memoryview) -> bytes | None:
+    """The `data` of a serialized std_msgs/UInt8MultiArray with an empty layout, read straight
+    from its CDR; None for any other shape."""
+    if len(raw) < 16 or bytes(raw[:12]) != _EMPTY_LAYOUT_LE:
+        return None
+    n = int.from_bytes(raw[12:16], 'little')
+    return bytes(raw[16:16 + n]) if len(raw) >= 16 + n else None
+
+
+def uint8_array_cdr(data: bytes) -> bytes:
+    """`data` as a serialized std_msgs/UInt8MultiArray with an empty layout (what rclpy's
+    serializer writes for UInt8MultiArray(data=data))."""
+    return _EMPTY_LAYOUT_LE + len(data).to_bytes(4, 'little') + data
+
+
+def clock_ns(raw: bytes | memoryview) -> int | None:
+    """The time of a serialized rosgraph_msgs/Clock in ns; None for any other shape."""
+    if len(raw) < 12 or bytes(raw[:4]) != CDR_LE:
+        return None
+    sec, nanosec = _CLOCK.unpack_from(raw, 4)
+    return sec * 1_000_000_000 + nanosec
+
+
+def clock_cdr(ns: int) -> bytes:
+    """A serialized rosgraph_msgs/Clock at `ns` (what rclpy's serializer writes)."""
+    sec, nanosec = divmod(ns, 1_000_000_000)
+    return CDR_LE + _CLOCK.pack(sec, nanosec)
