@@ -271,3 +271,24 @@ def test_carriers_read_and_written_straight_as_cdr():
         assert clock_ns(raw) == sec * 1_000_000_000 + nanosec
     assert clock_ns(b'\x00\x00\x00\x00' + bytes(8)) is None  # big endian
     assert clock_ns(bytes(raw[:11])) is None
+
+
+def test_a_record_in_any_layout_is_read_from_its_cdr():
+    """The nodes' readers take records serialized: the shape they send is read straight from
+    the CDR, any other layout (a driver's dims, a data_offset) through rclpy's deserializer,
+    and both give the 16 bytes."""
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import MultiArrayDimension, MultiArrayLayout, UInt8MultiArray
+
+    from agv_nodes.records.carrier import uint8_array_cdr, uint8_array_data
+    from agv_nodes.ros_ports import record_bytes
+
+    data = bytes(range(100, 116))
+    plain = serialize_message(UInt8MultiArray(data=data))
+    assert plain == uint8_array_cdr(data) and record_bytes(plain) == data
+    dims = MultiArrayLayout(dim=[MultiArrayDimension(label='bytes', size=16, stride=16)],
+                            data_offset=3)
+    for layout in (dims, MultiArrayLayout(data_offset=3)):
+        raw = serialize_message(UInt8MultiArray(layout=layout, data=data))
+        assert uint8_array_data(raw) is None  # not the shape the nodes send
+        assert record_bytes(raw) == data
