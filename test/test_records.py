@@ -243,7 +243,12 @@ def test_carriers_read_and_written_straight_as_cdr():
     import numpy as np
     from rosbags.typesys import Stores, get_typestore
 
-    from agv_nodes.records.carrier import clock_ns, uint8_array_cdr, uint8_array_data
+    from agv_nodes.records.carrier import (
+        clock_cdr,
+        clock_ns,
+        uint8_array_cdr,
+        uint8_array_data,
+    )
 
     store = get_typestore(Stores.ROS2_JAZZY)
     msg_type = 'std_msgs/msg/UInt8MultiArray'
@@ -269,6 +274,7 @@ def test_carriers_read_and_written_straight_as_cdr():
         raw = store.serialize_cdr(clock(clock=time(sec=sec, nanosec=nanosec)),
                                   'rosgraph_msgs/msg/Clock')
         assert clock_ns(raw) == sec * 1_000_000_000 + nanosec
+        assert clock_cdr(sec * 1_000_000_000 + nanosec) == bytes(raw)  # what the world sends
     assert clock_ns(b'\x00\x00\x00\x00' + bytes(8)) is None  # big endian
     assert clock_ns(bytes(raw[:11])) is None
 
