@@ -19,9 +19,16 @@ CRUISE = 0.6  # m/s the truck must exceed before a fault (1983 cruise: 0.7)
 
 
 def event_time(time_ms: int, reference: float) -> float:
-    """Unwrap a world_event's 16-bit ms stamp next to a recent sim time (within 65 s)."""
-    ref_ms = round(reference * 1000) + 1000  # an event may be read just before its pose
-    return (ref_ms - (ref_ms - time_ms) % 65536) / 1000
+    """Unwrap a world_event's 16-bit ms stamp to the sim time nearest `reference` (within
+    32.8 s either way).
+
+    The reference is the probe's last pose, and the probe's single-threaded executor takes one
+    pose per turn: after a busy start-up its poses ran over 1 s behind a fresh event, and the
+    old window (at most 1 s ahead of the pose) put W2.1's passage 65.5 s in the past, so the
+    route-limit test measured the whole run (13.8 m) instead of the 4 m past W2.1.
+    """
+    ref_ms = round(reference * 1000)
+    return (ref_ms + (time_ms - ref_ms + 32768) % 65536 - 32768) / 1000
 
 
 class GraphProbe:

@@ -71,7 +71,10 @@ def test_missing_stop_marker_stops_at_the_positioning_limit(tmp_path, fault_tabl
         assert passed and passed[-1][1]['marker_kind'] == 'stop'
         beyond = g.travelled_since(passed[-1][0])
         print(f'reports {g.reports}; {beyond:.2f} m from W2.1 to rest')
-        assert beyond <= LIMIT + 0.3, f'ran {beyond:.2f} m past W2.1 (limit {LIMIT} m + braking)'
+        assert beyond <= LIMIT + 0.3, (
+            f'ran {beyond:.2f} m past W2.1 (limit {LIMIT} m + braking); markers passed '
+            f'{[(round(t, 2), e["marker_kind"], e["identity"]) for t, e in passed]}, probe at '
+            f'{g.time:.2f} s')
         fault_table.add('stop marker W2.2 missing, task "stop at 2 second"',
                         f'"route limit" stop: at rest within {LIMIT} m (+ braking) of W2.1',
                         f'at rest {beyond:.2f} m past W2.1')
