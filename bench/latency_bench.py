@@ -38,7 +38,6 @@ from pathlib import Path
 import sys
 import tempfile
 import time
-from typing import Any
 
 from agv_nodes.records import codec
 from agv_nodes.records.carrier import uint8_array_data
@@ -69,33 +68,23 @@ def read(bag: Path) -> dict[str, list]:
     return out
 
 
-def sample_counts(statuses: list[tuple[float, dict]]) -> list[int]:
-    """The statuses' 16-bit `sample_count`s unwrapped (snapshots processed since the sensor
-    started)."""
-    counts: list[int] = []
-    for _t, f in statuses:
-        n = f['sample_count']
-        counts.append(n if not counts else counts[-1] + ((n - counts[-1]) & 0xFFFF))
-    return counts
-
-
-def percentile(ordered: list, q: float) -> Any:
-    """The q-quantile of an ascending list (the nearest rank at or below)."""
-    return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
-
-
 def hops(run: dict[str, list]) -> dict[str, list[float]]:
     """Latencies (s) per hop and for the whole chain."""
     adc, drive = run['adc_snapshot'], run['traction_drive']
     statuses, links = run['position_sensor_status'], run['traction_link']
     out: dict[str, list[float]] = {'adc_to_status': [], 'recognition_to_link': [],
                                    'link_to_drive': [], 'sensor_to_traction': []}
-    counts = sample_counts(statuses)
-    for (t, _f), count in zip(statuses, counts, strict=True):
+    count, last = 0, None
+    processed: list[tuple[float, int]] = []  # (status time, unwrapped snapshot count)
+    for t, f in statuses:
+        n = f['sample_count']
+        count = n if last is None else count + ((n - last) & 0xFFFF)
+        last = n
+        processed.append((t, count))
         if 0 < count <= len(adc) and not math.isnan(adc[count - 1]):
             out['adc_to_status'].append(t - adc[count - 1])
     link_times = [t for t, _f in links]
-    for (t, f), count in zip(statuses, counts, strict=True):
+    for (t, f), (_t, count) in zip(statuses, processed, strict=True):
         if not f['recognised'] or not 0 < count <= len(adc) or math.isnan(adc[count - 1]):
             continue
         i = bisect.bisect_right(link_times, t)
@@ -114,7 +103,8 @@ def hops(run: dict[str, list]) -> dict[str, list[float]]:
 
 def table(name: str, result: dict[str, list[float]]) -> str:
     def pct(values: list[float], q: float) -> float:
-        return percentile(sorted(values), q) * 1000.0
+        s = sorted(values)
+        return s[min(len(s) - 1, int(q * len(s)))] * 1000.0
 
     lines = [f'\n{name}\n', '| hop | n | p50 (ms) | p99 (ms) | max (ms) |',
              '|---|---|---|---|---|']
@@ -140,8 +130,11 @@ def align(run: dict[str, list]) -> dict[str, list]:
     adc, statuses = run['adc_snapshot'], run['position_sensor_status']
     fixed: list[float] = []
     backlog: list[int] = []  # per status: snapshots sent before it that it had not counted
-    taken, missed = 0, 0
-    for (t, _f), count in zip(statuses, sample_counts(statuses), strict=True):
+    taken, count, last, missed = 0, 0, None, 0
+    for t, f in statuses:
+        n = f['sample_count']
+        count = n if last is None else count + ((n - last) & 0xFFFF)
+        last = n
         upto = bisect.bisect_right(adc, t)
         chunk = adc[taken:upto]
         gap = count - len(fixed) - len(chunk)
@@ -170,7 +163,8 @@ def backlog_table(backlog: list[int]) -> str:
     return ('\n| position_sensor at its statuses | value |\n|---|---|\n'
             f'| statuses | {len(s)} |\n'
             f'| snapshots sent but not yet counted (in flight or queued), p50 / p99 / max | '
-            f'{percentile(s, 0.5)} / {percentile(s, 0.99)} / {s[-1]} |\n'
+            f'{s[len(s) // 2]} / '
+            f'{s[min(len(s) - 1, int(0.99 * len(s)))]} / {s[-1]} |\n'
             f'| statuses sent with at least one such snapshot | {behind} '
             f'({100 * behind / len(s):.2f} %) |')
 
@@ -180,9 +174,10 @@ def live(time_factor: float, extra: dict[str, list[str]], tasks: int = 2) -> dic
     message's send time (wall s)."""
     from agv_nodes.demo import comms_handshake
     from agv_nodes.harness import DEMO_PROGRAMME
-    from agv_nodes.launcher import Launch, Options
 
     programme = DEMO_PROGRAMME[:tasks]
+    from agv_nodes.launcher import Launch, Options
+
     out = Path(tempfile.mkdtemp(prefix='agv_latency_bench_'))
     launch = Launch(Options(time_factor=time_factor, bag=out / 'bag', quiet=True, extra=extra))
     os.environ.update(ROS_DOMAIN_ID=str(launch.domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
@@ -191,7 +186,6 @@ def live(time_factor: float, extra: dict[str, list[str]], tasks: int = 2) -> dic
     from std_msgs.msg import String, UInt8MultiArray
 
     from agv_nodes import qos
-    from agv_nodes.ros_ports import record_bytes
 
     c = codec()
     run: dict[str, list] = {name: [] for name in TOPICS.values()}
@@ -201,7 +195,7 @@ def live(time_factor: float, extra: dict[str, list[str]], tasks: int = 2) -> dic
         def on_msg(raw: bytes, info: dict, name: str = name) -> None:
             sent = (info.get('source_timestamp') or 0) * 1e-9
             run[name].append(sent if name in ('adc_snapshot', 'traction_drive')
-                             else (sent, record_bytes(raw)))
+                             else (sent, uint8_array_data(raw)))
         # (msg, info) callbacks need the single-threaded executor in rclpy 7.1.6
         node.create_subscription(UInt8MultiArray, topic.lstrip('/'), on_msg,
                                  qos.reader_qos(c[name]), raw=True)

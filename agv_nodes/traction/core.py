@@ -166,7 +166,6 @@ class TractionCore:
     # -- inputs -----------------------------------------------------------------------------
     def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
         """An accepted traction_command, traction_link or wheel_odometry record."""
-        react = False  # a new link to act on at once (link_reaction)
         if record == 'traction_command':
             self.command, self.command_time = fields, now
             if self.tripped:
@@ -179,8 +178,7 @@ class TractionCore:
                 self._cut_armature(now)
                 return {'traction_drive': self.drive()}
         elif record == 'traction_link':
-            react = (fields != self.link and self.p.link_reaction == 'at_once'
-                     and self.p.control == 'closed_loop' and self._last_tick is not None)
+            news = fields != self.link
             self.link, self.link_time = fields, now
             stop_in = fields.get('stop_in', 0)
             if stop_in:  # a controlled stop: `stop_in` mm from here, in the link's direction
@@ -188,6 +186,10 @@ class TractionCore:
                 self.stop_target = self.odometer + way * stop_in / 1000.0
             else:
                 self.stop_target = None
+            if news and self.p.link_reaction == 'at_once' and self.p.control == 'closed_loop' \
+                    and self._last_tick is not None:
+                self._odometry_at[record] = self._odometry_count
+                return self.tick(now)  # a pass now, not at the next loop (see link_reaction)
         elif record == 'wheel_odometry':
             self.measured_speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
             self._odometry_count += 1
@@ -196,8 +198,6 @@ class TractionCore:
                                                 fields['right_distance'])
         if record in ('traction_command', 'traction_link'):
             self._odometry_at[record] = self._odometry_count
-        if react:
-            return self.tick(now)  # a pass now, not at the next loop (see link_reaction)
         return None
 
     def _stale(self, record: str, age: float, timeout: float) -> bool:
