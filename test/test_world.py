@@ -13,6 +13,7 @@ from agv_nodes.harness import Harness
 from agv_nodes.markers import LOCATION_PATTERNS, THRESHOLDS, code_of, stop_view_columns
 from agv_nodes.world.camera import BinaryCamera, CameraParams
 from agv_nodes.world.core import WorldCore, WorldParams
+from agv_nodes.world.guide_wire import SCALAR_SEGMENTS
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
 from agv_nodes.world.marker_sensor import MarkerSensorModel, SensorParams, _belt_runs, calibrate
 from agv_nodes.world.vehicles import Electruk, ElectrukParams
@@ -280,6 +281,36 @@ def test_guide_wire_coils_balance_over_the_wire_and_fade_away():
     left, right = pickup.coils(5.0, 0.05, 0.0)  # sensor point 5 cm left of the wire
     assert right > left
     assert max(pickup.coils(5.0, 1.0, 0.0)) < 0.05 * nominal  # far from every wire
+
+
+def test_guide_wire_coils_agree_with_the_vectorised_field():
+    """`coils` (scalar, candidate list) reads what `field` (numpy, every segment) implies."""
+    world = WorldCore(layout('demo_1983'), WorldParams(seed=2))
+    pickup = world.pickup
+    pickup.p = dataclasses.replace(pickup.p, noise=0.0)
+    xs = [x for w in world.wires for x, _y in w.points]
+    ys = [y for w in world.wires for _x, y in w.points]
+    rng = random.Random(5)
+    poses = [(rng.uniform(min(xs) - 2, max(xs) + 2), rng.uniform(min(ys) - 2, max(ys) + 2),
+              rng.uniform(-math.pi, math.pi)) for _ in range(300)]
+    wire = world.wires[0]
+    for k in range(0, len(wire.points), 7):  # along a wire, in small steps: cached candidates
+        (x, y), h = wire.points[k], wire.headings[k]
+        poses.append((x + 0.03 * math.sin(h), y - 0.03 * math.cos(h), h))
+    on_wire, paths = 0, set()
+    for x, y, h in poses:
+        half = pickup.p.coil_spacing / 2.0
+        lx, ly = -math.sin(h), math.cos(h)
+        field = pickup.field(np.array([[x + half * lx, y + half * ly],
+                                       [x - half * lx, y - half * ly]]))
+        expect = [min(max(round(pickup.p.gain * abs(bx * lx + by * ly) * 4 * math.pi), 0), 4095)
+                  for bx, by, _bz in field]
+        got = pickup.coils(x, y, h)
+        assert all(abs(g - e) <= 1 for g, e in zip(got, expect, strict=True)), (x, y, h)
+        on_wire += max(got) > 0.5 * pickup.p.nominal
+        paths.add('numpy' if len(pickup._near) > SCALAR_SEGMENTS else 'scalar')
+    assert on_wire >= 20  # the walk along the wire did read the wire
+    assert paths == {'numpy', 'scalar'}  # straights and curves both summed
 
 
 def test_conveyor_transfer_only_when_aligned_and_commanded(drive_codec):

@@ -34,6 +34,10 @@ class PickupParams:
         return self.gain * 2.0 * h / (h * h + y * y)
 
 
+NEAR_MOVE = 0.5  # m the sensor may move before `coils` refreshes its list of candidates
+SCALAR_SEGMENTS = 12  # up to this many candidates `coils` sums in scalar arithmetic
+
+
 class GuideWirePickup:
     """Computes the two coil amplitudes for a sensor pose."""
 
@@ -56,14 +60,34 @@ class GuideWirePickup:
         self._length = self._length[keep]
         self._current = np.array(currents)[keep]
         self._mid = 0.5 * (a[keep] + b[keep])
+        # The same segments as plain tuples for `coils`, which runs at 100 Hz on two points:
+        # numpy's per-call overhead on a handful of segments cost more than the arithmetic.
+        self._segments = [
+            (float(ax), float(ay), float(ux), float(uy), float(length), float(current),
+             float(mx), float(my))
+            for (ax, ay), (ux, uy), length, current, (mx, my) in zip(
+                self._a, self._u, self._length, self._current, self._mid, strict=True)]
+        self._near: list[tuple[float, ...]] = []  # candidates within reach + NEAR_MOVE
+        self._near_idx = np.zeros(0, dtype=int)  # their indices
+        self._near_mid = np.zeros((0, 2))
+        self._near_length = np.zeros(0)
+        self._near_at = (math.inf, math.inf)
 
-    def field(self, xy: np.ndarray) -> np.ndarray:
-        """Field vectors (arbitrary units, z up) at floor points `xy` (k, 2), coil height up."""
+    def field(self, xy: np.ndarray, keep: np.ndarray | None = None) -> np.ndarray:
+        """Field vectors (arbitrary units, z up) at floor points `xy` (k, 2), coil height up.
+
+        Sums the segments within `reach` of the points' centre, or with `keep` (a mask over
+        `coils`' current candidates) those segments.
+        """
         h = self.p.coil_height
-        centre = xy.mean(axis=0)
-        near = (np.linalg.norm(self._mid - centre, axis=1) - 0.5 * self._length) < self.p.reach
+        if keep is None:
+            centre = xy.mean(axis=0)
+            near = (np.linalg.norm(self._mid - centre, axis=1) - 0.5 * self._length) \
+                < self.p.reach
+        else:
+            near = self._near_idx[keep]
         out = np.zeros((len(xy), 3))
-        if not near.any():
+        if not len(near) or (near.dtype == bool and not near.any()):
             return out
         a, u, length, current = self._a[near], self._u[near], self._length[near], \
             self._current[near]
@@ -85,16 +109,62 @@ class GuideWirePickup:
         return out
 
     def coils(self, x: float, y: float, heading: float) -> tuple[int, int]:
-        """Rectified (left, right) coil amplitudes in 12-bit ADC counts."""
+        """Rectified (left, right) coil amplitudes in 12-bit ADC counts.
+
+        The lateral component of `field` over the segments within `reach` of the coils'
+        centre, taken from a candidate list refreshed each NEAR_MOVE of travel: in scalar
+        arithmetic on a straight (a few segments, where numpy's per-call overhead would cost
+        more than the sum) and with numpy on a curve (hundreds of short segments). test_world
+        checks both against `field`.
+        """
         half = self.p.coil_spacing / 2.0
         lx, ly = -math.sin(heading), math.cos(heading)  # left unit vector = coil axis
-        points = np.array([[x + half * lx, y + half * ly], [x - half * lx, y - half * ly]])
+        if math.hypot(x - self._near_at[0], y - self._near_at[1]) > NEAR_MOVE:
+            self._refresh_near(x, y)
+        points = ((x + half * lx, y + half * ly), (x - half * lx, y - half * ly))
+        if len(self._near) > SCALAR_SEGMENTS:
+            keep = np.hypot(self._near_mid[:, 0] - x, self._near_mid[:, 1] - y) \
+                - 0.5 * self._near_length < self.p.reach
+            fields = self.field(np.array(points), keep=keep)
+            lateral = [bx * lx + by * ly for bx, by, _bz in fields.tolist()]
+        else:
+            lateral = self._lateral_scalar(points, x, y, lx, ly)
         out = []
-        for bx, by, _bz in self.field(points):
-            amplitude = abs(bx * lx + by * ly) * 4 * math.pi  # lateral component, rectified
-            value = self.p.gain * amplitude + self.rng.gauss(0.0, self.p.noise)
+        for b in lateral:
+            value = self.p.gain * abs(b) * 4 * math.pi + self.rng.gauss(0.0, self.p.noise)
             out.append(int(min(max(round(value), 0), 4095)))
         return out[0], out[1]
+
+    def _refresh_near(self, x: float, y: float) -> None:
+        reach = self.p.reach + NEAR_MOVE
+        self._near_idx = np.flatnonzero(
+            np.hypot(self._mid[:, 0] - x, self._mid[:, 1] - y) - 0.5 * self._length < reach)
+        self._near = [self._segments[i] for i in self._near_idx]
+        self._near_mid = self._mid[self._near_idx]
+        self._near_length = self._length[self._near_idx]
+        self._near_at = (x, y)
+
+    def _lateral_scalar(self, points, x: float, y: float, lx: float, ly: float) -> list[float]:
+        near = [s for s in self._near
+                if math.hypot(s[6] - x, s[7] - y) - 0.5 * s[4] < self.p.reach]
+        h = self.p.coil_height
+        h2 = h * h
+        sqrt = math.sqrt
+        lateral = []
+        for px_, py_ in points:
+            bx = by = 0.0
+            for ax, ay, ux, uy, length, current, _mx, _my in near:
+                rx, ry = px_ - ax, py_ - ay
+                along = rx * ux + ry * uy
+                qx, qy = rx - along * ux, ry - along * uy
+                rho2 = qx * qx + qy * qy + h2
+                beyond = along - length
+                mag = current * (along / sqrt(along * along + rho2)
+                                 - beyond / sqrt(beyond * beyond + rho2)) / (4 * math.pi * rho2)
+                bx += mag * uy
+                by -= mag * ux
+            lateral.append((bx * lx + by * ly) * h)
+        return lateral
 
 
 def _merge_collinear(points: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
