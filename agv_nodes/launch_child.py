@@ -1,10 +1,12 @@
 """Start one node process that dies with its launcher (agv-launch's child wrapper).
 
-`python -m agv_nodes.launch_child PARENT_PID COMMAND...` asks Linux to send this process
-SIGTERM when the thread that started it exits (prctl PR_SET_PDEATHSIG, kept across exec),
-then execs COMMAND in its place (same pid). A launcher that is SIGKILLed therefore leaves no
-graph running on its ROS domain, where a later graph would cross-talk with it. Doing this in
-Popen's preexec_fn is not safe once the launcher has threads; a fresh interpreter is.
+`python -m agv_nodes.launch_child PARENT_PID [--sched-fifo N] COMMAND...` asks Linux to send
+this process SIGTERM when the thread that started it exits (prctl PR_SET_PDEATHSIG, kept across
+exec), optionally takes SCHED_FIFO priority N (also kept across exec, and inherited by every
+thread the node starts: its DDS threads too), then execs COMMAND in its place (same pid).
+A launcher that is SIGKILLed therefore leaves no graph running on its ROS domain, where a
+later graph would cross-talk with it. Doing this in Popen's preexec_fn is not safe once the
+launcher has threads; a fresh interpreter is.
 """
 
 from __future__ import annotations
@@ -21,9 +23,18 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point; never returns when the exec succeeds."""
     args = sys.argv[1:] if argv is None else argv
     if len(args) < 2:
-        print('usage: python -m agv_nodes.launch_child PARENT_PID COMMAND...', file=sys.stderr)
+        print('usage: python -m agv_nodes.launch_child PARENT_PID [--sched-fifo N] COMMAND...',
+              file=sys.stderr)
         return 2
     parent, command = int(args[0]), args[1:]
+    if command[:1] == ['--sched-fifo'] and len(command) > 2:
+        priority, command = int(command[1]), command[2:]
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        except (PermissionError, OSError) as exc:
+            print(f'launch_child: SCHED_FIFO priority {priority} refused ({exc})',
+                  file=sys.stderr)
+            return 2
     if sys.platform.startswith('linux'):
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)

@@ -54,6 +54,7 @@ class NodeSpec:
     executable: str
     module: str
     role: str = 'node'
+    realtime: bool = False  # on the sensor-to-traction chain: SCHED_FIFO with --realtime
 
 
 @dataclass
@@ -89,7 +90,11 @@ def load_graph(file: Path | None = None) -> Graph:
         role = spec.get('role', 'node')
         if role not in ROLES:
             raise GraphError(f'{file}: key nodes[{i}].role: {role!r} not one of {ROLES}')
-        nodes.append(NodeSpec(spec['name'], spec['executable'], spec['module'], role))
+        realtime = spec.get('realtime', False)
+        if not isinstance(realtime, bool):
+            raise GraphError(f'{file}: key nodes[{i}].realtime: {realtime!r} is not true/false')
+        nodes.append(NodeSpec(spec['name'], spec['executable'], spec['module'], role,
+                              realtime))
     params = file.parent / str(doc.get('parameters', 'agv_demo.yaml'))
     return Graph(str(doc.get('graph', 'agv')), nodes, params, file)
 
@@ -223,6 +228,36 @@ def node_parameters(graph: Graph, spec: NodeSpec, options: Options) -> dict[str,
     return out
 
 
+def realtime_priority(spec: NodeSpec, options: Options) -> int:
+    """The SCHED_FIFO priority one node runs at (0 = the normal scheduler).
+
+    With `--realtime N` (launch file: realtime:=N) the nodes marked `realtime` in the graph
+    description - the sensor-to-traction chain and the world that feeds it - run at real-time
+    priority N, as a robot's control processes would; each of the 1983 sub-systems had a Z-80
+    of its own. The one source for agv-launch and the launch file (a test compares them).
+    """
+    return options.realtime if spec.realtime else 0
+
+
+def check_realtime(options: Options) -> None:
+    """Refuse a --realtime the graph cannot use, naming why (before anything starts)."""
+    if not options.realtime:
+        return
+    if not 1 <= options.realtime <= 99:
+        raise GraphError(f'--realtime {options.realtime}: a SCHED_FIFO priority is 1-99')
+    if options.time_factor <= 0:
+        raise GraphError(f'--realtime {options.realtime} needs a time factor > 0: at time '
+                         'factor 0 the world never sleeps, and at real-time priority it would '
+                         'hold a core against every other node')
+    try:  # try it on this thread, then back: a graph must not start half real-time
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(options.realtime))
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    except PermissionError:
+        raise GraphError(f'--realtime {options.realtime}: this user may not use SCHED_FIFO '
+                         '(it needs CAP_SYS_NICE, or an rtprio limit in '
+                         '/etc/security/limits.conf)') from None
+
+
 def override_parameters(graph: Graph, spec: NodeSpec, options: Options) -> dict[str, object]:
     """node_parameters() plus the node's `-p NAME:=VALUE` extras (values parsed as YAML)."""
     out = node_parameters(graph, spec, options)
@@ -276,6 +311,7 @@ class Options:
     faults: dict[str, dict[str, float]] = field(default_factory=dict)
     quiet: bool = False
     log_dir: Path | None = None
+    realtime: int = 0  # SCHED_FIFO priority of the graph's `realtime` nodes (0 = off)
 
 
 class Launch:
@@ -284,6 +320,7 @@ class Launch:
     def __init__(self, options: Options) -> None:
         self.o = options
         self.graph = load_graph(options.graph)
+        check_realtime(options)
         self.params = Path(options.params) if options.params else self.graph.parameters
         if not self.params.is_file():
             raise GraphError(f'parameter file {self.params} not found')
@@ -337,10 +374,16 @@ class Launch:
             if not self.o.quiet:
                 print(f'[{name:{width}s}] {line}', flush=True)
 
+    def child_command(self, spec: NodeSpec) -> list[str]:
+        """command() through launch_child: the node gets SIGTERM if this launcher dies (even
+        by SIGKILL), and takes its real-time priority (if any) before it execs."""
+        command = [sys.executable, '-m', 'agv_nodes.launch_child', str(os.getpid())]
+        if realtime_priority(spec, self.o):
+            command += ['--sched-fifo', str(realtime_priority(spec, self.o))]
+        return command + self.command(spec)
+
     def _start(self, spec: NodeSpec) -> None:
-        # through launch_child: the node gets SIGTERM if this launcher dies (even by SIGKILL)
-        command = [sys.executable, '-m', 'agv_nodes.launch_child', str(os.getpid()),
-                   *self.command(spec)]
+        command = self.child_command(spec)
         proc = subprocess.Popen(command, env=self.env, stdout=subprocess.PIPE,
                                 stderr=subprocess.STDOUT, text=True, bufsize=1,
                                 start_new_session=True)
@@ -470,6 +513,10 @@ def build_parser() -> argparse.ArgumentParser:
                     'e.g. navigation_status:loss=0.1 or traction_link:delay=0.02')
     ap.add_argument('-p', '--param', action='append', default=[], metavar='NODE:NAME:=VALUE',
                     help='extra parameter for one node, e.g. traction:control:=closed_loop')
+    ap.add_argument('--realtime', type=int, default=0, metavar='PRIORITY',
+                    help='run the sensor-to-traction chain (the `realtime` nodes of the graph) '
+                    'at this SCHED_FIFO priority, 1-99; needs a time factor > 0 and the right '
+                    'to (root or CAP_SYS_NICE); default 0: the normal scheduler')
     return ap
 
 
@@ -487,7 +534,8 @@ def options_from(args: argparse.Namespace) -> Options:
                    use_sim_time=args.use_sim_time == 'true', time_factor=args.time_factor,
                    record_integrity=args.record_integrity, world=args.world,
                    domain_id=args.domain_id, bag=args.bag, respawn=args.respawn,
-                   layout=args.layout, extra=extra, log_dir=args.log_dir)
+                   layout=args.layout, extra=extra, log_dir=args.log_dir,
+                   realtime=args.realtime)
 
 
 def main(argv: list[str] | None = None) -> int:

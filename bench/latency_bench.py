@@ -169,7 +169,8 @@ def backlog_table(backlog: list[int]) -> str:
             f'({100 * behind / len(s):.2f} %) |')
 
 
-def live(time_factor: float, extra: dict[str, list[str]], tasks: int = 2) -> dict[str, list]:
+def live(time_factor: float, extra: dict[str, list[str]], tasks: int = 2,
+         realtime: int = 0) -> dict[str, list]:
     """Run the first `tasks` tasks of the demonstration programme on a launched graph; every
     message's send time (wall s)."""
     from agv_nodes.demo import comms_handshake
@@ -179,7 +180,8 @@ def live(time_factor: float, extra: dict[str, list[str]], tasks: int = 2) -> dic
     from agv_nodes.launcher import Launch, Options
 
     out = Path(tempfile.mkdtemp(prefix='agv_latency_bench_'))
-    launch = Launch(Options(time_factor=time_factor, bag=out / 'bag', quiet=True, extra=extra))
+    launch = Launch(Options(time_factor=time_factor, bag=out / 'bag', quiet=True, extra=extra,
+                            realtime=realtime))
     os.environ.update(ROS_DOMAIN_ID=str(launch.domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -245,14 +247,17 @@ def main() -> int:
                     'demonstration programme (2: the quick programme; 8: all of it)')
     ap.add_argument('-p', '--param', action='append', default=[],
                     help='NODE:NAME:=VALUE for one node, e.g. traction:link_reaction:=loop')
+    ap.add_argument('--realtime', type=int, default=0, metavar='PRIORITY',
+                    help="live: agv-launch's --realtime (the chain at SCHED_FIFO priority)")
     args = ap.parse_args()
     if args.live:
         extra: dict[str, list[str]] = {}
         for spec in args.param:
             node, _, arg = spec.partition(':')
             extra.setdefault(node, []).append(arg)
-        run = live(args.time_factor, extra, args.tasks)
-        print(table(f'live graph, time_factor {args.time_factor:g}, {args.tasks} tasks '
+        run = live(args.time_factor, extra, args.tasks, args.realtime)
+        rt = f' realtime {args.realtime}' if args.realtime else ''
+        print(table(f'live graph, time_factor {args.time_factor:g}, {args.tasks} tasks{rt} '
                     f'{" ".join(args.param)} (wall time)', hops(run)))
         print(backlog_table(run['backlog']))
     for bag in args.bags:

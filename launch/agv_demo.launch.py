@@ -2,7 +2,7 @@
 
     ros2 launch agv_nodes agv_demo.launch.py [namespace:=/agv2] [use_sim_time:=true]
         [time_factor:=1.0] [record_integrity:=e2e] [world:=sim|none] [bag:=/path/new_bag]
-        [params_file:=<file>] [respawn:=false]
+        [params_file:=<file>] [respawn:=false] [realtime:=0]
 
 Nodes, executables and roles come from share/agv_nodes/config/graph.yaml, and each node's
 parameters from agv_nodes.launcher.node_parameters - the same description and function
@@ -28,11 +28,18 @@ ARGUMENTS = {
     'bag': ('', 'record every topic into this new bag directory (empty: no recorder)'),
     'params_file': ('', 'ROS parameter file (default: config/agv_demo.yaml)'),
     'respawn': ('false', 'restart nodes that die'),
+    'realtime': ('0', 'SCHED_FIFO priority 1-99 of the sensor-to-traction chain (0 = off)'),
 }
 
 
 def _nodes(context):
-    from agv_nodes.launcher import Options, load_graph, node_parameters
+    from agv_nodes.launcher import (
+        Options,
+        check_realtime,
+        load_graph,
+        node_parameters,
+        realtime_priority,
+    )
     from agv_nodes.package_share import config_dir  # ament_index share/agv_nodes when installed
 
     graph = load_graph(config_dir() / 'graph.yaml')
@@ -40,7 +47,9 @@ def _nodes(context):
     options = Options(namespace=arg['namespace'], use_sim_time=arg['use_sim_time'] == 'true',
                       time_factor=float(arg['time_factor']),
                       record_integrity=arg['record_integrity'], world=arg['world'],
-                      bag=Path(arg['bag']) if arg['bag'] else None)
+                      bag=Path(arg['bag']) if arg['bag'] else None,
+                      realtime=int(arg['realtime']))
+    check_realtime(options)
     params_file = arg['params_file'] or str(graph.parameters)
     nodes = []
     for spec in graph.nodes:
@@ -52,7 +61,9 @@ def _nodes(context):
                           namespace=options.namespace,
                           parameters=[params_file, node_parameters(graph, spec, options)],
                           output='screen', respawn=arg['respawn'] == 'true' and
-                          spec.role == 'node'))
+                          spec.role == 'node',
+                          prefix=(f'chrt -f {realtime_priority(spec, options)}'
+                                  if realtime_priority(spec, options) else None)))
     return nodes
 
 

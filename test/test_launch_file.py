@@ -11,7 +11,7 @@ import types
 import pytest
 import yaml
 
-from agv_nodes.launcher import Launch, Options, load_graph, node_parameters
+from agv_nodes.launcher import Launch, Options, load_graph, node_parameters, realtime_priority
 from agv_nodes.records import codec
 
 from conftest import REPO
@@ -64,6 +64,7 @@ def nodes_from_launch_file(**overrides) -> list[Recorded]:
      Options(namespace='/agv2', world='none', record_integrity='none', time_factor=3.0)),
     ({'bag': '/tmp/agv_launch_file_test_bag'},
      Options(bag=__import__('pathlib').Path('/tmp/agv_launch_file_test_bag'))),
+    ({'realtime': '40'}, Options(realtime=40)),
 ])
 def test_launch_file_matches_agv_launch(launch_api, overrides, options):
     nodes = nodes_from_launch_file(**overrides)
@@ -78,8 +79,14 @@ def test_launch_file_matches_agv_launch(launch_api, overrides, options):
         params_file, params = node.kwargs['parameters']
         assert params_file == str(graph.parameters)
         assert params == node_parameters(graph, spec, options)
+        prio = realtime_priority(spec, options)
+        assert node.kwargs['prefix'] == (f'chrt -f {prio}' if prio else None)
+        assert prio == (40 if options.realtime and spec.realtime else 0)
         # and agv-launch passes the same values, in a second parameter file after the first
         cmd = launch.command(spec)
+        child = launch.child_command(spec)  # and the same priority, to launch_child
+        between = child[child.index('agv_nodes.launch_child') + 2:child.index(cmd[0])]
+        assert between == (['--sched-fifo', str(prio)] if prio else [])
         files = [cmd[i + 1] for i, c in enumerate(cmd) if c == '--params-file']
         assert files[0] == str(graph.parameters)
         second = yaml.safe_load(Path(files[1]).read_text())
@@ -230,3 +237,64 @@ def test_demo_waits_until_every_link_has_carried_a_record():
         if sep and '>' not in node:
             every[node][record] = 1
     assert silent_links(links, every) == []
+
+
+@pytest.mark.parametrize('options, words', [
+    (Options(realtime=100), '1-99'),
+    (Options(realtime=-3), '1-99'),
+    (Options(realtime=20, time_factor=0.0), 'time factor > 0'),
+])
+def test_bad_realtime_option_names_the_problem(options, words):
+    from agv_nodes.launcher import GraphError
+
+    with pytest.raises(GraphError, match='--realtime') as err:
+        Launch(options)
+    assert words in str(err.value)
+
+
+def test_graph_realtime_flag_must_be_true_or_false(tmp_path):
+    from agv_nodes.launcher import GraphError
+
+    doc = yaml.safe_load((REPO / 'config' / 'graph.yaml').read_text())
+    doc['nodes'][1]['realtime'] = 'yes please'
+    bad = tmp_path / 'graph.yaml'
+    bad.write_text(yaml.safe_dump(doc))
+    with pytest.raises(GraphError, match=r'nodes\[1\]\.realtime') as err:
+        load_graph(bad)
+    assert str(bad) in str(err.value) and 'yes please' in str(err.value)
+
+
+def test_realtime_marks_the_sensor_to_traction_chain():
+    graph = load_graph()
+    assert {n.name for n in graph.nodes if n.realtime} == {
+        'world', 'position_sensor', 'navigation', 'traction'}
+
+
+def test_launch_child_takes_the_priority_it_is_given():
+    """launch_child --sched-fifo N: the exec'd node runs SCHED_FIFO at N, or, where this user
+    may not, launch_child refuses with a message and status 2 (and agv-launch refuses first)."""
+    import os
+    import subprocess
+
+    from agv_nodes.launcher import GraphError, check_realtime
+
+    try:
+        check_realtime(Options(realtime=3))
+        allowed = True
+    except GraphError as exc:
+        assert 'SCHED_FIFO' in str(exc)
+        allowed = False
+    probe = ('import os; p = os.sched_getparam(0); '
+             'print(os.sched_getscheduler(0), p.sched_priority)')
+    run = subprocess.run([sys.executable, '-m', 'agv_nodes.launch_child', str(os.getpid()),
+                          '--sched-fifo', '3', sys.executable, '-c', probe],
+                         capture_output=True, text=True, timeout=60)
+    if allowed:
+        assert run.returncode == 0, run.stderr
+        assert run.stdout.split() == [str(os.SCHED_FIFO), '3']
+    else:
+        assert run.returncode == 2 and 'SCHED_FIFO priority 3 refused' in run.stderr
+    plain = subprocess.run([sys.executable, '-m', 'agv_nodes.launch_child', str(os.getpid()),
+                            sys.executable, '-c', probe], capture_output=True, text=True,
+                           timeout=60)
+    assert plain.stdout.split() == [str(os.SCHED_OTHER), '0']
