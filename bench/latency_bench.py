@@ -169,6 +169,13 @@ def backlog_table(backlog: list[int]) -> str:
             f'({100 * behind / len(s):.2f} %) |')
 
 
+def why(launch, lines: list[str]) -> str:
+    """What a failed live run leaves to go on: dead nodes, reports, the graph's last lines."""
+    tail = '\n  '.join(launch.lines[-25:])
+    return (f'\nnodes exited: {launch.exits or "none"}\nreports: {lines[-5:]}\n'
+            f'last graph output:\n  {tail}')
+
+
 def live(time_factor: float, extra: dict[str, list[str]], tasks: int = 2,
          realtime: int = 0) -> dict[str, list]:
     """Run the first `tasks` tasks of the demonstration programme on a launched graph; every
@@ -212,7 +219,7 @@ def live(time_factor: float, extra: dict[str, list[str]], tasks: int = 2,
         while not launch.moving.is_set() or pub.get_subscription_count() == 0:
             executor.spin_once(timeout_sec=0.1)
             if launch.poll() or time.monotonic() > deadline:
-                raise RuntimeError('the graph did not come up')
+                raise RuntimeError(f'the graph did not come up{why(launch, lines)}')
         comms_handshake(lambda: executor.spin_once(timeout_sec=0.05),
                         lambda text: pub.publish(String(data=text)), lines)
         for text in programme:
@@ -221,7 +228,7 @@ def live(time_factor: float, extra: dict[str, list[str]], tasks: int = 2,
         while sum(': completed' in x or ': FAILED' in x for x in lines) < len(programme):
             executor.spin_once(timeout_sec=0.1)
             if launch.poll() or time.monotonic() > deadline:
-                raise RuntimeError('the quick programme did not finish')
+                raise RuntimeError(f'the programme did not finish{why(launch, lines)}')
         for _ in range(20):  # the last statuses and drives in flight
             executor.spin_once(timeout_sec=0.01)
     finally:
