@@ -9,6 +9,11 @@ row R1 column C_d for d <= 4 and row R2 column C_(d-4) otherwise.
 
 from __future__ import annotations
 
+# The adc_snapshot record's fields for detectors 1..8, lit (IREDs on) and dark (off).
+LIT_FIELDS = tuple(f'lit_{d}' for d in range(1, 9))
+DARK_FIELDS = tuple(f'dark_{d}' for d in range(1, 9))
+SNAPSHOT_FIELDS = LIT_FIELDS + DARK_FIELDS
+
 # Location markers (spec 3.2; templates of UCTAB): rows R1/R2, columns C1..C4.
 LOCATION_PATTERNS: dict[int, tuple[str, str]] = {
     0: ('BWWW', 'WBBB'),  # 78H

@@ -36,7 +36,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from agv_nodes.markers import LOCATION_TABLE, STOP_VIEWS, THRESHOLDS
+from agv_nodes.markers import DARK_FIELDS, LIT_FIELDS, LOCATION_TABLE, STOP_VIEWS, THRESHOLDS
 from agv_nodes.position_sensor.sequence import SequenceDecoder
 
 
@@ -196,8 +196,8 @@ class PositionSensorCore:
                 self._templates = self._table()
                 self._reset_filter()
             return None
-        lit = [fields[f'lit_{d}'] for d in range(1, 9)]
-        dark = [fields[f'dark_{d}'] for d in range(1, 9)]
+        lit = [fields[k] for k in LIT_FIELDS]
+        dark = [fields[k] for k in DARK_FIELDS]
         self._last_adc = now
         self._since_status += 1
         out = self.sample(lit, dark, now)

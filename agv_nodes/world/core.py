@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from agv_nodes.markers import SNAPSHOT_FIELDS
 from agv_nodes.world.camera import BinaryCamera, CameraParams
 from agv_nodes.world.guide_wire import GuideWirePickup, PickupParams
 from agv_nodes.world.layout import Layout, Marker
@@ -216,9 +217,7 @@ class WorldCore:
         self._cards_near(lens)
         lit, dark = self.sensor.snapshot(lens, heading, self._near_cards, self._ride_height())
         self._marker_passages(lens, heading)
-        fields = {f'lit_{d + 1}': lit[d] for d in range(8)}
-        fields.update({f'dark_{d + 1}': dark[d] for d in range(8)})
-        return fields
+        return dict(zip(SNAPSHOT_FIELDS, lit + dark, strict=True))
 
     def _guide_wire(self) -> dict[str, int]:
         sx, sy = self.vehicle.sensor_point
@@ -431,8 +430,7 @@ class WorldCore:
         lit, dark = self.sensor.snapshot(lens, h, self.layout.markers,
                                          float(rig.get('height', 0.0)))
         self._marker_passages(lens, h)
-        fields = {f'lit_{d + 1}': lit[d] for d in range(8)}
-        fields.update({f'dark_{d + 1}': dark[d] for d in range(8)})
+        fields = dict(zip(SNAPSHOT_FIELDS, lit + dark, strict=True))
         return {'records': {'adc_snapshot': fields}, 'frames': {}, 'events': self.events}
 
     # -- ground-truth views for the node ----------------------------------------------------
