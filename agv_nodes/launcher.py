@@ -249,9 +249,10 @@ def check_realtime(options: Options) -> None:
         raise GraphError(f'--realtime {options.realtime} needs a time factor > 0: at time '
                          'factor 0 the world never sleeps, and at real-time priority it would '
                          'hold a core against every other node')
+    policy, param = os.sched_getscheduler(0), os.sched_getparam(0)
     try:  # try it on this thread, then back: a graph must not start half real-time
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(options.realtime))
-        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        os.sched_setscheduler(0, policy, param)
     except PermissionError:
         raise GraphError(f'--realtime {options.realtime}: this user may not use SCHED_FIFO '
                          '(it needs CAP_SYS_NICE, or an rtprio limit in '

@@ -278,12 +278,14 @@ def test_launch_child_takes_the_priority_it_is_given():
 
     from agv_nodes.launcher import GraphError, check_realtime
 
+    before = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
     try:
         check_realtime(Options(realtime=3))
         allowed = True
     except GraphError as exc:
         assert 'SCHED_FIFO' in str(exc)
         allowed = False
+    assert (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority) == before
     probe = ('import os; p = os.sched_getparam(0); '
              'print(os.sched_getscheduler(0), p.sched_priority)')
     run = subprocess.run([sys.executable, '-m', 'agv_nodes.launch_child', str(os.getpid()),
