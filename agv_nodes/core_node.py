@@ -19,19 +19,18 @@ from typing import Any
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool
 
 from agv_nodes import qos
 from agv_nodes.params import ParameterError, Parameters
 from agv_nodes.records import codec
-from agv_nodes.records.carrier import clock_ns
 from agv_nodes.ros_ports import (
     InputDiagnostics,
     LinkAnnouncer,
     RecordPublisher,
     RecordSubscription,
+    clock_time_ns,
 )
 
 
@@ -194,10 +193,7 @@ class ClockTimers:
         self._timers.append([round(period * 1e9), None, callback])
 
     def _on_clock(self, raw: bytes) -> None:
-        now = clock_ns(raw)
-        if now is None:  # not the shape the world sends: the general path
-            msg = deserialize_message(raw, Clock)
-            now = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+        now = clock_time_ns(raw)
         if now <= 0:
             return  # the world's clock has not started
         self.now_ns = now

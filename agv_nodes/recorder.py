@@ -33,7 +33,6 @@ from rclpy.callback_groups import CallbackGroup
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message
 from rosbags.interfaces import (
     Qos,
     QosDurability,
@@ -48,7 +47,7 @@ from rosgraph_msgs.msg import Clock
 
 from agv_nodes.core_node import spin_main
 from agv_nodes.params import Parameters
-from agv_nodes.records.carrier import clock_ns
+from agv_nodes.ros_ports import clock_time_ns
 from agv_nodes.sent_time import SentTimeline
 
 SKIP = {'/parameter_events'}
@@ -254,12 +253,9 @@ class Recorder(Node):
             for raw, info in _queued(sub, 1000):
                 sent_ns = info.get('source_timestamp') or 0
                 if topic == '/clock':
-                    ns = clock_ns(raw)
-                    clock = deserialize_message(raw, Clock) if ns is None else self._clock_msg
-                    if ns is None:
-                        ns = clock.clock.sec * 1_000_000_000 + clock.clock.nanosec
-                    else:
-                        clock.clock.sec, clock.clock.nanosec = divmod(ns, 1_000_000_000)
+                    ns = clock_time_ns(raw)
+                    clock = self._clock_msg
+                    clock.clock.sec, clock.clock.nanosec = divmod(ns, 1_000_000_000)
                     self.timeline.clock(sent_ns, ns * 1e-9)
                     if self._time_source_fed is not None:
                         self._time_source_fed.clock_callback(clock)

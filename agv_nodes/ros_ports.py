@@ -14,10 +14,11 @@ from rclpy.clock import Clock as RosClock
 from rclpy.clock import ClockType
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
+from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String, UInt8MultiArray
 
 from agv_nodes import qos
-from agv_nodes.records.carrier import uint8_array_cdr, uint8_array_data
+from agv_nodes.records.carrier import clock_ns, uint8_array_cdr, uint8_array_data
 from agv_nodes.records.codec import RecordSchema
 from agv_nodes.records.ports import RecordReader, RecordWriter, inputs_report
 
@@ -65,6 +66,16 @@ def record_bytes(raw: bytes) -> bytes:
     if data is None:
         data = bytes(deserialize_message(raw, UInt8MultiArray).data)
     return data
+
+
+def clock_time_ns(raw: bytes) -> int:
+    """The time in a serialized rosgraph_msgs/Clock, ns: read straight from the CDR when it
+    has the shape the world sends, else through rclpy's deserializer."""
+    ns = clock_ns(raw)
+    if ns is None:
+        msg = deserialize_message(raw, Clock)
+        ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+    return ns
 
 
 class RecordSubscription(RecordReader):

@@ -277,6 +277,13 @@ def test_carriers_read_and_written_straight_as_cdr():
         assert clock_cdr(sec * 1_000_000_000 + nanosec) == bytes(raw)  # what the world sends
     assert clock_ns(b'\x00\x00\x00\x00' + bytes(8)) is None  # big endian
     assert clock_ns(bytes(raw[:11])) is None
+    # ClockTimers and the recorder read /clock through ros_ports.clock_time_ns: the CDR the
+    # world sends directly, a big-endian writer's through rclpy's deserializer
+    from agv_nodes.ros_ports import clock_time_ns
+
+    assert clock_time_ns(clock_cdr(381_000_000_007)) == 381_000_000_007
+    big = b'\x00\x00\x00\x00' + (381).to_bytes(4, 'big') + (7).to_bytes(4, 'big')
+    assert clock_ns(big) is None and clock_time_ns(big) == 381_000_000_007
 
 
 def test_a_record_in_any_layout_is_read_from_its_cdr():
