@@ -379,8 +379,9 @@ class Launch:
         """command() through launch_child: the node gets SIGTERM if this launcher dies (even
         by SIGKILL), and takes its real-time priority (if any) before it execs."""
         command = [sys.executable, '-m', 'agv_nodes.launch_child', str(os.getpid())]
-        if realtime_priority(spec, self.o):
-            command += ['--sched-fifo', str(realtime_priority(spec, self.o))]
+        priority = realtime_priority(spec, self.o)
+        if priority:
+            command += ['--sched-fifo', str(priority)]
         return command + self.command(spec)
 
     def _start(self, spec: NodeSpec) -> None:

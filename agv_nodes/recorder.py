@@ -254,10 +254,10 @@ class Recorder(Node):
                 sent_ns = info.get('source_timestamp') or 0
                 if topic == '/clock':
                     ns = clock_time_ns(raw)
-                    clock = self._clock_msg
-                    clock.clock.sec, clock.clock.nanosec = divmod(ns, 1_000_000_000)
                     self.timeline.clock(sent_ns, ns * 1e-9)
                     if self._time_source_fed is not None:
+                        clock = self._clock_msg
+                        clock.clock.sec, clock.clock.nanosec = divmod(ns, 1_000_000_000)
                         self._time_source_fed.clock_callback(clock)
                 if not sim_time:
                     self._write(topic, raw, sent_ns)

@@ -73,21 +73,19 @@ class GuideWirePickup:
         self._near_length = np.zeros(0)
         self._near_at = (math.inf, math.inf)
 
-    def field(self, xy: np.ndarray, keep: np.ndarray | None = None) -> np.ndarray:
+    def field(self, xy: np.ndarray, segments: np.ndarray | None = None) -> np.ndarray:
         """Field vectors (arbitrary units, z up) at floor points `xy` (k, 2), coil height up.
 
-        Sums the segments within `reach` of the points' centre, or with `keep` (a mask over
-        `coils`' current candidates) those segments.
+        Sums the segments within `reach` of the points' centre, or those `segments` (indices).
         """
         h = self.p.coil_height
-        if keep is None:
+        near = segments
+        if near is None:
             centre = xy.mean(axis=0)
-            near = (np.linalg.norm(self._mid - centre, axis=1) - 0.5 * self._length) \
-                < self.p.reach
-        else:
-            near = self._near_idx[keep]
+            near = np.flatnonzero(
+                np.linalg.norm(self._mid - centre, axis=1) - 0.5 * self._length < self.p.reach)
         out = np.zeros((len(xy), 3))
-        if not len(near) or (near.dtype == bool and not near.any()):
+        if not len(near):
             return out
         a, u, length, current = self._a[near], self._u[near], self._length[near], \
             self._current[near]
@@ -125,7 +123,7 @@ class GuideWirePickup:
         if len(self._near) > SCALAR_SEGMENTS:
             keep = np.hypot(self._near_mid[:, 0] - x, self._near_mid[:, 1] - y) \
                 - 0.5 * self._near_length < self.p.reach
-            fields = self.field(np.array(points), keep=keep)
+            fields = self.field(np.array(points), segments=self._near_idx[keep])
             lateral = [bx * lx + by * ly for bx, by, _bz in fields.tolist()]
         else:
             lateral = self._lateral_scalar(points, x, y, lx, ly)
