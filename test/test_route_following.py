@@ -101,6 +101,50 @@ def test_srm_that_finds_nothing_ends_lost():
     assert route.state == 'lost'
 
 
+
+def _feed(route: RouteCore, t: float, until: float, coil: int, speed: int,
+          wire: bool = True) -> list[str]:
+    """Drive the core at 100 Hz (odometry, maybe a pickup sample, a tick): the states sent."""
+    sent = []
+    while t < until - 1e-9:
+        t += 0.01
+        route.on_record('wheel_odometry', {'left_speed': speed, 'right_speed': speed,
+                                           'left_distance': 0, 'right_distance': 0}, t)
+        if wire:
+            route.on_record('guide_wire', {'left_coil': coil, 'right_coil': coil}, t)
+        out = route.tick(t)
+        if 'route_status' in out:
+            sent.append(out['route_status']['state'])
+    return sent
+
+
+def test_a_stalled_pickup_at_rest_is_lost_then_rearmed_when_the_wire_returns():
+    route = RouteCore()
+    route.on_record('route_command', {'mode': 'follow_wire', 'srm_angle': 0,
+                                      'junction': 'straight', 'manoeuvre': 0}, 0.0)
+    assert _feed(route, 0.0, 0.5, 700, 0)[-1] == 'following'
+    # The pickup stream stalls (no samples) with the truck standing: LOST goes out.
+    assert 'lost' in _feed(route, 0.5, 0.7, 700, 0, wire=False)
+    assert route.steering_command()['angle'] == 0
+    # Samples again, truck at rest: following once lost_samples strong samples have come.
+    states = _feed(route, 0.7, 0.8, 700, 0)
+    assert route.state == 'following' and states[-1] == 'following'
+
+
+def test_lost_holds_while_the_truck_moves_and_while_the_wire_is_weak():
+    route = RouteCore()
+    route.on_record('route_command', {'mode': 'follow_wire', 'srm_angle': 0,
+                                      'junction': 'straight', 'manoeuvre': 0}, 0.0)
+    _feed(route, 0.0, 0.5, 700, 600)
+    assert 'lost' in _feed(route, 0.5, 0.7, 50, 600)  # wire gone under a moving truck
+    _feed(route, 0.7, 2.0, 700, 600)  # back, but the truck still rolls: no re-arm
+    assert route.state == 'lost' and route.steering_command()['angle'] == 0
+    _feed(route, 2.0, 3.0, 50, 0)  # at rest, but no wire
+    assert route.state == 'lost'
+    _feed(route, 3.0, 3.2, 700, 0)  # at rest on the wire
+    assert route.state == 'following'
+
+
 # -- camera ---------------------------------------------------------------------------------
 def test_run_length_table():
     row = np.zeros(128, dtype=np.uint8)

@@ -3,8 +3,9 @@
 Guide wire (Baker 3.5.3, 6.2, 7.2): the two coil amplitudes give the wire's lateral offset from
 the sensor point (inverting the straight-line-current model of the pickup), and a PI law on it,
 with a derivative term on the offset for damping, steers the Ackermann front wheels. A signal
-below `lost_level` for `lost_samples` samples reports LOST at once; the executive stops the
-truck. An SRM (route_command mode = srm, a new `manoeuvre` value) leaves the wire at the
+below `lost_level` for `lost_samples` samples, or no pickup sample for that long, reports LOST
+at once; the executive stops the truck. LOST holds until the truck is at rest with the wire
+present again. An SRM (route_command mode = srm, a new `manoeuvre` value) leaves the wire at the
 pre-programmed steering angle until the signal has dropped and a wire is detected again, then
 wire following resumes (thesis 7.2 task 7).
 
@@ -138,6 +139,8 @@ class RouteCore:
         self._integral = 0.0
         self._prev_lateral: float | None = None
         self._weak = 0
+        self._strong = 0  # consecutive samples with the wire present
+        self._lost_reported = False  # a route_status with state lost has gone out
         self._srm_phase = ''
         self._srm_start = 0.0
         self._found_at = -1e9
@@ -220,6 +223,7 @@ class RouteCore:
         self.signal = (left + right) / (2.0 * w.nominal)
         present = self.signal >= w.lost_level
         self._weak = 0 if present else self._weak + 1
+        self._strong = self._strong + 1 if present else 0
         previous = self.lateral
         self.lateral = wire_offset(left, right, w.coil_spacing, w.coil_height, w.nominal) \
             if present else 0.0
@@ -234,6 +238,8 @@ class RouteCore:
             if self._weak >= w.lost_samples:
                 self.state = 'lost'
                 self.steer = 0.0
+            elif self.state == 'lost':
+                self._rearm()
             elif self.speed < -0.01:
                 # Reversing (the slow overshoot correction of thesis 8.5 F5): the front-axle
                 # law would steer the wrong way with the front wheels trailing, so hold the
@@ -244,6 +250,22 @@ class RouteCore:
                 self._steer_wire()
         elif self.mode == 'srm':
             self._srm(now)
+
+    def _rearm(self) -> None:
+        """Leave LOST once the truck is at rest on a wire that is there again.
+
+        A departure from the thesis (7.2 stops the truck on a lost wire and says no more): a
+        LOST latched for good also latched a pickup stream that merely stalled while the truck
+        stood before a task (a start-up stall of the graph), and failed the next task with the
+        wire under the truck. The executive has already acted on LOST (it supervises on every
+        status arrival), so it comes back only after that record went out, with the truck at
+        rest and the wire present for `lost_samples` samples: the steering law then starts
+        clean.
+        """
+        at_rest = max(abs(v) for v in self._rim_speeds) < 0.005 and abs(self.speed) < 0.005
+        if self._lost_reported and at_rest and self._strong >= self.p.wire.lost_samples:
+            self.state = 'following'
+            self._integral, self._prev_lateral = 0.0, None
 
     def _srm(self, now: float) -> None:
         """Leave the wire at the programmed angle; search; capture the next wire."""
@@ -439,6 +461,7 @@ class RouteCore:
         if force_status or now >= self._next_status or self.state != self._last_state:
             self._next_status = now + self.p.status_period
             self._last_state = self.state
+            self._lost_reported = self.state == 'lost'
             out['route_status'] = self.status()
         return out
 
