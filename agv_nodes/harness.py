@@ -78,6 +78,8 @@ class Harness:
                               if s.writer == 'world'}
         self.world_readers = {s.name: RecordReader(s, 'none') for s in self.codec
                               if 'world' in s.readers}
+        # record -> its readers [(member, reader)], built on first delivery after an add().
+        self._routes: dict[str, list[tuple[_Member, RecordReader]]] = {}
         for core in cores:
             self.add(core)
 
@@ -91,6 +93,7 @@ class Harness:
             member.writers[s.name] = RecordWriter(s, self.integrity if s.protected else 'none')
         member.next_tick = self.world.time
         self.members.append(member)
+        self._routes.clear()
 
     @property
     def now(self) -> float:
@@ -110,23 +113,28 @@ class Harness:
         self._deliver(record, raw)
 
     def _deliver(self, record: str, raw: bytes) -> None:
+        now = self.world.time
         for tap in self.taps:
-            tap(record, raw, self.now)
-        now_ns = round(self.now * 1e9)
-        queue = deque()
-        if record in self.world_readers:
-            fields = self.world_readers[record].accept(raw, now_ns)
+            tap(record, raw, now)
+        now_ns = round(now * 1e9)
+        world_reader = self.world_readers.get(record)
+        if world_reader is not None:
+            fields = world_reader.accept(raw, now_ns)
             if fields is not None:
                 self.world.on_record(record, fields)
-        for m in self.members:
-            reader = m.readers.get(record)
-            if reader is None:
-                continue
+        routes = self._routes.get(record)
+        if routes is None:
+            routes = self._routes[record] = [(m, m.readers[record]) for m in self.members
+                                             if record in m.readers]
+        if not routes:
+            return
+        queue = deque()
+        for m, reader in routes:
             fields = reader.accept(raw, now_ns)
             if fields is not None:
-                queue.append((m, m.core.on_record(record, fields, self.now)))
+                queue.append((m, m.core.on_record(record, fields, now)))
             elif hasattr(m.core, 'on_reject'):
-                queue.append((m, m.core.on_reject(record, reader.last_reason, self.now)))
+                queue.append((m, m.core.on_reject(record, reader.last_reason, now)))
         self._publish_all(queue)
 
     def _publish(self, m: _Member, outputs: dict | None) -> None:

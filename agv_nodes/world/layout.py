@@ -134,9 +134,11 @@ class Marker:
     station: str = ''
     conveyor: str = ''
     # Placed geometry (world frame): card centre, downstream unit vector, normal toward path.
-    centre: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    along: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0]))
-    normal: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0]))
+    # Plain float tuples, not numpy arrays: the optics read them 340 times a second per card
+    # in view, and arithmetic on numpy scalars costs several times that on floats.
+    centre: tuple[float, float] = (0.0, 0.0)
+    along: tuple[float, float] = (1.0, 0.0)
+    normal: tuple[float, float] = (0.0, 1.0)
 
     @property
     def name(self) -> str:
@@ -318,12 +320,12 @@ def _load_marker(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
                yaw=math.radians(_num(spec.get('yaw', card['yaw']), file, f'{key}.yaw', -45.0,
                                      45.0)),
                station=station, conveyor=conveyor)
-    x, y, h = path.pose_at(at)
-    right = np.array([math.sin(h), -math.cos(h)])
-    m.centre = np.array([x, y]) + right * (sensor_lateral + m.standoff)
+    x, y, h = (float(v) for v in path.pose_at(at))
+    reach = sensor_lateral + m.standoff
+    m.centre = (x + math.sin(h) * reach, y - math.cos(h) * reach)
     # The card faces back toward the path, turned by `yaw` about the vertical.
-    m.normal = np.array([-math.sin(h + m.yaw), math.cos(h + m.yaw)])
-    m.along = np.array([math.cos(h + m.yaw), math.sin(h + m.yaw)])
+    m.normal = (-math.sin(h + m.yaw), math.cos(h + m.yaw))
+    m.along = (math.cos(h + m.yaw), math.sin(h + m.yaw))
     return m
 
 

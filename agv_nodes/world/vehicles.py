@@ -123,6 +123,8 @@ class Electruk:
         self.radio_stop = False
         self.steer_demand = 0.0
         self.steer_enable = False
+        self._step_key: tuple[float, ...] | None = None
+        self._step_constants: tuple[float, ...] = ()
 
     @property
     def mass(self) -> float:
@@ -154,35 +156,47 @@ class Electruk:
         return (powered and self.armature_enable and self.armature_duty > 0.0
                 and self.field_enable and self.field_forward == forward)
 
+    def _constants(self, dt: float) -> tuple[float, ...]:
+        """What step() needs that only dt and the parameters set, worked out again when dt,
+        the parameters object or the load changes (the world steps at one dt)."""
+        p = self.p
+        key = (dt, id(p), p.mass, p.payload)
+        if self._step_key != key:
+            self._step_key = key
+            self._step_constants = (
+                1.0 - math.exp(-dt / p.field_time_constant),
+                math.exp(-dt * p.armature_resistance / p.armature_inductance),
+                self.mass * p.inertia_factor,
+                p.motors * p.drivetrain_friction * p.gear_ratio / p.wheel_radius
+                + p.rolling_resistance * self.mass * G,
+                p.motors * p.viscous_friction * (p.gear_ratio / p.wheel_radius) ** 2)
+        return self._step_constants
+
     def step(self, dt: float) -> None:
         """Advance by dt seconds."""
         p, s = self.p, self.state
+        field_gain, decay, m_eff, coulomb, viscous_per_speed = self._constants(dt)
         powered = self.contactor and self.relay_closed and not self.radio_stop
         # Field: first-order toward duty x direction; with the contactor open it decays too.
         target = (self.field_duty * (1 if self.field_forward else -1)
                   if powered and self.field_enable else 0.0)
-        self.flux += (target - self.flux) * (1.0 - math.exp(-dt / p.field_time_constant))
+        self.flux += (target - self.flux) * field_gain
         w_m = s.speed / p.wheel_radius * p.gear_ratio
         back_emf = p.k_phi * self.flux * w_m
-        v_arm = (self.armature_duty * p.battery_voltage
-                 if powered and self.armature_enable else 0.0)
         if powered and self.armature_enable:
+            v_arm = self.armature_duty * p.battery_voltage
             i_ss = (v_arm - back_emf) / p.armature_resistance
-            decay = math.exp(-dt * p.armature_resistance / p.armature_inductance)
             self.current = i_ss + (self.current - i_ss) * decay
         else:  # chopper off: the current freewheels away through the diode
-            self.current *= math.exp(-dt * p.armature_resistance / p.armature_inductance)
+            self.current *= decay
         self.current = min(max(self.current, 0.0), p.current_limit)
         if self.current < 1e-6:
             self.current = 0.0
         torque = p.motors * p.k_phi * self.flux * self.current  # at the motor shafts
         drive_force = torque * p.gear_ratio / p.wheel_radius
-        m_eff = self.mass * p.inertia_factor
         # Friction: Coulomb drivetrain + rolling resistance + viscous, opposing motion; at rest
         # it holds the truck unless the drive force exceeds it (stiction = same level).
-        coulomb = (p.motors * p.drivetrain_friction * p.gear_ratio / p.wheel_radius
-                   + p.rolling_resistance * self.mass * G)
-        viscous = p.motors * p.viscous_friction * (p.gear_ratio / p.wheel_radius) ** 2 * s.speed
+        viscous = viscous_per_speed * s.speed
         v = s.speed
         if v == 0.0 and abs(drive_force) <= coulomb:
             v_new = 0.0  # stiction holds it
