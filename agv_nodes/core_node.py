@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 import gc
 import random
+import signal
 import sys
 import time
 from typing import Any
@@ -19,6 +20,7 @@ from typing import Any
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool
 
@@ -234,6 +236,42 @@ def make_executor(kind: str = 'single') -> Any:
     return SingleThreadedExecutor()
 
 
+class _StopRequest:
+    """SIGINT / SIGTERM as a request the spin loop takes between callbacks.
+
+    rclpy's own handlers shut the context down from a signal thread at once and raise
+    KeyboardInterrupt wherever the main thread is: a callback that is publishing then fails
+    with 'context is invalid' and the EventsExecutor logs it FATAL. Under sim time the nodes
+    sit idle once the world has stopped, but on the wall clock (the hardware configuration)
+    their timers and inputs keep running and every Ctrl-C printed those errors. So the node
+    processes install these handlers instead (rclpy.init without its own) and the loop ends
+    after the callback in hand; a second signal raises KeyboardInterrupt for a node stuck in
+    one.
+    """
+
+    def __init__(self) -> None:
+        self.requested = False
+
+    def install(self) -> None:
+        """Take over SIGINT and SIGTERM (main thread only)."""
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, self._handle)
+
+    def _handle(self, signum: int, _frame: object) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+
+_stop = _StopRequest()
+
+
+def running() -> bool:
+    """True while the node process should keep spinning: the context is up and no SIGINT or
+    SIGTERM has come (spin_main's handlers)."""
+    return not _stop.requested and rclpy.ok()
+
+
 def _shutting_down(wait: float = 0.5) -> bool:
     """True when SIGINT is shutting the context down (rclpy's signal thread does it a moment
     after the signal). Meanwhile rclpy 7.1 can raise from inside the executor - RCLError
@@ -253,11 +291,13 @@ def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
     """The rclpy main() idiom for one node: init, spin, clean shutdown, exit status.
 
     A ParameterError (bad value or parameter file) ends start-up with its one-line message
-    and exit status 2; SIGINT and SIGTERM end the spin cleanly. `run(node, executor)` replaces
-    the plain spin for a node with a loop of its own (the world).
+    and exit status 2; SIGINT and SIGTERM end the spin cleanly, between two callbacks
+    (_StopRequest). `run(node, executor)` replaces the plain spin for a node with a loop of
+    its own (the world), which checks running().
     """
-    rclpy.init(args=args)
-    node = None
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    _stop.install()
+    node = spinner = None
     code = 0
     try:
         node = make_node()
@@ -273,7 +313,7 @@ def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
         if run is not None:
             code = run(node, spinner)
         else:
-            while rclpy.ok():  # not spin(): the EventsExecutor's misses the shutdown
+            while running():  # not spin(): the EventsExecutor's misses the shutdown
                 spinner.spin_once(timeout_sec=0.1)
     except ParameterError as exc:
         print(exc, file=sys.stderr)
@@ -284,6 +324,11 @@ def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
         if not _shutting_down():
             raise
     finally:
+        if spinner is not None:
+            # The executor lets go of the node before its entities go: destroying them while
+            # the EventsExecutor still took their DDS callbacks hung 2 of 6 wall-clock
+            # shutdowns (Fast DDS waiting in delete_datareader, deaf to SIGTERM).
+            spinner.shutdown()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

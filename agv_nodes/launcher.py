@@ -334,6 +334,7 @@ class Launch:
         self.moving = threading.Event()
         self.stopping = False
         self.failed: list[str] = []
+        self.escalated: dict[str, str] = {}  # node -> the signal it took to stop (not SIGINT)
         self.lines: list[str] = []
         self._threads: list[threading.Thread] = []
         self._logs: dict[str, TextIO] = {}
@@ -451,6 +452,7 @@ class Launch:
                 if sig != signal.SIGINT:
                     print(f'agv-launch: {", ".join(alive)} still running: sending '
                           f'{signal.Signals(sig).name}', file=sys.stderr, flush=True)
+                    self.escalated.update(dict.fromkeys(alive, signal.Signals(sig).name))
                 for name in alive:
                     self.procs[name].send_signal(sig)
                 deadline = time.monotonic() + wait

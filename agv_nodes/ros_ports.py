@@ -180,21 +180,26 @@ class LinkAnnouncer:
     and writers on a steady timer (sim time stands still until the world moves) and publishes
     `"<node> rec1 rec2 ... out1>N1 out2>N2 ..."` (latched) each time it changes: the inputs that
     have matched a writer, and how many readers each output has matched. The world waits for
-    the links the launcher names (`wait_for_links`) before it moves. Polling ends once every
-    input has matched and the node's clock runs (the world has moved).
+    the links the launcher names (`wait_for_links`) before it moves. Once every input has
+    matched and the node's clock runs, polling slows to `settled_period`: under sim time the
+    clock runs only once the world has moved, but on the wall clock (use_sim_time false, the
+    hardware configuration) it runs from the start, and stopping there left the world waiting
+    for readers of this node's outputs that matched later (the world's pacing reader).
     """
 
     def __init__(self, node: Node, readers: Mapping[str, RecordSubscription],
                  writers: Mapping[str, RecordPublisher] | None = None,
-                 period: float = 0.02) -> None:
+                 period: float = 0.02, settled_period: float = 1.0) -> None:
         self._node = node
         self._readers = readers
         self._writers = writers or {}
         self._now_ns = node_time(node)
         self._said: str | None = None
         self._pub = node.create_publisher(String, LINKS_TOPIC, qos.LATCHED)
-        self._timer = node.create_timer(period, self.poll,
-                                        clock=RosClock(clock_type=ClockType.STEADY_TIME))
+        self._steady = RosClock(clock_type=ClockType.STEADY_TIME)
+        self._settled_period = settled_period
+        self.settled = False
+        self._timer = node.create_timer(period, self.poll, clock=self._steady)
 
     def poll(self) -> None:
         """Publish the matched links if they changed; stop once inputs match and time runs."""
@@ -205,10 +210,11 @@ class LinkAnnouncer:
         if text != self._said:
             self._said = text
             self._pub.publish(String(data=text))
-        if (len(matched) == len(self._readers) and self._now_ns() > 0
-                and self._timer is not None):
+        if not self.settled and len(matched) == len(self._readers) and self._now_ns() > 0:
+            self.settled = True
             self._node.destroy_timer(self._timer)
-            self._timer = None
+            self._timer = self._node.create_timer(self._settled_period, self.poll,
+                                                  clock=self._steady)
 
 
 def parse_links(text: str) -> tuple[str, set[str], dict[str, int]]:

@@ -47,8 +47,10 @@ class GraphProbe:
         from agv_nodes.records.codec import codec
         from agv_nodes.ros_ports import RecordSubscription
 
-        self.launch = Launch(Options(time_factor=0.0, quiet=True, log_dir=log_dir,
-                                     domain_id=int(os.environ['ROS_DOMAIN_ID']), **options))
+        # as fast as the graph holds unless the test says otherwise (time_factor=...)
+        self.launch = Launch(Options(**{'time_factor': 0.0, 'quiet': True, 'log_dir': log_dir,
+                                        'domain_id': int(os.environ['ROS_DOMAIN_ID']),
+                                        **options}))
         self.context = Context()
         rclpy.init(context=self.context, domain_id=self.launch.domain)
         self.node = rclpy.create_node('fault_probe', context=self.context)

@@ -25,7 +25,6 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, PoseStamped
 from nav_msgs.msg import Path
 from rcl_interfaces.msg import SetParametersResult
-import rclpy
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image
@@ -34,7 +33,7 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker, MarkerArray
 
 from agv_nodes import qos
-from agv_nodes.core_node import declare_executor, spin_main
+from agv_nodes.core_node import declare_executor, running, spin_main
 from agv_nodes.params import Parameters
 from agv_nodes.records import codec
 from agv_nodes.records.carrier import clock_cdr
@@ -405,7 +404,7 @@ class WorldNode(Node):
         """Wait for peers, then step the world until shut down (or `duration`)."""
         started = time.monotonic()
         deadline = started + self.peer_timeout
-        while rclpy.ok() and not self.peers_ready():
+        while running() and not self.peers_ready():
             if self.publish_clock:
                 self.publish_clock_now()
             executor.spin_once(timeout_sec=0.05)
@@ -419,7 +418,7 @@ class WorldNode(Node):
                                f'{self.time_factor:g} ({len(self.wait_links)} links matched at '
                                f'both ends after {time.monotonic() - started:.2f} s)')
         wall0, sim0 = time.monotonic(), self.core.time
-        while rclpy.ok():
+        while running():
             self.drain(executor)
             if self.paused and self._step_requests == 0:
                 executor.spin_once(timeout_sec=0.02)
@@ -431,7 +430,7 @@ class WorldNode(Node):
             if late:  # the graph has fallen behind: let it catch up before time moves on
                 waited = time.monotonic()
                 nudge = waited + 0.05
-                while late and rclpy.ok() and time.monotonic() - waited < self.lag_patience:
+                while late and running() and time.monotonic() - waited < self.lag_patience:
                     executor.spin_once(timeout_sec=0.002)
                     late = self.pacer.lagging(self.core.time)
                     if late and self.publish_clock and time.monotonic() > nudge:
@@ -448,7 +447,7 @@ class WorldNode(Node):
                                                       f'{self.pacer.lost_samples} in all)'
                                                       if lost else ')'))
                 wall0, sim0 = time.monotonic(), self.core.time
-            self.publish_step(self.core.step())  # (a SIGINT mid-publish: see spin_main)
+            self.publish_step(self.core.step())
             if self.duration and self.core.time >= self.duration:
                 self.get_logger().info(f'duration {self.duration:g} s reached')
                 return 0
