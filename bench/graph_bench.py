@@ -29,13 +29,15 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
-def live(seconds: float, time_factor: float, params: list[str] = ()) -> None:
+def live(seconds: float, time_factor: float, params: list[str] = (),
+         wall_time: bool = False) -> None:
     out = Path(tempfile.mkdtemp(prefix='agv_graph_bench_'))
     extra: dict[str, list[str]] = {}
     for spec in params:  # NODE:NAME:=VALUE, as agv-launch -p
         node, _, arg = spec.partition(':')
         extra.setdefault(node, []).append(arg)
-    launch = Launch(Options(time_factor=time_factor, bag=out / 'bag', quiet=True, extra=extra))
+    launch = Launch(Options(time_factor=time_factor, bag=out / 'bag', quiet=True, extra=extra,
+                            use_sim_time=not wall_time))
     os.environ.update(ROS_DOMAIN_ID=str(launch.domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     import rclpy
     from std_msgs.msg import String
@@ -63,7 +65,8 @@ def live(seconds: float, time_factor: float, params: list[str] = ()) -> None:
     node.destroy_node()
     rclpy.try_shutdown()
     launch.stop()
-    print(f'Live graph, time_factor {time_factor:g}, {seconds:.0f} s measured\n')
+    clock = 'wall time, no /clock' if wall_time else 'sim time'
+    print(f'Live graph, time_factor {time_factor:g}, {clock}, {seconds:.0f} s measured\n')
     print('| process | CPU (% of one core) |\n|---|---|')
     for name in sorted(c0, key=lambda n: c0[n] - c1[n]):
         print(f'| {name} | {100 * (c1[name] - c0[name]) / wall:.1f} |')
@@ -110,19 +113,66 @@ def lockstep() -> None:
     print('\n| lock-step harness, whole demonstration programme | value |\n|---|---|')
     print(f'| simulated | {h.now:.1f} s |\n| wall | {wall:.1f} s |\n'
           f'| real-time factor | {h.now / wall:.1f}x |')
+    where_the_time_goes()
+
+
+def where_the_time_goes(seconds: float = 60.0) -> None:
+    """Wall time per simulated second by part, over the programme's first minute (timers
+    around the world's step and each core's calls; the rest is the harness's delivery and the
+    codec): what a real-time factor of 100 (10 ms a simulated second) would have to fit in."""
+    h = truck('demo_1983', seed=1)
+    for text in DEMO_PROGRAMME:
+        submit(h, text)
+    spent: dict[str, float] = {}
+    records = [0]
+
+    def timed(obj: object, name: str, part: str) -> None:
+        call = getattr(obj, name)
+
+        def wrapper(*args: object) -> object:
+            t = time.perf_counter()
+            try:
+                return call(*args)
+            finally:
+                spent[part] = spent.get(part, 0.0) + time.perf_counter() - t
+        setattr(obj, name, wrapper)
+
+    w = h.world
+    timed(w.vehicle, 'step', 'world: vehicle dynamics')
+    timed(w.sensor, 'snapshot', 'world: marker sensor optics + ADC')
+    timed(w, 'step', 'world: all')
+    for name, core in h.cores.items():
+        timed(core, 'on_record', f'core: {name}')
+        timed(core, 'tick', f'core: {name}')
+    h.taps.append(lambda *_: records.__setitem__(0, records[0] + 1))
+    t0 = time.perf_counter()
+    h.run(seconds)
+    wall = time.perf_counter() - t0
+    cores = sum(v for k, v in spent.items() if k.startswith('core: '))
+    rest = wall - spent['world: all'] - cores
+    print(f'\n| part, first {seconds:g} s of the programme | ms per simulated s |\n|---|---|')
+    rows = sorted(spent.items(), key=lambda kv: -kv[1])
+    for part, value in rows:
+        print(f'| {part} | {value / seconds * 1e3:.1f} |')
+    print(f'| harness delivery + codec ({records[0] / seconds:.0f} records/s packed, each '
+          f'validated by its readers) | {rest / seconds * 1e3:.1f} |')
+    print(f'| all (timers included) | {wall / seconds * 1e3:.1f} |')
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--seconds', type=float, default=30.0)
     ap.add_argument('--time-factor', type=float, default=1.0)
+    ap.add_argument('--wall-time', action='store_true',
+                    help='every node on the wall clock (use_sim_time false, no /clock: the '
+                    'hardware configuration); the world paces itself at time factor 1')
     ap.add_argument('--no-live', action='store_true')
     ap.add_argument('--no-harness', action='store_true')
     ap.add_argument('-p', '--param', action='append', default=[],
                     help='NODE:NAME:=VALUE for one node, e.g. recorder:poll_period:=0')
     args = ap.parse_args()
     if not args.no_live:
-        live(args.seconds, args.time_factor, args.param)
+        live(args.seconds, args.time_factor, args.param, args.wall_time)
     if not args.no_harness:
         lockstep()
     return 0
