@@ -74,11 +74,14 @@ def live(seconds: float, time_factor: float, params: list[str] = (),
     from agv_nodes.report import read_bag
 
     data = read_bag(out / 'bag')
-    status = data['records']['position_sensor_status']
+    adc = data['records']['adc_snapshot']
+    # records while snapshots came: on the wall clock the nodes write from start-up, before
+    # the world moves (those seconds would count as lost, start-up's gaps as the graph's)
+    status = [(t, f) for t, f in data['records']['position_sensor_status']
+              if adc[0][0] <= t <= adc[-1][0]]
     counts = [f['sample_count'] for _t, f in status]
     times = [t for t, _f in status]
     processed = (counts[-1] - counts[0]) % 65536
-    adc = data['records']['adc_snapshot']
     sim_span = adc[-1][0] - adc[0][0]
     published = len(adc)
     print('\n| measure | value |\n|---|---|')
@@ -93,7 +96,7 @@ def live(seconds: float, time_factor: float, params: list[str] = (),
           ' |')
     for record in ('traction_drive', 'traction_link', 'position_sensor_status',
                    'navigation_status', 'steering_command'):
-        ts = [t for t, _f in data['records'][record]]
+        ts = [t for t, _f in data['records'][record] if adc[0][0] <= t <= adc[-1][0]]
         gaps = sorted(b - a for a, b in zip(ts, ts[1:], strict=False))
         p99 = gaps[int(0.99 * (len(gaps) - 1))]
         print(f'| {record} interval p50 / p99 / max (ms, sim) | '
