@@ -313,6 +313,10 @@ class Recorder(Node):
             print(f'bag closed: {total} messages on {len(self.counts)} topics in '
                   f'{", ".join(map(str, self.paths))}', flush=True)
 
+    def finish(self) -> None:
+        """The spin has ended (spin_main): close the bag while the node is whole."""
+        self.close()
+
     def destroy_node(self) -> None:
         """Close the bag before the node goes."""
         self.close()

@@ -1,4 +1,5 @@
-"""A bad parameter value or file stops a node at start-up with one line naming file, key, value."""
+"""A node process's start and end: a bad parameter value or file stops it at start-up with one
+line naming file, key, value; its teardown at the end is bounded."""
 
 from __future__ import annotations
 
@@ -60,3 +61,36 @@ def test_shipped_parameter_file_is_valid_for_every_node(tmp_path):
     for name, proc in procs:
         out, _ = proc.communicate(timeout=30)
         assert proc.returncode == 0, f'{name}: {out[-2000:]}'
+
+
+_TEARDOWN = '''
+import sys, time
+from agv_nodes.core_node import _teardown
+
+class Stuck:
+    """A node whose entities never go (as Fast DDS's deletion once hung)."""
+
+    def get_name(self):
+        return 'stuck_node'
+
+    def finish(self):
+        print('bag closed', flush=True)
+
+    def destroy_node(self):
+        time.sleep(600)
+
+_teardown(Stuck(), None, code=int(sys.argv[1]), limit=0.5)
+print('not reached')
+'''
+
+
+@pytest.mark.parametrize('code', [0, 2])
+def test_a_teardown_stuck_in_dds_ends_the_process_with_its_status(code):
+    """spin_main's teardown is bounded: the node's own finish() runs first and in full, then
+    past the limit the process says so, dumps its stacks and exits with the node's status."""
+    res = subprocess.run([PYTHON, '-c', _TEARDOWN, str(code)], capture_output=True, text=True,
+                         timeout=60, cwd=REPO)
+    assert res.returncode == code, res.stderr
+    assert res.stdout == 'bag closed\n'
+    assert 'stuck_node: DDS teardown still blocked after 0.5 s; exiting without it' in res.stderr
+    assert 'in destroy_node' in res.stderr  # the stuck thread's stack, for the next diagnosis

@@ -8,7 +8,8 @@ clock. Two faults were found here and are guarded by this test:
   the nodes' outputs that matched later (ros_ports.LinkAnnouncer now slows down instead);
 - Ctrl-C printed FATAL callback errors and 'context is invalid' from nodes still publishing,
   and some node processes hung in Fast DDS at exit until SIGKILL (core_node.spin_main now takes
-  SIGINT between callbacks and shuts its executor down before the node's entities go).
+  SIGINT between callbacks, shuts its executor down before the node's entities go, and bounds
+  the teardown: test_node_parameters).
 """
 
 from __future__ import annotations
@@ -34,5 +35,8 @@ def test_wall_clock_graph_completes_a_task_and_stops_on_sigint(tmp_path):
         g.launch.exits, '\n'.join(g.launch.lines[-40:]))
     assert not g.launch.escalated, g.launch.escalated  # none needed SIGTERM or SIGKILL
     said = '\n'.join(g.launch.lines)
+    # A Fast DDS teardown deadlock (about 1 run in 20 before the bound) ends that node's process
+    # by itself after core_node.TEARDOWN_LIMIT, status 0: said, not failed on.
+    print('\n'.join(line for line in g.launch.lines if 'teardown still blocked' in line))
     for bad in ('FATAL', 'Traceback', 'context is invalid'):
         assert bad not in said, said[-3000:]
