@@ -1,5 +1,7 @@
 """The world's pacer: waits for a lagging writer, gives up on a dead one, counts lost samples."""
 
+import pytest
+
 from agv_nodes.world.pacing import GraphPacer
 
 
@@ -11,6 +13,18 @@ def pacer(**kw) -> GraphPacer:
 def test_nothing_lags_until_a_writer_has_been_heard():
     p = pacer()
     assert p.lagging(10.0) == []
+
+
+def test_from_the_start_a_writer_not_heard_yet_is_waited_for_then_given_up():
+    p = pacer()
+    p.arrived('position_sensor_status', 0.0, 0, 0)
+    p.start(0.0)
+    assert p.lagging(0.05) == []
+    assert p.lagging(0.061) == ['traction_drive']
+    p.give_up(['traction_drive'])
+    assert p.lagging(1.0) == ['position_sensor_status']  # heard at 0.0: start() leaves it
+    p.arrived('position_sensor_status', 1.0, 340, 340)
+    assert p.lagging(1.0) == []
 
 
 def test_a_heartbeat_older_than_its_period_plus_max_lag_lags():
@@ -40,6 +54,23 @@ def test_a_consumer_behind_the_world_samples_lags_even_with_fresh_heartbeats():
     assert p.lagging(1.02) == ['position_sensor_status']  # 30 samples behind > 17 allowed
     p.arrived('position_sensor_status', 1.02, sample_count=375, world_samples=380)
     assert p.lagging(1.02) == []
+
+
+def test_route_following_is_paced_on_the_guide_wire_records_it_has_taken():
+    # steering_command echoes its count of guide_wire records (100 Hz); its heartbeat is fresh,
+    # but demands made from samples 100 ms old must hold the world (pacing.py).
+    p = GraphPacer(0.01, {'steering_command': 0.01}, 340.0, clock_step=0.0088,
+                   consumers=('steering_command',), consumer_rates={'steering_command': 100.0})
+    p.arrived('steering_command', 2.0, sample_count=190, world_samples=192)
+    assert p.lagging(2.0) == []  # 2 records behind: within (0.01 + 0.0088) s at 100 Hz
+    p.arrived('steering_command', 2.01, sample_count=191, world_samples=201)
+    assert p.lagging(2.01) == ['steering_command']
+    assert p.behind('steering_command', 2.01) == pytest.approx(0.08)
+    slack = GraphPacer(0.01, {'steering_command': 0.01}, 340.0, clock_step=0.0088,
+                       consumers=('steering_command',), slack={'steering_command': 0.1},
+                       consumer_rates={'steering_command': 100.0})
+    slack.arrived('steering_command', 2.01, sample_count=191, world_samples=201)
+    assert slack.lagging(2.01) == []  # an injected 0.1 s delay is not waited for
 
 
 def test_the_sample_count_wraps_at_16_bits():

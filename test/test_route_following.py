@@ -73,6 +73,26 @@ def test_follows_the_demo_wire_within_1_cm_and_reports_lost_at_its_end():
     assert sx < 6.0
 
 
+def test_every_steering_demand_carries_the_count_of_guide_wire_records_taken():
+    # The world paces route following on it (world/pacing.py); it counts what was taken, so
+    # the demand sent after sample n says n, and the count wraps at 16 bits.
+    world = WorldCore(load_layout(layout_path('demo_1983')), WorldParams(seed=4))
+    h = Harness(world, [Exec(55), TractionCore(), RouteCore()])
+    sent = []
+    h.taps.append(lambda record, raw, now: sent.append((record, raw)) if record in (
+        'guide_wire', 'steering_command') else None)
+    h.run(1.0)
+    wires = [raw for r, raw in sent if r == 'guide_wire']
+    demands = [h.codec[r].decode(raw, integrity=h.integrity)['wire_count']
+               for r, raw in sent if r == 'steering_command']
+    assert len(wires) == world.wire_records == 100
+    assert demands[-1] == len(wires) and demands == sorted(demands)
+    route = RouteCore()
+    route.wire_count = 0xFFFF
+    route.on_record('guide_wire', {'left_coil': 700, 'right_coil': 700, 'sample': 1}, 0.0)
+    assert route.steering_command()['wire_count'] == 0
+
+
 def test_srm_leaves_wire_a_and_lands_on_wire_b():
     world = WorldCore(load_layout(layout_path('demo_1983')), WorldParams(seed=4))
     ex, route = Exec(27), RouteCore()

@@ -145,6 +145,7 @@ class RouteCore:
         self._srm_start = 0.0
         self._found_at = -1e9
         self._wire_time: float | None = None
+        self.wire_count = 0  # guide_wire records taken (u16): steering_command echoes it
         self._mode_since = 0.0
         self.speed = 0.0  # m/s from wheel odometry
         self.steer_actual = 0.0  # model of the actuator's position
@@ -179,6 +180,7 @@ class RouteCore:
             return self._command(fields, now)
         if record == 'guide_wire':
             self._wire_time = now
+            self.wire_count = (self.wire_count + 1) & 0xFFFF
             self._wire(fields['left_coil'], fields['right_coil'], now)
         elif record == 'wheel_odometry':
             self.speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
@@ -471,11 +473,11 @@ class RouteCore:
             left, right = self.wheels
             return {'mode': 'wheel_speeds', 'enable': int(self.motor_on and self.mode == 'camera'),
                     'angle': 0, 'left_speed': int(round(left * 1000)),
-                    'right_speed': int(round(right * 1000))}
+                    'right_speed': int(round(right * 1000)), 'wire_count': self.wire_count}
         active = self.mode in ('follow_wire', 'srm') and self.state != 'lost'
         angle = int(round(max(-1.0, min(1.0, self.steer)) * 1000))
         return {'mode': 'angle', 'enable': 1, 'angle': angle if active else 0,
-                'left_speed': 0, 'right_speed': 0}
+                'left_speed': 0, 'right_speed': 0, 'wire_count': self.wire_count}
 
     def status(self) -> dict[str, Any]:
         """The route_status record."""

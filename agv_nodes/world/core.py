@@ -96,6 +96,7 @@ class WorldCore:
         self.station_loads = {sid: int(st.has_load) for sid, st in layout.stations.items()}
         self.transfer = 0.0  # fraction of the transfer in progress
         self.counters = {'guide_wire': 0, 'wheel_odometry': 0}
+        self.wire_records = 0  # guide_wire records published (pacing: steering_command.wire_count)
         self._odo_dist = [0.0, 0.0]  # m per driven wheel
         self._odo_time = 0.0
         self.events: list[dict[str, Any]] = []
@@ -225,6 +226,7 @@ class WorldCore:
         if not self.wire_powered:  # generator off: the coils pick up nothing
             left = right = 0
         self.counters['guide_wire'] = (self.counters['guide_wire'] + 1) & 0xFF
+        self.wire_records += 1
         on_wire = max(left, right) > 0.25 * self.p.pickup.nominal
         if on_wire != self._on_wire:
             self._on_wire = on_wire

@@ -69,9 +69,14 @@ def parse_link_entry(entry: str) -> tuple[str, str, int | None] | None:
     return (node, record, None) if node and record in codec() else None
 
 
-def _counts_samples(schema: RecordSchema) -> bool:
-    """A record that reports how many world samples its writer has consumed."""
-    return any(f.name == 'sample_count' for f in schema.fields)
+# A record that reports how many samples of a world stream its writer has taken: its count
+# field, and the stream (pacing.py).
+SAMPLE_COUNTS = {'sample_count': 'adc_snapshot', 'wire_count': 'guide_wire'}
+
+
+def _count_field(schema: RecordSchema) -> str | None:
+    """The field of `schema` that counts world samples taken (SAMPLE_COUNTS), if any."""
+    return next((f.name for f in schema.fields if f.name in SAMPLE_COUNTS), None)
 
 
 class WorldNode(Node):
@@ -168,7 +173,9 @@ class WorldNode(Node):
         self.pacer = GraphPacer(
             max_lag, {name: c[name].period_ms / 1000.0 for name in pace_on}, wp.sample_rate,
             clock_step=self.clock_every / wp.sample_rate,
-            consumers=tuple(n for n in pace_on if _counts_samples(c[n])), slack=slack)
+            consumers=tuple(n for n in pace_on if _count_field(c[n])), slack=slack,
+            consumer_rates={n: wp.guide_wire_rate for n in pace_on
+                            if SAMPLE_COUNTS.get(_count_field(c[n])) == 'guide_wire'})
         self.core = WorldCore(self.layout, wp)
         self.core.wire_powered = p.flag('wire_powered', True, 'guide-wire generator on (set '
                                         'false at run time to cut the wire: a fault test)')
@@ -208,28 +215,35 @@ class WorldNode(Node):
         self._publish_static()
 
     # -- callbacks --------------------------------------------------------------------------
+    def _world_count(self, field: str | None) -> int:
+        """How many samples the world has published of the stream `field` counts."""
+        return self.core.wire_records if field == 'wire_count' else self.core.sample
+
     def _input(self, name: str):
+        field = _count_field(codec()[name])
+
         def on_record(fields: dict) -> None:
             self._work += 1
-            self.pacer.arrived(name, self.core.time)
+            self.pacer.arrived(name, self.core.time, fields.get(field) if field else None,
+                               self._world_count(field))
             self.core.on_record(name, fields)
         return on_record
 
     def _paced(self, schema: RecordSchema):
-        counted = _counts_samples(schema)
+        field = _count_field(schema)
 
         def on_msg(raw: bytes) -> None:
             self._work += 1
             count = None
-            if counted:  # pacing only: a record that does not decode just counts as heard
+            if field:  # pacing only: a record that does not decode just counts as heard
                 data = record_bytes(raw)
                 for integrity in ('e2e', 'none'):
                     try:
-                        count = schema.decode(data, integrity=integrity)['sample_count']
+                        count = schema.decode(data, integrity=integrity)[field]
                         break
                     except RecordError:
                         continue
-            self.pacer.arrived(schema.name, self.core.time, count, self.core.sample)
+            self.pacer.arrived(schema.name, self.core.time, count, self._world_count(field))
         return on_msg
 
     def _on_links(self, msg: String) -> None:
@@ -400,6 +414,15 @@ class WorldNode(Node):
                 missing.append(f'{node}:{record}')
         return missing
 
+    def _report_pacing(self) -> None:
+        """Log how far behind the world's streams each counting reader was heard at worst
+        over the last minute (then start over), and the samples accepted as lost."""
+        worst = ', '.join(f'{name} {s * 1000:.0f} ms' for name, s in
+                          sorted(self.pacer.worst.items()))
+        self.get_logger().info(f'pacing, the last minute: worst behind {worst or "-"}; '
+                               f'{self.pacer.lost_samples} samples accepted as lost in all')
+        self.pacer.worst.clear()
+
     def run(self, executor: Any) -> int:
         """Wait for peers, then step the world until shut down (or `duration`)."""
         started = time.monotonic()
@@ -418,7 +441,12 @@ class WorldNode(Node):
                                f'{self.time_factor:g} ({len(self.wait_links)} links matched at '
                                f'both ends after {time.monotonic() - started:.2f} s)')
         wall0, sim0 = time.monotonic(), self.core.time
+        self.pacer.start(self.core.time)
+        report_at = self.core.time + 60.0
         while running():
+            if self.core.time >= report_at:
+                report_at += 60.0
+                self._report_pacing()
             self.drain(executor)
             if self.paused and self._step_requests == 0:
                 executor.spin_once(timeout_sec=0.02)

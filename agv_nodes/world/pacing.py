@@ -16,6 +16,13 @@ which consumes the world's 340 Hz ADC stream, the pacer also compares the sensor
 snapshots processed (`position_sensor_status.sample_count`) with the world's count of snapshots
 published. Samples lost on the way leave a permanent difference; the pacer accepts it when it
 gives up waiting and counts it as `lost_samples`.
+
+Route following is paced the same way on the guide-wire stream (`steering_command.wire_count`,
+100 Hz). A node that is behind still sends a steering demand every tick, so its heartbeat never
+lagged, but each demand came from samples 100-200 ms old (one full demo in four at 6.3x on
+2026-11-24): past the steering loop's ~0.1 s delay margin (lock step, `Link(delay=...)` on
+steering_command: stable at 80 ms, lost the wire at 120 ms), the truck snaked off the wire
+at 0.7 m/s and the task failed `lost wire`.
 """
 
 from __future__ import annotations
@@ -35,6 +42,7 @@ class _Paced:
 @dataclass
 class _Consumer:
     allowance: int                 # samples the reader may be behind when its record arrives
+    rate: float                    # samples per second of the stream it consumes
     processed: int = 0             # samples it reports processed (unwrapped)
     last_count: int | None = None  # its last u16 count
     missing: int = 0               # world samples it had not processed when last heard from
@@ -46,8 +54,9 @@ class GraphPacer:
     """Which paced writers lag the world's clock, and by how much.
 
     `periods` maps each paced record to its heartbeat period (s); `consumers` names the records
-    whose `sample_count` must keep up with the world's sample count. `max_lag` = 0 disables
-    pacing.
+    whose count of world samples taken must keep up with the world's count, of a stream of
+    `sample_rate` samples a second unless `consumer_rates` names another (the route follower's
+    100 Hz guide_wire). `max_lag` = 0 disables pacing.
     """
 
     max_lag: float
@@ -55,8 +64,10 @@ class GraphPacer:
     sample_rate: float
     clock_step: float = 0.0  # s between /clock messages: a sim-time timer fires up to this late
     consumers: tuple[str, ...] = ()
+    consumer_rates: dict[str, float] = field(default_factory=dict)
     slack: dict[str, float] = field(default_factory=dict)  # extra allowance (injected faults)
     lost_samples: int = 0
+    worst: dict[str, float] = field(default_factory=dict)  # consumer -> most s behind heard
     _paced: dict[str, _Paced] = field(default_factory=dict)
     _consumers: dict[str, _Consumer] = field(default_factory=dict)
     names: list[str] = field(init=False, default_factory=list)  # every paced record
@@ -66,10 +77,26 @@ class GraphPacer:
             self._paced[name] = _Paced(self.max_lag + period + self.clock_step
                                        + self.slack.get(name, 0.0))
         for name in self.consumers:  # measured on arrival, so its period does not count
-            self._consumers[name] = _Consumer(
-                max(1, round((self.max_lag + self.clock_step) * self.sample_rate)))
+            # (an injected delay, in `slack`, holds the count back as much as the heartbeat)
+            rate = self.consumer_rates.get(name, self.sample_rate)
+            allowance = self.max_lag + self.clock_step + self.slack.get(name, 0.0)
+            self._consumers[name] = _Consumer(max(1, round(allowance * rate)), rate)
         self.names = sorted(set(self._paced) | set(self._consumers))
 
+
+    def start(self, now: float) -> None:
+        """The world starts moving at sim time `now`: every paced writer not heard from yet is
+        taken as heard at `now`, so the world waits for its first record as for any other.
+
+        Without it a writer was paced only from its first record on, and a node starved at
+        start-up fell behind unwaited: in one full demo (6.3x) communications sent its first
+        comms_status 2.75 s of sim time after the world moved, and the executive rightly
+        reported it silent (`no status record received`) in `/diagnostics`. A writer that
+        never comes is given up after `lag_patience` like a dead one.
+        """
+        for paced in self._paced.values():
+            if paced.arrived is None:
+                paced.arrived = now
 
     def arrived(self, name: str, now: float, sample_count: int | None = None,
                 world_samples: int = 0) -> None:
@@ -87,6 +114,7 @@ class GraphPacer:
                 consumer.processed = sample_count
             consumer.last_count = sample_count
             consumer.missing = world_samples - consumer.processed - consumer.offset
+            self.worst[name] = max(self.worst.get(name, 0.0), consumer.missing / consumer.rate)
 
     def behind(self, name: str, now: float) -> float:
         """How far `name` lags beyond its allowance: > 0 means the world should wait."""
@@ -96,7 +124,7 @@ class GraphPacer:
             worst = max(worst, (now - paced.arrived) - paced.allowance)
         consumer = self._consumers.get(name)
         if consumer is not None and consumer.last_count is not None:
-            worst = max(worst, (consumer.missing - consumer.allowance) / self.sample_rate)
+            worst = max(worst, (consumer.missing - consumer.allowance) / consumer.rate)
         return worst
 
     def lagging(self, now: float) -> list[str]:
