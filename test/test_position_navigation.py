@@ -507,6 +507,18 @@ def test_a_view_met_backing_up_puts_the_centre_nearer_not_further():
     nav._speed = -0.09  # reversing onto the centre
     nav._view_seen(5, 0.1)
     assert (nav._target - nav._odometer) * 1000 == pytest.approx(to_go - 5.0)
+    # At rest past the centre, the reverse asked for but not begun: the way it is about to go.
+    nav._speed = 0.0
+    nav._set_link(reverse=1, speed=nav.p.reverse_speed, stop_in=6)
+    nav._view_seen(5, 0.2)
+    assert (nav._target - nav._odometer) * 1000 == pytest.approx(to_go - 5.0)
+    nav._set_link(speed=0)  # at rest with no reverse asked: forward, as before
+    nav._view_seen(5, 0.3)
+    assert (nav._target - nav._odometer) * 1000 == pytest.approx(to_go + 5.0)
+    nav._speed = 0.004  # still rolling on at a few mm/s while the reverse is asked
+    nav._set_link(reverse=1, speed=nav.p.reverse_speed, stop_in=6)
+    nav._view_seen(5, 0.4)
+    assert (nav._target - nav._odometer) * 1000 == pytest.approx(to_go - 5.0)
 
 
 def test_controlled_stop_of_a_loaded_truck_from_1_m_s_ends_on_the_centre():

@@ -285,7 +285,14 @@ class NavigationCore:
             # of travel: a view met while backing up after an overshoot (F5) is matched
             # centre_lead mm *past* its alignment, so the centre is that much nearer. (Taking
             # the forward lead there put every overshooting stop 2 x 5 mm past the centre.)
-            lead = self.p.centre_lead if self._speed >= 0 else -self.p.centre_lead
+            # At rest (under 5 mm/s, as `_controlled` counts rest) the way the truck is about
+            # to go is the way the link asks: the F5 reverse. Taking the
+            # measured speed there (0, so forward) sent a truck that had come to rest 6 mm past
+            # the centre and was about to back up 5 mm further on instead, to +11 mm (2 demos in
+            # 12 on 2026-11-24, stop 8; the view turned valid at the turn-round).
+            moving = abs(self._speed) >= 0.005
+            backing = self._speed < 0 if moving else self.link['reverse'] == 1
+            lead = -self.p.centre_lead if backing else self.p.centre_lead
             self._target = self._odometer + (to_go + lead) / 1000.0
             self._rest_since = None
             self._controlled(now)

@@ -467,7 +467,7 @@ class WorldNode(Node):
                         # already ran at this time do not run twice.
                         self.publish_clock_now()
                         nudge = time.monotonic() + 0.05
-                if late:
+                if late and running():  # (not when a stop request ended the wait)
                     lost = self.pacer.give_up(late)
                     self.get_logger().warn(
                         f'carrying on without {", ".join(late)} (behind for '
