@@ -43,6 +43,7 @@ from agv_nodes.markers import CENTRE_VIEW, EDIM, SLOW1, STOP_VIEWS
 from agv_nodes.odometry import Odometer
 
 NO_TASK = 0xFF
+AT_REST = 0.005  # m/s: below this a controlled stop counts the truck at rest
 
 
 @dataclass
@@ -285,12 +286,12 @@ class NavigationCore:
             # of travel: a view met while backing up after an overshoot (F5) is matched
             # centre_lead mm *past* its alignment, so the centre is that much nearer. (Taking
             # the forward lead there put every overshooting stop 2 x 5 mm past the centre.)
-            # At rest (under 5 mm/s, as `_controlled` counts rest) the way the truck is about
-            # to go is the way the link asks: the F5 reverse. Taking the
-            # measured speed there (0, so forward) sent a truck that had come to rest 6 mm past
-            # the centre and was about to back up 5 mm further on instead, to +11 mm (2 demos in
-            # 12 on 2026-11-24, stop 8; the view turned valid at the turn-round).
-            moving = abs(self._speed) >= 0.005
+            # At rest (AT_REST) the way the truck is about to go is the way the link asks: the
+            # F5 reverse. Taking the measured speed there (0, so forward) sent a truck that had
+            # come to rest 6 mm past the centre and was about to back up 5 mm further on
+            # instead, to +11 mm (2 demos in 15 on 2026-11-24, stop 8; the view turned valid at
+            # the turn-round).
+            moving = abs(self._speed) >= AT_REST
             backing = self._speed < 0 if moving else self.link['reverse'] == 1
             lead = -self.p.centre_lead if backing else self.p.centre_lead
             self._target = self._odometer + (to_go + lead) / 1000.0
@@ -307,7 +308,7 @@ class NavigationCore:
         if self._target is None:
             return
         remaining_mm = (self._target - self._odometer) * 1000.0
-        if abs(remaining_mm) < 1.0 or (abs(self._speed) < 0.005 and abs(remaining_mm) < 3.0):
+        if abs(remaining_mm) < 1.0 or (abs(self._speed) < AT_REST and abs(remaining_mm) < 3.0):
             self._set_link(speed=0)
             if abs(self._speed) < 0.002:
                 self._rest_since = self._rest_since if self._rest_since is not None else now

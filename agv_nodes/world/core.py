@@ -95,8 +95,8 @@ class WorldCore:
         self.loads = list(self.p.start_loaded)
         self.station_loads = {sid: int(st.has_load) for sid, st in layout.stations.items()}
         self.transfer = 0.0  # fraction of the transfer in progress
-        self.counters = {'guide_wire': 0, 'wheel_odometry': 0}
-        self.wire_records = 0  # guide_wire records published (pacing: steering_command.wire_count)
+        self.counters = {'guide_wire': 0, 'wheel_odometry': 0}  # records published (the
+        # records carry the low byte; pacing compares steering_command.wire_count with the whole)
         self._odo_dist = [0.0, 0.0]  # m per driven wheel
         self._odo_time = 0.0
         self.events: list[dict[str, Any]] = []
@@ -133,6 +133,11 @@ class WorldCore:
         return self.sample * self.dt
 
     # -- inputs ---------------------------------------------------------------------------
+    @property
+    def wire_records(self) -> int:
+        """guide_wire records published so far (pacing: steering_command.wire_count)."""
+        return self.counters['guide_wire']
+
     def on_record(self, record: str, fields: dict[str, Any]) -> None:
         """Apply a hardware-side input record."""
         if record == 'traction_drive' and isinstance(self.vehicle, Electruk):
@@ -225,17 +230,17 @@ class WorldCore:
         left, right = self.pickup.coils(sx, sy, self.vehicle.state.heading)
         if not self.wire_powered:  # generator off: the coils pick up nothing
             left = right = 0
-        self.counters['guide_wire'] = (self.counters['guide_wire'] + 1) & 0xFF
-        self.wire_records += 1
+        self.counters['guide_wire'] += 1
         on_wire = max(left, right) > 0.25 * self.p.pickup.nominal
         if on_wire != self._on_wire:
             self._on_wire = on_wire
             self._event('wire_found' if on_wire else 'wire_lost')
-        return {'left_coil': left, 'right_coil': right, 'sample': self.counters['guide_wire']}
+        return {'left_coil': left, 'right_coil': right,
+                'sample': self.counters['guide_wire'] & 0xFF}
 
     def _odometry(self) -> dict[str, int]:
         left, right = self.vehicle.wheel_speeds()
-        self.counters['wheel_odometry'] = (self.counters['wheel_odometry'] + 1) & 0xFF
+        self.counters['wheel_odometry'] += 1
         period = self.time - self._odo_time
         self._odo_time = self.time
         self._odo_dist[0] += left * period
@@ -244,7 +249,7 @@ class WorldCore:
         return {'left_speed': clip(left), 'right_speed': clip(right),
                 'left_distance': int(round(self._odo_dist[0] * 1000)) & 0xFFFF,
                 'right_distance': int(round(self._odo_dist[1] * 1000)) & 0xFFFF,
-                'sample': self.counters['wheel_odometry']}
+                'sample': self.counters['wheel_odometry'] & 0xFF}
 
     def _frames(self) -> dict[str, np.ndarray]:
         s = self.vehicle.state

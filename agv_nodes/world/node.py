@@ -16,6 +16,7 @@ writers, before moving.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 import math
 import sys
 import time
@@ -69,14 +70,14 @@ def parse_link_entry(entry: str) -> tuple[str, str, int | None] | None:
     return (node, record, None) if node and record in codec() else None
 
 
-# A record that reports how many samples of a world stream its writer has taken: its count
-# field, and the stream (pacing.py).
-SAMPLE_COUNTS = {'sample_count': 'adc_snapshot', 'wire_count': 'guide_wire'}
+# Fields by which a record reports how many samples of a world stream its writer has taken
+# (pacing.py): the position sensor's ADC snapshots, route following's guide_wire records.
+COUNT_FIELDS = ('sample_count', 'wire_count')
 
 
 def _count_field(schema: RecordSchema) -> str | None:
-    """The field of `schema` that counts world samples taken (SAMPLE_COUNTS), if any."""
-    return next((f.name for f in schema.fields if f.name in SAMPLE_COUNTS), None)
+    """The field of `schema` that counts world samples taken (COUNT_FIELDS), if any."""
+    return next((f.name for f in schema.fields if f.name in COUNT_FIELDS), None)
 
 
 class WorldNode(Node):
@@ -175,8 +176,12 @@ class WorldNode(Node):
             clock_step=self.clock_every / wp.sample_rate,
             consumers=tuple(n for n in pace_on if _count_field(c[n])), slack=slack,
             consumer_rates={n: wp.guide_wire_rate for n in pace_on
-                            if SAMPLE_COUNTS.get(_count_field(c[n])) == 'guide_wire'})
+                            if _count_field(c[n]) == 'wire_count'})
         self.core = WorldCore(self.layout, wp)
+        # each count field's stream: how many samples of it the world has published
+        self._published: dict[str, Callable[[], int]] = {
+            'sample_count': lambda: self.core.sample,
+            'wire_count': lambda: self.core.wire_records}
         self.core.wire_powered = p.flag('wire_powered', True, 'guide-wire generator on (set '
                                         'false at run time to cut the wire: a fault test)')
         self.add_on_set_parameters_callback(self._set_at_run_time)
@@ -215,22 +220,22 @@ class WorldNode(Node):
         self._publish_static()
 
     # -- callbacks --------------------------------------------------------------------------
-    def _world_count(self, field: str | None) -> int:
-        """How many samples the world has published of the stream `field` counts."""
-        return self.core.wire_records if field == 'wire_count' else self.core.sample
-
     def _input(self, name: str):
         field = _count_field(codec()[name])
+        published = self._published.get(field)
 
         def on_record(fields: dict) -> None:
             self._work += 1
-            self.pacer.arrived(name, self.core.time, fields.get(field) if field else None,
-                               self._world_count(field))
+            if published is None:
+                self.pacer.arrived(name, self.core.time)
+            else:
+                self.pacer.arrived(name, self.core.time, fields[field], published())
             self.core.on_record(name, fields)
         return on_record
 
     def _paced(self, schema: RecordSchema):
         field = _count_field(schema)
+        published = self._published.get(field, lambda: 0)
 
         def on_msg(raw: bytes) -> None:
             self._work += 1
@@ -243,7 +248,7 @@ class WorldNode(Node):
                         break
                     except RecordError:
                         continue
-            self.pacer.arrived(schema.name, self.core.time, count, self._world_count(field))
+            self.pacer.arrived(schema.name, self.core.time, count, published())
         return on_msg
 
     def _on_links(self, msg: String) -> None:
