@@ -50,7 +50,7 @@ setup(
             # tools
             'agv-demo = agv_nodes.demo:main',
             'agv-diag = agv_nodes.executive.diag_view:main',
-            'agv-launch = agv_nodes.launcher:main',
+            'agv-launch = agv_nodes.graph.cli:main',
             'agv-records = agv_nodes.records.cli:main',
             'agv-report = agv_nodes.report:main',
         ],

@@ -18,8 +18,10 @@ import sys
 import time
 from typing import Any
 
+from agv_nodes.graph.model import GraphError
+from agv_nodes.graph.parameters import Options, wait_links
+from agv_nodes.graph.supervisor import Launch
 from agv_nodes.harness import DEMO_PROGRAMME
-from agv_nodes.launcher import GraphError, Launch, Options, wait_links
 
 QUICK = DEMO_PROGRAMME[:2]
 STATUS_REPLY = 'comms: status:'
@@ -97,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
     from std_msgs.msg import String
 
     from agv_nodes import qos
-    from agv_nodes.core_node import make_executor
+    from agv_nodes.node_process import make_executor
 
     print(f'agv-demo: {len(tasks)} tasks on demo_1983; {len(launch.specs())} processes, '
           f'ROS_DOMAIN_ID={launch.domain}, time_factor {args.time_factor:g}; output in {out}')

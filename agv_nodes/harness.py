@@ -21,8 +21,9 @@ sample at their own rate on the simulated clock.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 import random
 from typing import Any, Protocol
 
@@ -53,7 +54,7 @@ class Link:
 
 @dataclass
 class _Member:
-    core: Any
+    core: NodeCore
     readers: dict[str, RecordReader] = field(default_factory=dict)
     writers: dict[str, RecordWriter] = field(default_factory=dict)
     next_tick: float = 0.0
@@ -62,7 +63,7 @@ class _Member:
 class Harness:
     """Steps a WorldCore and node cores in lock step; see the module docstring."""
 
-    def __init__(self, world: WorldCore, cores: Iterable[Any], *, integrity: str = 'e2e',
+    def __init__(self, world: WorldCore, cores: Iterable[NodeCore], *, integrity: str = 'e2e',
                  codec: Codec | None = None, seed: int = 0) -> None:
         self.world = world
         self.codec = codec or installed_codec()
@@ -83,7 +84,7 @@ class Harness:
         for core in cores:
             self.add(core)
 
-    def add(self, core: Any) -> None:
+    def add(self, core: NodeCore) -> None:
         """Plug a node core in (its ports come from the schemas)."""
         reads, writes = self.codec.for_node(core.node)
         member = _Member(core)
@@ -121,7 +122,7 @@ class Harness:
         if world_reader is not None:
             fields = world_reader.accept(raw, now_ns)
             if fields is not None:
-                self.world.on_record(record, fields)
+                self.world.on_record(record, fields, now)
         routes = self._routes.get(record)
         if routes is None:
             routes = self._routes[record] = [(m, m.readers[record]) for m in self.members
@@ -226,36 +227,40 @@ DEMO_PROGRAMME = (  # thesis 7.2 tasks 1-7 and fig 3.1 on demo_1983, in an order
     'stop at 2 second',  # task 5: the second stop marker
     'stop at 2 first then second',  # task 6: first, then advance to the second
 )
-DEMO_SRM_MAP = {1: 15, 3: 15}  # demo_1983: where the route leaves each wire
+def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
+          overrides: Mapping[str, Mapping[str, Any]] | None = None,
+          params_file: Path | str | None = None, integrity: str = 'e2e') -> Harness:
+    """World + all seven node cores in lock step, each with the settings a launched node of the
+    graph gets: the graph's parameter file (config/agv_demo.yaml), what the layout sets
+    (`layout_parameters`), then `overrides` ({node: {name: value}}, as agv-launch's
+    `-p NODE:NAME:=VALUE`). `seed` seeds the world and the harness."""
+    from agv_nodes.communications.core import CommunicationsCore
+    from agv_nodes.executive.core import ExecutiveCore
+    from agv_nodes.load_handling.core import LoadHandlingCore
+    from agv_nodes.navigation.core import NavigationCore
+    from agv_nodes.package_share import config_dir
+    from agv_nodes.position_sensor.core import PositionSensorCore
+    from agv_nodes.route_following.core import RouteCore
+    from agv_nodes.settings import parameters, settings_from_file
+    from agv_nodes.traction.core import TractionCore
+    from agv_nodes.world.layout import layout_parameters, layout_path, load_layout
+    from agv_nodes.world.settings import WorldNodeSettings, WorldParams
 
-
-def truck(layout_name: str = 'demo_1983', *, seed: int = 1, world_params: Any = None,
-          integrity: str = 'e2e', traction: Any = None, navigation: Any = None,
-          sensor: Any = None, route: Any = None, executive: Any = None,
-          comms: Any = None, load: Any = None) -> Harness:
-    """World + all seven node cores with their default (or given) parameters, in lock step."""
-    from agv_nodes.communications.core import CommsParams, CommunicationsCore
-    from agv_nodes.executive.core import ExecutiveCore, ExecutiveParams
-    from agv_nodes.load_handling.core import LoadHandlingCore, LoadParams
-    from agv_nodes.navigation.core import NavigationCore, NavigationParams
-    from agv_nodes.position_sensor.core import PositionSensorCore, SensorProcessing
-    from agv_nodes.route_following.core import RouteCore, RouteParams
-    from agv_nodes.traction.core import TractionCore, TractionParams
-    from agv_nodes.world.core import WorldParams
-    from agv_nodes.world.layout import layout_path, load_layout
-
+    params_file = Path(params_file) if params_file else config_dir() / 'agv_demo.yaml'
     lay = load_layout(layout_path(layout_name))
-    wp = world_params or WorldParams(seed=seed)
-    ep = executive or ExecutiveParams(srm_map=dict(DEMO_SRM_MAP) if layout_name ==
-                                      'demo_1983' else {})
-    cores = [TractionCore(traction or TractionParams()),
-             PositionSensorCore(sensor or SensorProcessing()),
-             NavigationCore(navigation or NavigationParams()),
-             RouteCore(route or RouteParams(vehicle=lay.vehicle)),
-             ExecutiveCore(ep),
-             CommunicationsCore(comms or CommsParams()),
-             LoadHandlingCore(load or LoadParams())]
-    h = Harness(WorldCore(lay, wp), cores, integrity=integrity, seed=seed)
+    from_layout = layout_parameters(lay)
+    given = {node: dict(values) for node, values in (overrides or {}).items()}
+
+    def settings(node: str, cls: type, also: type | None = None, **fixed: Any) -> Any:
+        values = {**from_layout.get(node, {}), **fixed, **given.get(node, {})}
+        known = frozenset(p.name for p in parameters(also)) if also else frozenset()
+        return settings_from_file(cls, params_file, node, values, also_known=known)
+
+    world = WorldCore(lay, settings('world', WorldParams, WorldNodeSettings, seed=seed))
+    cores = [core_type(settings(core_type.node, core_type.settings_type))
+             for core_type in (TractionCore, PositionSensorCore, NavigationCore, RouteCore,
+                               ExecutiveCore, CommunicationsCore, LoadHandlingCore)]
+    h = Harness(world, cores, integrity=integrity, seed=seed)
     h.cores = {c.node: c for c in cores}
     return h
 

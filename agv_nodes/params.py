@@ -1,7 +1,9 @@
-"""Node parameters: declared with descriptors, checked once at start-up.
+"""Node parameters: declared from settings dataclasses (agv_nodes/settings.py), checked once.
 
-A bad value stops start-up with one message naming the node, the parameter file(s) given with
---params-file, the key and the value (rclpy itself rejects unparsable YAML and wrong types).
+Each field becomes a parameter with a descriptor (description, range, read-only for values
+read at start-up). A bad value, a name the node has no parameter for (in a parameter file
+section that names the node, or given with -p) or an unreadable parameter file stops start-up
+with one line naming the file(s), the node, the key and the value.
 """
 
 from __future__ import annotations
@@ -10,7 +12,12 @@ from collections.abc import Sequence
 import sys
 from typing import Any
 
-from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    ParameterType,
+)
 from rclpy.exceptions import (
     InvalidParameterTypeException,
     InvalidParameterValueException,
@@ -18,9 +25,28 @@ from rclpy.exceptions import (
 )
 from rclpy.node import Node
 
+from agv_nodes.rclpy_internals import parameter_overrides
+from agv_nodes.settings import (
+    Parameter,
+    ParameterFileError,
+    SettingError,
+    build,
+    convert,
+    node_level_names,
+    parameter_file_values,
+    parameters,
+)
+
 
 class ParameterError(ValueError):
-    """A parameter value a node cannot run with."""
+    """A parameter value, name or file a node cannot start with (one line)."""
+
+
+_ARRAYS = {bool: ParameterType.PARAMETER_BOOL_ARRAY, int: ParameterType.PARAMETER_INTEGER_ARRAY,
+           float: ParameterType.PARAMETER_DOUBLE_ARRAY,
+           str: ParameterType.PARAMETER_STRING_ARRAY}
+_SCALARS = {bool: ParameterType.PARAMETER_BOOL, int: ParameterType.PARAMETER_INTEGER,
+            float: ParameterType.PARAMETER_DOUBLE, str: ParameterType.PARAMETER_STRING}
 
 
 def params_files(argv: Sequence[str] | None = None) -> list[str]:
@@ -29,98 +55,87 @@ def params_files(argv: Sequence[str] | None = None) -> list[str]:
     return [argv[i + 1] for i, a in enumerate(argv[:-1]) if a == '--params-file']
 
 
-class Parameters:
-    """Declares a node's parameters and reads them back, validated."""
+def descriptor(p: Parameter) -> ParameterDescriptor:
+    """The ROS parameter descriptor of one setting."""
+    desc = ParameterDescriptor(name=p.name, description=p.spec.text(),
+                               read_only=p.spec.read_only)
+    if p.kind is tuple and not p.default:
+        # rclpy types an empty list as a byte array and then refuses any other list: an empty
+        # default takes its type from what it is given (build() checks it)
+        desc.dynamic_typing = True
+    elif p.kind is tuple:
+        desc.type = _ARRAYS[p.item]
+    elif p.kind is float:
+        desc.dynamic_typing = True  # `-p x:=2` gives an integer; build() takes it as 2.0
+    else:
+        desc.type = _SCALARS[p.kind]
+    if p.spec.choices:
+        desc.additional_constraints = f'one of {", ".join(p.spec.choices)}'
+    if p.spec.lo is not None and p.spec.hi is not None and p.kind in (int, float):
+        if p.kind is int:
+            desc.integer_range = [IntegerRange(from_value=int(p.spec.lo),
+                                               to_value=int(p.spec.hi), step=1)]
+        else:
+            desc.floating_point_range = [FloatingPointRange(from_value=float(p.spec.lo),
+                                                            to_value=float(p.spec.hi))]
+    return desc
 
-    def __init__(self, node: Node) -> None:
-        self.node = node
 
-    def _fail(self, name: str, value: Any, reason: str) -> None:
-        files = params_files()
-        where = f' (parameter files: {", ".join(files)})' if files else ''
-        raise ParameterError(f'{self.node.get_name()}: parameter {name!r} = {value!r}: '
-                             f'{reason}{where}')
+def parameter_error(node: Node, name: str, value: Any, reason: str) -> ParameterError:
+    """The one-line error that stops a node's start-up: node, parameter, value, reason and
+    the parameter files it was given."""
+    return ParameterError(f'{node.get_name()}: parameter {name!r} = {value!r}: {reason}'
+                          f'{_where()}')
 
-    def _declare(self, name: str, default: Any, desc: ParameterDescriptor) -> Any:
+
+def _where() -> str:
+    files = params_files()
+    return f' (parameter files: {", ".join(files)})' if files else ''
+
+
+def declare(node: Node, cls: type) -> Any:
+    """Declare every setting of `cls` on `node` and build it from the values given."""
+    values: dict[str, Any] = {}
+    for p in parameters(cls):
+        desc = descriptor(p)
+        default: Any = list(p.default) if p.kind is tuple else p.default
         try:
-            return self.node.declare_parameter(name, default, desc).value
+            value = node.declare_parameter(p.name, default, desc).value
         except (InvalidParameterTypeException, InvalidParameterValueException,
                 ParameterUninitializedException) as exc:
-            override = self.node._parameter_overrides.get(name)  # what the user asked for
-            value = override.value if override is not None else '?'
-            self._fail(name, value, ' '.join(str(exc).split()))
+            given = parameter_overrides(node).get(p.name, '?')
+            try:  # rclpy's descriptor check came first: say it in our words when we can
+                convert(p, given)
+                reason = ' '.join(str(exc).split())
+            except SettingError as ours:
+                reason = ours.reason
+            raise parameter_error(node, p.name, given, reason) from None
+        if value is not None or p.kind is tuple:
+            values[p.name] = value
+    try:
+        return build(cls, values)
+    except SettingError as exc:
+        raise ParameterError(f'{node.get_name()}: {exc}{_where()}') from None
 
-    def number(self, name: str, default: float, description: str,
-               lo: float | None = None, hi: float | None = None) -> float:
-        """A float parameter within [lo, hi] (integers are accepted: `-p x:=2`)."""
-        desc = ParameterDescriptor(description=description, dynamic_typing=True)
-        if lo is not None and hi is not None:
-            desc.description += f' [{lo}, {hi}]'
-        value = self._declare(name, float(default), desc)
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            self._fail(name, value, 'must be a number')
-        if (lo is not None and value < lo) or (hi is not None and value > hi):
-            self._fail(name, value, f'outside {lo}..{hi}')
-        return float(value)
 
-    def integer(self, name: str, default: int, description: str,
-                lo: int | None = None, hi: int | None = None) -> int:
-        """An integer parameter within [lo, hi]."""
-        desc = ParameterDescriptor(description=description)
-        if lo is not None and hi is not None:
-            desc.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi), step=1)]
-        value = self._declare(name, int(default), desc)
-        if isinstance(value, bool) or not isinstance(value, int):
-            self._fail(name, value, 'must be an integer')
-        if (lo is not None and value < lo) or (hi is not None and value > hi):
-            self._fail(name, value, f'outside {lo}..{hi}')
-        return int(value)
-
-    def choice(self, name: str, default: str, description: str,
-               choices: Sequence[str]) -> str:
-        """A string parameter from a fixed set."""
-        desc = ParameterDescriptor(description=f'{description} (one of {", ".join(choices)})')
-        value = self._declare(name, default, desc)
-        if value not in choices:
-            self._fail(name, value, f'not one of {list(choices)}')
-        return str(value)
-
-    def text(self, name: str, default: str, description: str) -> str:
-        """A free string parameter."""
-        desc = ParameterDescriptor(description=description)
-        value = self._declare(name, default, desc)
-        if not isinstance(value, str):
-            self._fail(name, value, 'must be a string')
-        return value
-
-    def flag(self, name: str, default: bool, description: str) -> bool:
-        """A boolean parameter."""
-        desc = ParameterDescriptor(description=description)
-        value = self._declare(name, bool(default), desc)
-        if not isinstance(value, bool):
-            self._fail(name, value, 'must be true or false')
-        return value
-
-    def numbers(self, name: str, default: Sequence[float], description: str,
-                length: int | None = None) -> list[float]:
-        """A list of floats (an empty list means "derive it")."""
-        desc = ParameterDescriptor(description=description)
-        value = self._declare(name, [float(v) for v in default] or [0.0], desc)
-        value = list(value)
-        if not default and value == [0.0]:
-            return []
-        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
-            self._fail(name, value, 'must be a list of numbers')
-        if length is not None and len(value) != length:
-            self._fail(name, value, f'needs exactly {length} values')
-        return [float(v) for v in value]
-
-    def texts(self, name: str, default: Sequence[str], description: str) -> list[str]:
-        """A list of strings."""
-        desc = ParameterDescriptor(description=description)
-        value = self._declare(name, list(default) or [''], desc)
-        return [v for v in value or () if v]  # a file's `[]` has no type: rclpy gives None
-
-    def fail(self, name: str, value: Any, reason: str) -> None:
-        """Refuse a value the node found unusable after reading it."""
-        self._fail(name, value, reason)
+def refuse_unknown(node: Node) -> None:
+    """Stop start-up on a parameter the node does not have: in a parameter file section that
+    names this node, or given on the command line (-p); an unreadable file stops it too."""
+    declared = set(node.get_parameters_by_prefix(''))
+    shared: set[str] = set()
+    for path in params_files():
+        try:
+            common, own = parameter_file_values(path, node.get_name(),
+                                                node.get_namespace().rstrip('/'))
+        except ParameterFileError as exc:
+            raise ParameterError(f'{node.get_name()}: {exc}') from None
+        shared.update(common)
+        for name, value in own.items():
+            if name not in declared and not name.startswith('qos_overrides.'):
+                raise ParameterError(f'{path}: node {node.get_name()}: unknown parameter '
+                                     f'{name!r} (= {value!r})')
+    for name, value in parameter_overrides(node).items():
+        if name not in declared and name not in shared and name not in node_level_names() \
+                and not name.startswith('qos_overrides.'):
+            raise ParameterError(f'{node.get_name()}: unknown parameter {name!r} (= {value!r}) '
+                                 f'given on the command line{_where()}')

@@ -1,6 +1,6 @@
-"""The one place for QoS profiles (DESIGN.md "QoS").
+"""The one place for QoS profiles.
 
-A record topic is a pigeon-hole (thesis 8.2.2, spec F1): the writer offers reliable + transient-
+A record topic is a pigeon-hole (Baker 1983, 8.2.2): the writer offers reliable + transient-
 local keep-last 1 and republishes at a steady rate, so a late joiner gets the current record at
 once and a silent writer is noticed by age. Readers ask for the weakest QoS that does the job
 (reliable + volatile for records; best-effort for the 340 Hz ADC stream and camera frames), because
@@ -27,37 +27,33 @@ from rclpy.qos import (
     ReliabilityPolicy,
 )
 
-from agv_nodes.records.codec import RecordSchema
+from agv_nodes.records.schema import RecordSchema
 
-RECORD_WRITER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                           reliability=ReliabilityPolicy.RELIABLE,
-                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
-RECORD_READER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
-                           reliability=ReliabilityPolicy.RELIABLE,
-                           durability=DurabilityPolicy.VOLATILE)
-STREAM_WRITER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
-                           reliability=ReliabilityPolicy.RELIABLE,
-                           durability=DurabilityPolicy.VOLATILE)
-STREAM_READER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
-                           reliability=ReliabilityPolicy.BEST_EFFORT,
-                           durability=DurabilityPolicy.VOLATILE)
+
+def _keep_last(depth: int, *, reliable: bool = True, latched: bool = False) -> QoSProfile:
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      reliability=ReliabilityPolicy.RELIABLE if reliable
+                      else ReliabilityPolicy.BEST_EFFORT,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL if latched
+                      else DurabilityPolicy.VOLATILE)
+
+
+RECORD_WRITER = _keep_last(1, latched=True)
+RECORD_READER = _keep_last(50)
+STREAM_WRITER = _keep_last(100)
+STREAM_READER = _keep_last(100, reliable=False)
 # A node's own FIFO /clock reader (core_node.ClockTimers, the executive's sent timeline): every
 # sample, in order - a lost one would leave the node's time and timers behind until the next.
-CLOCK_READER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
-                          reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.VOLATILE)
+CLOCK_READER = _keep_last(100)
 # Ground truth drawn once (world/route, world/markers) and late-joining viewers or recorders.
-LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                     reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED = _keep_last(1, latched=True)
 # graph/links (ros_ports.LinkAnnouncer): each node's latched word; the world keeps them all.
-LINKS_READER = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
-                          reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LINKS_READER = _keep_last(100, latched=True)
+# sim/progress/<node> (agv_nodes/sim_progress.py): each node's latest handled sim time; only
+# the newest counts, and the world must see it, so reliable with a short history.
+PROGRESS = _keep_last(5)
 # /diagnostics, reports, ground-truth streams: reliable, volatile.
-EVENTS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
-                    reliability=ReliabilityPolicy.RELIABLE,
-                    durability=DurabilityPolicy.VOLATILE)
+EVENTS = _keep_last(50)
 
 
 def writer_qos(schema: RecordSchema) -> QoSProfile:

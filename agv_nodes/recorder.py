@@ -22,7 +22,7 @@ on arrival.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from dataclasses import dataclass
 import importlib
 from pathlib import Path
 import sys
@@ -45,12 +45,28 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock
 
-from agv_nodes.core_node import spin_main
-from agv_nodes.params import Parameters
+from agv_nodes.node_process import spin_main
+from agv_nodes.params import declare, parameter_error, refuse_unknown
+from agv_nodes.rclpy_internals import drop_clock_reader, take_all
 from agv_nodes.ros_ports import clock_time_ns
 from agv_nodes.sent_time import SentTimeline
+from agv_nodes.settings import setting
 
 SKIP = {'/parameter_events'}
+
+
+@dataclass
+class RecorderSettings:
+    """The recorder's parameters."""
+
+    bag: str = setting('agv_bag', 'bag directory to create (must not exist)')
+    topics: tuple[str, ...] = setting((), 'topics to record (empty: every topic found)')
+    max_bag_size: int = setting(0, 'bytes per bag before continuing in a new one (0: no '
+                                'splitting)', lo=0, hi=2**62)
+    all_namespaces: bool = setting(False, 'record other namespaces too (default: this '
+                                   'namespace plus global topics)')
+    poll_period: float = setting(0.02, 'wall seconds between takes of everything queued (0: a '
+                                 'callback per message)', lo=0.0, hi=1.0)
 
 
 def message_class(type_name: str) -> Any:
@@ -77,16 +93,6 @@ def to_bag_qos(profile: QoSProfile) -> Qos:
                avoid_ros_namespace_conventions=bool(profile.avoid_ros_namespace_conventions))
 
 
-def _queued(sub: Any, limit: int) -> Iterator[tuple[bytes, dict[str, Any]]]:
-    """Take (serialized message, message info) from `sub` until its queue is empty."""
-    for _ in range(limit):
-        with sub.handle:
-            taken = sub.handle.take_message(sub.msg_type, True)
-        if taken is None:
-            return
-        yield taken
-
-
 class PolledGroup(CallbackGroup):
     """Entities the executor never waits on or runs: their owner takes their messages."""
 
@@ -105,18 +111,16 @@ class Recorder(Node):
 
     def __init__(self) -> None:
         super().__init__('recorder')
-        p = Parameters(self)
-        self.bag_path = Path(p.text('bag', 'agv_bag', 'bag directory to create (must not '
-                                    'exist)'))
-        self.topics = p.texts('topics', [], 'topics to record (empty = every topic found)')
-        self.max_size = p.integer('max_bag_size', 0, 'bytes per bag before continuing in a new '
-                                  'one (0 = no splitting)', 0, 2**62)
-        self.all_namespaces = p.flag('all_namespaces', False, 'record other namespaces too '
-                                     '(default: this namespace plus global topics)')
-        self.poll_period = p.number('poll_period', 0.02, 'wall seconds between takes of '
-                                    'everything queued (0 = a callback per message)', 0.0, 1.0)
+        s = declare(self, RecorderSettings)
+        refuse_unknown(self)
+        self.bag_path = Path(s.bag)
+        self.topics = list(s.topics)
+        self.max_size = s.max_bag_size
+        self.all_namespaces = s.all_namespaces
+        self.poll_period = s.poll_period
         if self.bag_path.exists():
-            p.fail('bag', str(self.bag_path), 'exists already (a bag is never overwritten)')
+            raise parameter_error(self, 'bag', s.bag, 'exists already (a bag is never '
+                                  'overwritten)')
         self.typestore = get_typestore(Stores.ROS2_JAZZY)
         self.part = 0
         self.writer: Writer | None = None
@@ -209,13 +213,8 @@ class Recorder(Node):
         time instead of 21.2 (bench/graph_bench.py). Without the attributes (another rclpy),
         both stay.
         """
-        time_source = getattr(self, '_time_source', None)
-        own = getattr(time_source, '_clock_sub', None)
-        if own is None or not self.get_parameter('use_sim_time').value:
-            return
-        self.destroy_subscription(own)
-        time_source._clock_sub = None
-        self._time_source_fed = time_source
+        if self.get_parameter('use_sim_time').value:
+            self._time_source_fed = drop_clock_reader(self)
 
     def _connection(self, topic: str) -> Any:
         conn = self.connections.get(topic)
@@ -230,7 +229,7 @@ class Recorder(Node):
             self._write(topic, raw)
             # Drain what else is queued on this topic now: one executor wake-up (and one
             # wait-set rebuild) then serves a whole burst instead of a single message.
-            for raw, _info in _queued(self.subs[topic], 200):
+            for raw, _info in take_all(self.subs[topic], 200):
                 self._write(topic, raw)
         return write
 
@@ -250,7 +249,7 @@ class Recorder(Node):
             sub = self.subs[topic]
             if sub is None:
                 continue
-            for raw, info in _queued(sub, 1000):
+            for raw, info in take_all(sub, 1000):
                 sent_ns = info.get('source_timestamp') or 0
                 if topic == '/clock':
                     ns = clock_time_ns(raw)

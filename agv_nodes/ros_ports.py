@@ -19,8 +19,8 @@ from std_msgs.msg import String, UInt8MultiArray
 
 from agv_nodes import qos
 from agv_nodes.records.carrier import clock_ns, uint8_array_cdr, uint8_array_data
-from agv_nodes.records.codec import RecordSchema
 from agv_nodes.records.ports import RecordReader, RecordWriter, inputs_report
+from agv_nodes.records.schema import RecordSchema
 
 
 class RecordPublisher(RecordWriter):

@@ -20,8 +20,9 @@ import sys
 import tempfile
 import time
 
+from agv_nodes.graph.parameters import Options
+from agv_nodes.graph.supervisor import Launch
 from agv_nodes.harness import DEMO_PROGRAMME, submit, truck
-from agv_nodes.launcher import Launch, Options
 
 
 def cpu_seconds(pid: int) -> float:

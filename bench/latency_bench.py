@@ -184,7 +184,8 @@ def live(time_factor: float, extra: dict[str, list[str]], tasks: int = 2,
     from agv_nodes.harness import DEMO_PROGRAMME
 
     programme = DEMO_PROGRAMME[:tasks]
-    from agv_nodes.launcher import Launch, Options
+    from agv_nodes.graph.parameters import Options
+    from agv_nodes.graph.supervisor import Launch
 
     out = Path(tempfile.mkdtemp(prefix='agv_latency_bench_'))
     launch = Launch(Options(time_factor=time_factor, bag=out / 'bag', quiet=True, extra=extra,

@@ -19,7 +19,7 @@ import subprocess
 import sys
 import time
 
-from agv_nodes.launcher import claim_domain
+from agv_nodes.graph.supervisor import claim_domain
 
 VARIANTS = {
     'events': 'EventsExecutor, one reliable /clock reader (a node under ClockTimers)',
@@ -57,7 +57,7 @@ import rclpy
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import UInt8MultiArray
 from agv_nodes import qos
-from agv_nodes.core_node import make_executor
+from agv_nodes.node_process import make_executor
 variant, record = sys.argv[1], sys.argv[2] == 'record'
 rclpy.init()
 node = rclpy.create_node('rclpy_bench_reader')

@@ -25,10 +25,12 @@ import random
 import sys
 
 from agv_nodes.markers import EDIM
-from agv_nodes.position_sensor.core import PositionSensorCore, SensorProcessing
-from agv_nodes.world.core import WorldCore, WorldParams
+from agv_nodes.position_sensor.core import PositionSensorCore
+from agv_nodes.position_sensor.settings import SensorProcessing
+from agv_nodes.world.core import WorldCore
 from agv_nodes.world.layout import layout_path, load_layout
-from agv_nodes.world.marker_sensor import MarkerSensorModel, SensorParams
+from agv_nodes.world.marker_sensor import MarkerSensorModel
+from agv_nodes.world.settings import SensorParams, WorldParams
 
 EXPECTED = {'L0': 0, 'L1': 1, 'L2': 2, 'L3': 3, 'S.1': EDIM, 'W': None}
 

@@ -20,11 +20,12 @@ import math
 import sys
 
 from agv_nodes.harness import Harness
-from agv_nodes.route_following.camera_guidance import SteeringParams
-from agv_nodes.route_following.core import RouteCore, RouteParams
+from agv_nodes.route_following.core import RouteCore
+from agv_nodes.route_following.settings import RouteParams, SteeringParams
 from agv_nodes.traction.core import TractionCore
-from agv_nodes.world.core import WorldCore, WorldParams
+from agv_nodes.world.core import WorldCore
 from agv_nodes.world.layout import build_path, layout_path, load_layout
+from agv_nodes.world.settings import WorldParams
 
 
 class Executive:
@@ -234,8 +235,8 @@ def camera_junction(junction: str, speed: float) -> dict[str, float | str]:
 
 # (law, G_i, G_theta, schedule speed): the thesis's P and PI, then with orientation feedback,
 # the 1/speed gain schedule and (pi_b) the integral gathered only within 10 mm of the tape
-# (modern options, route_following parameters camera_gain_theta, camera_schedule_speed,
-# camera_integral_band)
+# (modern options, route_following parameters steering.gain_theta, steering.schedule_speed,
+# steering.integral_band)
 LAWS = (('p', 0.0, 0.0, 0.0), ('pi', 0.07, 0.0, 0.0), ('p', 0.0, 0.3, 0.0),
         ('p', 0.0, 0.4, 0.63), ('pi_b', 0.07, 0.4, 0.63))
 

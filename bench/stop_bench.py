@@ -18,10 +18,6 @@ import statistics
 import sys
 
 from agv_nodes.harness import submit, truck
-from agv_nodes.navigation.core import NavigationParams
-from agv_nodes.traction.core import TractionParams
-from agv_nodes.world.core import WorldParams
-from agv_nodes.world.vehicles import ElectrukParams
 
 SPEEDS = {0.7: 55, 1.0: 80}  # m/s -> cruise demand (% duty)
 
@@ -31,16 +27,13 @@ def one_stop(seed: int, demand: int, payload: float, mode: str,
     """One run; returns the stop error (mm) and the speed at the location marker. With
     `trace`, every change of navigation's view or link while positioning is appended to it
     with the ground truth (sensor axis past the centre, mm) and the truck's speed."""
-    from agv_nodes.executive.core import ExecutiveParams
-
-    wp = WorldParams(seed=seed, electruk=ElectrukParams(payload=payload))
     controlled = mode == 'controlled'
-    h = truck('straight_track', seed=seed, world_params=wp,
-              traction=TractionParams(control='closed_loop' if controlled else 'open_loop_1983',
-                                      link_reaction=link_reaction),
-              navigation=NavigationParams(stopping='controlled' if controlled
-                                          else 'friction_1983'),
-              executive=ExecutiveParams(cruise_demand=demand))
+    h = truck('straight_track', seed=seed, overrides={
+        'world': {'electruk.payload': payload},
+        'traction': {'control': 'closed_loop' if controlled else 'open_loop_1983',
+                     'link_reaction': link_reaction},
+        'navigation': {'stopping': 'controlled' if controlled else 'friction_1983'},
+        'executive': {'cruise_demand': demand}})
     # Vary where the truck starts so the sampling phase at the markers varies run to run.
     h.world.vehicle.state.x -= (seed % 17) * 0.013
     submit(h, 'stop at 1 first')

@@ -12,10 +12,11 @@ from __future__ import annotations
 import sys
 
 from agv_nodes.harness import Harness
-from agv_nodes.traction.core import TractionCore, TractionParams
-from agv_nodes.world.core import WorldCore, WorldParams
+from agv_nodes.traction.core import TractionCore
+from agv_nodes.traction.settings import TractionParams
+from agv_nodes.world.core import WorldCore
 from agv_nodes.world.layout import layout_path, load_layout
-from agv_nodes.world.vehicles import ElectrukParams
+from agv_nodes.world.settings import ElectrukParams, WorldParams
 
 
 class Executive:

@@ -13,8 +13,9 @@ import subprocess
 import sys
 import time
 
-from agv_nodes.world.core import WorldCore, WorldParams
+from agv_nodes.world.core import WorldCore
 from agv_nodes.world.layout import layout_path, load_layout
+from agv_nodes.world.settings import WorldParams
 
 REPO = Path(__file__).resolve().parent.parent
 DRIVE = dict(armature_duty=60, field_duty=98, armature_enable=1, field_enable=1,
@@ -31,9 +32,9 @@ def core_rate(name: str, seconds: float = 20.0) -> tuple[float, float]:
     for k in range(steps):
         if k % 3 == 0:
             DRIVE['watchdog'] = (k // 3) & 0xFF
-            world.on_record('traction_drive', DRIVE)
+            world.on_record('traction_drive', DRIVE, world.time)
             world.on_record('steering_command', WHEELS if world.layout.vehicle == 'concic2'
-                            else STEER)
+                            else STEER, world.time)
         world.step()
     wall = time.perf_counter() - t0
     return steps / wall, seconds / wall
@@ -51,7 +52,7 @@ def node_cpu(seconds: float) -> float:
     exe = str(Path(sys.executable).parent / 'world')
     world = subprocess.Popen([exe, '--ros-args', '-p', 'layout:=straight_track',
                               '-p', 'time_factor:=1.0', '-p', f'duration:={seconds + 2}',
-                              '-p', 'wait_for_publishers:=[hw/traction/drive]'],
+                              '-p', "wait_for_links:=['world:traction_drive']"],
                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     probe = subprocess.Popen([sys.executable, str(REPO / 'test' / 'world_probe.py'),
                               str(seconds + 1), '60'], env=env, stdout=subprocess.DEVNULL,

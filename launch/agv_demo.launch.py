@@ -5,8 +5,9 @@
         [params_file:=<file>] [respawn:=false] [realtime:=0]
 
 Nodes, executables and roles come from share/agv_nodes/config/graph.yaml, and each node's
-parameters from agv_nodes.launcher.node_parameters - the same description and function
-agv-launch uses, so the two cannot drift (test/test_launch_file.py checks it). With
+parameters from agv_nodes.graph.parameters.node_parameters - the same description and function
+agv-launch uses, so the two cannot drift (test/test_launch_file.py checks it). The world writes
+no ready file here (agv-launch's signal that time has started). With
 world:=none the hardware topics must come from drivers (docs/hardware.md); record with
 bag:=<dir> here, or with `ros2 bag record -s mcap -a` alongside.
 """
@@ -33,10 +34,10 @@ ARGUMENTS = {
 
 
 def _nodes(context):
-    from agv_nodes.launcher import (
+    from agv_nodes.graph.model import load_graph
+    from agv_nodes.graph.parameters import (
         Options,
         check_realtime,
-        load_graph,
         node_parameters,
         realtime_priority,
     )
@@ -48,7 +49,8 @@ def _nodes(context):
                       time_factor=float(arg['time_factor']),
                       record_integrity=arg['record_integrity'], world=arg['world'],
                       bag=Path(arg['bag']) if arg['bag'] else None,
-                      realtime=int(arg['realtime']))
+                      realtime=int(arg['realtime']),
+                      params=Path(arg['params_file']) if arg['params_file'] else None)
     check_realtime(options)
     params_file = arg['params_file'] or str(graph.parameters)
     nodes = []

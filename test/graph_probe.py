@@ -43,7 +43,8 @@ class GraphProbe:
         from std_srvs.srv import Trigger
 
         from agv_nodes import qos
-        from agv_nodes.launcher import Launch, Options
+        from agv_nodes.graph.parameters import Options
+        from agv_nodes.graph.supervisor import Launch
         from agv_nodes.records.codec import codec
         from agv_nodes.ros_ports import RecordSubscription
 
@@ -128,7 +129,7 @@ class GraphProbe:
         from std_msgs.msg import String
 
         from agv_nodes.demo import comms_handshake, silent_links
-        from agv_nodes.launcher import wait_links
+        from agv_nodes.graph.parameters import wait_links
 
         self.spin_until(lambda: self.launch.moving.is_set()
                         and self.task_pub.get_subscription_count() > 0, 120, 'the graph')

@@ -17,8 +17,9 @@ from dataclasses import dataclass
 
 from hypothesis import strategies as st
 
-from agv_nodes.records.codec import COUNTER_BYTE, CRC_BYTE, RecordError, RecordSchema
 from agv_nodes.records.e2e import record_crc
+from agv_nodes.records.errors import RecordError
+from agv_nodes.records.schema import COUNTER_BYTE, CRC_BYTE, RecordSchema
 
 
 @dataclass(frozen=True)

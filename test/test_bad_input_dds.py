@@ -118,7 +118,8 @@ def start_graph(tmp_path, integrity: str = 'e2e'):
     from rclpy.context import Context
 
     from agv_nodes import qos
-    from agv_nodes.launcher import Launch, Options
+    from agv_nodes.graph.parameters import Options
+    from agv_nodes.graph.supervisor import Launch
     from agv_nodes.ros_ports import RecordSubscription
 
     launch = Launch(Options(time_factor=0.0, quiet=True, log_dir=tmp_path / 'logs',

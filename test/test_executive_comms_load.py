@@ -5,13 +5,12 @@ from __future__ import annotations
 import pytest
 
 from agv_nodes.communications.core import CommunicationsCore, TaskError, parse_task
-from agv_nodes.executive.core import ExecutiveCore, ExecutiveParams, itinerary
+from agv_nodes.executive.core import ExecutiveCore, itinerary
 from agv_nodes.executive.diagnostics import ERROR, OK, WARN, HealthMonitor
+from agv_nodes.executive.settings import ExecutiveParams
 from agv_nodes.harness import DEMO_PROGRAMME, submit, truck
 from agv_nodes.load_handling.core import LoadHandlingCore
-from agv_nodes.navigation.core import NavigationParams
 from agv_nodes.report import final_stops
-from agv_nodes.traction.core import TractionParams
 
 
 # -- communications ------------------------------------------------------------------------
@@ -57,17 +56,17 @@ def test_bad_task_changes_nothing():
     before = comms.tick(0.1)
     comms.on_task('stop at 9 first', 0.2)
     assert comms.tick(0.3) == before and len(comms.queue) == 1
-    assert 'rejected' in comms.reports[-1] and 'column 9' in comms.reports[-1]
+    assert 'rejected' in comms.notes.texts()[-1] and 'column 9' in comms.notes.texts()[-1]
 
 
 def test_status_query_is_answered_and_changes_nothing():
     comms = CommunicationsCore()
     assert comms.on_task('status', 0.0) is None
-    assert comms.reports[-1] == 'comms: status: 0 in queue'
+    assert comms.notes.texts()[-1] == 'comms: status: 0 in queue'
     comms.on_task('stop at 2 first', 0.1)
     before = comms.tick(0.2)
     assert comms.on_task('Status', 0.3) is None
-    assert comms.reports[-1] == "comms: status: 1 in queue; head: task 1 'stop at 2 first'"
+    assert comms.notes.texts()[-1] == "comms: status: 1 in queue; head: task 1 'stop at 2 first'"
     assert comms.tick(0.4) == before and len(comms.queue) == 1
     comms.on_task('load at 0', 0.5)
     assert comms.queue[-1].task_id == 2  # a query takes no task number
@@ -87,7 +86,7 @@ def test_comms_queue_relays_in_order_and_reports():
     comms.on_record('comms_command', {**base, 'task_id': 2, 'state': 'failed',
                                       'cause': 'lost_wire', 'subsystem': 'route'}, 3.0)
     assert comms.results == [(1, 'completed', 'none'), (2, 'failed', 'lost_wire')]
-    assert 'FAILED: lost wire (route)' in comms.reports[-1]
+    assert 'FAILED: lost wire (route)' in comms.notes.texts()[-1]
 
 
 # -- executive -------------------------------------------------------------------------------
@@ -174,7 +173,7 @@ def test_stale_status_names_the_silent_subsystem():
 
 
 def test_a_silent_subsystem_is_noticed_between_ticks_when_others_report():
-    ex = running_executive()  # last records and tick at 0.45 s; status_timeout 0.3 s
+    ex = running_executive()  # last records and tick at 0.45 s; status_timeout 0.15 s
     out = None
     t = 0.45
     while out is None:  # route, navigation, load keep reporting every 10 ms; traction is silent
@@ -187,8 +186,8 @@ def test_a_silent_subsystem_is_noticed_between_ticks_when_others_report():
 
 
 def test_a_starved_executive_does_not_blame_a_record_still_in_its_queue():
-    ex = running_executive()  # last records and tick at 0.45 s; status_timeout 0.3 s
-    t = 0.45 + 0.35  # its clock jumps: it was starved, four records wait in its queues
+    ex = running_executive()  # last records and tick at 0.45 s; status_timeout 0.15 s
+    t = 0.45 + 0.25  # its clock jumps: it was starved, four records wait in its queues
     for name, fields in status_records(t).items():  # taken one topic after another
         assert ex.on_record(f'{name}_status', fields, t) is None
     assert ex.fault is None and ex.mode == 'running'
@@ -259,9 +258,9 @@ def run_programme(tasks, limit: float = 900.0, **kw):
 @pytest.mark.slow
 def test_demonstration_programme_completes_in_lock_step():
     """Thesis 7.2 tasks 1-7 and fig 3.1 on demo_1983: every task, stop and load, with the
-    1983 traction and friction stops (as config/agv_demo.yaml runs it)."""
-    h = run_programme(DEMO_PROGRAMME, traction=TractionParams(control='open_loop_1983'),
-                      navigation=NavigationParams(stopping='friction_1983'))
+    1983 traction and friction stops."""
+    h = run_programme(DEMO_PROGRAMME, overrides={'traction': {'control': 'open_loop_1983'},
+                                                 'navigation': {'stopping': 'friction_1983'}})
     comms = h.cores['communications']
     assert [r[1] for r in comms.results] == ['completed'] * len(DEMO_PROGRAMME)
     stops = [e for e in h.events if e['event'] == 'stopped']
@@ -275,7 +274,7 @@ def test_demonstration_programme_completes_in_lock_step():
     world = h.world
     assert world.station_loads == {'W0': 0, 'W1': 0, 'W2': 1, 'W3': 1}
     assert world.loads == [False, False]
-    reports = ' '.join(comms.reports)
+    reports = ' '.join(comms.notes.texts())
     assert reports.index("task 1 'load at 0") < reports.index("task 6 'load A at 1")
     assert h.cores['executive'].mode == 'idle' and world.vehicle.state.speed == 0.0
 

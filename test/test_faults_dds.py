@@ -31,8 +31,9 @@ LIMIT = 4.0  # m, the executive's positioning_limit (default)
 @pytest.mark.parametrize('fault, switch, report, release', [
     ('radio stop', lambda g: g.radio_stop(True), 'FAILED: radio stop (traction)',
      lambda g: g.radio_stop(False)),
-    ('marker sensor blinded (ambient 400 counts)', lambda g: g.set_world(ambient=400.0),
-     'FAILED: sensor lost (navigation)', lambda g: g.set_world(ambient=0.0)),
+    ('marker sensor blinded (ambient 400 counts)',
+     lambda g: g.set_world(**{'sensor.ambient': 400.0}),
+     'FAILED: sensor lost (navigation)', lambda g: g.set_world(**{'sensor.ambient': 0.0})),
     ('guide wire generator off', lambda g: g.set_world(wire_powered=False),
      'FAILED: lost wire (route)', lambda g: g.set_world(wire_powered=True)),
 ], ids=['radio_stop', 'blinded_sensor', 'lost_wire'])
@@ -90,7 +91,8 @@ def test_missing_stop_marker_stops_at_the_positioning_limit(tmp_path, fault_tabl
     ('traction_link:delay=0.02', 'task completes, the stop a few mm later'),
 ], ids=['sensor_command_loss', 'link_delay'])
 def test_lossy_or_slow_link_is_tolerated_and_diagnosed(tmp_path, fault, expected, fault_table):
-    from agv_nodes.launcher import load_graph, parse_fault
+    from agv_nodes.graph.model import load_graph
+    from agv_nodes.graph.parameters import parse_fault
     from agv_nodes.records import codec
 
     record, spec = parse_fault(fault, load_graph())

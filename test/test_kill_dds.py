@@ -95,7 +95,8 @@ def test_silent_node_ends_in_a_stop(tmp_path, victim, stop_within, report, diag_
 
 LAUNCHER = """
 import os, sys, time
-from agv_nodes.launcher import Launch, Options
+from agv_nodes.graph.parameters import Options
+from agv_nodes.graph.supervisor import Launch
 launch = Launch(Options(world='none', quiet=True, domain_id=int(os.environ['ROS_DOMAIN_ID'])))
 launch.start()
 print(' '.join(str(p.pid) for p in launch.procs.values()), flush=True)
@@ -113,7 +114,7 @@ def _alive(pid: int) -> bool:
 
 def test_a_sigkilled_launcher_takes_its_nodes_with_it():
     """No graph is left running on the domain when agv-launch itself is killed (it then runs
-    no clean-up): each node was started through agv_nodes.launch_child (PR_SET_PDEATHSIG)."""
+    no clean-up): each node was started through agv_nodes.graph.child (PR_SET_PDEATHSIG)."""
     import os
     import subprocess
     import sys

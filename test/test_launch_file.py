@@ -11,8 +11,19 @@ import types
 import pytest
 import yaml
 
-from agv_nodes.launcher import Launch, Options, load_graph, node_parameters, realtime_priority
+from agv_nodes.graph.model import GraphError, load_graph
+from agv_nodes.graph.parameters import (
+    Options,
+    check_realtime,
+    node_parameters,
+    paced_nodes,
+    parse_fault,
+    realtime_priority,
+    wait_links,
+)
+from agv_nodes.graph.supervisor import CHILD, Launch
 from agv_nodes.records import codec
+from agv_nodes.sim_progress import LINK as PROGRESS
 
 from conftest import REPO
 
@@ -84,13 +95,16 @@ def test_launch_file_matches_agv_launch(launch_api, overrides, options):
         assert prio == (40 if options.realtime and spec.realtime else 0)
         # and agv-launch passes the same values, in a second parameter file after the first
         cmd = launch.command(spec)
-        child = launch.child_command(spec)  # and the same priority, to launch_child
-        between = child[child.index('agv_nodes.launch_child') + 2:child.index(cmd[0])]
+        child = launch.child_command(spec)  # and the same priority, to the child wrapper
+        between = child[child.index(CHILD) + 2:child.index(cmd[0])]
         assert between == (['--sched-fifo', str(prio)] if prio else [])
         files = [cmd[i + 1] for i, c in enumerate(cmd) if c == '--params-file']
         assert files[0] == str(graph.parameters)
         second = yaml.safe_load(Path(files[1]).read_text())
-        assert second == {f'/**/{spec.name}': {'ros__parameters': params}}
+        # ... but for the world's ready file, agv-launch's signal that time has started
+        ready = {'ready_file': str(launch.ready_file)} if spec.role == 'world' else {}
+        assert 'ready_file' not in params
+        assert second == {f'/**/{spec.name}': {'ros__parameters': {**params, **ready}}}
     launch.stop()
 
 
@@ -106,19 +120,20 @@ def test_every_node_script_is_in_the_graph():
     assert sorted(scripts) == sorted(n.executable for n in load_graph().nodes)
 
 
-def test_launch_overrides_beat_the_parameter_file():
-    """`agv-launch -p executive:status_timeout:=9.0` wins over the file's `/**/executive:` entry.
+def test_launch_overrides_beat_the_parameter_file(tmp_path):
+    """`agv-launch -p executive:status_timeout:=9.0` wins over a file's `/**/executive:` entry.
 
-    Checked with the real rcl argument parser: a node built from the exact command line.
-    (A plain `-p status_timeout:=9.0` loses to the node-specific file entry with rclpy 7.1.)
+    Checked with the real rcl argument parser: a node built from the exact command line, with
+    a parameter file of the test's own (what the shipped file sets is its business).
     """
     import rclpy
     from rclpy.context import Context
 
     graph = load_graph()
-    filed = yaml.safe_load(graph.parameters.read_text())['/**/executive']['ros__parameters']
-    assert filed['status_timeout'] != 9.0  # the file sets its own value
-    launch = Launch(Options(extra={'executive': ['status_timeout:=9.0', "srm_map:=['2:10']"]}))
+    filed = tmp_path / 'params.yaml'
+    filed.write_text('/**/executive:\n  ros__parameters:\n    status_timeout: 0.5\n')
+    launch = Launch(Options(params=filed, extra={'executive': ['status_timeout:=9.0',
+                                                               "srm_map:=['2:10']"]}))
     cmd = launch.command(graph.node('executive'))
     context = Context()
     rclpy.init(args=['executive', *cmd[cmd.index('--ros-args'):]], context=context)
@@ -142,16 +157,14 @@ def test_launch_overrides_beat_the_parameter_file():
     ('traction_link:', 'nothing to inject'),
 ])
 def test_bad_fault_option_names_the_problem(text, words):
-    from agv_nodes.launcher import GraphError, load_graph, parse_fault
-
     with pytest.raises(GraphError, match='--fault') as err:
         parse_fault(text, load_graph())
     assert words in str(err.value)
 
 
-def test_fault_option_reaches_the_writer_and_the_world():
-    from agv_nodes.launcher import Options, load_graph, node_parameters, parse_fault
-
+def test_fault_option_reaches_the_writer_only():
+    """A fault is injected at the record's writer; the world paces on each node's sim progress,
+    not on its records, so it is told nothing about the fault."""
     graph = load_graph()
     record, spec = parse_fault('traction_link:loss=0.1,delay=0.02', graph)
     options = Options(faults={record: spec})
@@ -159,64 +172,105 @@ def test_fault_option_reaches_the_writer_and_the_world():
     assert (nav['fault_record'], nav['fault_loss'], nav['fault_delay']) == \
         ('traction_link', 0.1, 0.02)
     assert 'fault_record' not in node_parameters(graph, graph.node('traction'), options)
-    world = node_parameters(graph, graph.node('world'), options)
-    assert 'traction_link' in world['pace_on'] and world['pace_slack'] == ['traction_link:0.09']
-    assert 'pace_slack' not in node_parameters(graph, graph.node('world'), Options())
+    assert node_parameters(graph, graph.node('world'), options) == \
+        node_parameters(graph, graph.node('world'), Options())
 
 
 def test_world_waits_for_every_link_whose_two_ends_are_launched():
-    """wait_for_links: each reader of each record once both ends run (LinkAnnouncer), and each
-    writer's end with as many readers as the world waits for on its topic."""
+    """wait_for_links: each reader of each record once both ends run (LinkAnnouncer), each
+    writer's end with all its readers, and each paced node's progress writer."""
     from dataclasses import replace
 
-    from agv_nodes.launcher import wait_links, wait_lists
     from agv_nodes.ros_ports import parse_links
-    from agv_nodes.world.node import parse_link_entry
 
     graph = load_graph()
     links = wait_links(graph, recording=True)
     assert {'navigation:position_sensor_status', 'position_sensor:adc_snapshot',
             'traction:traction_command', 'executive:navigation_status',
             'world:traction_drive'} <= set(links)
-    # the writer's end: navigation, the world's pacing reader and the recorder
-    assert 'position_sensor>position_sensor_status:3' in links
+    # the writer's end: the schema's readers and the recorder, nothing else
+    assert 'position_sensor>position_sensor_status:2' in links
     assert 'world>adc_snapshot:2' in links and 'world>wheel_odometry:4' in links
-    subs, _pubs = wait_lists(graph, True, True)
-    topics = {codec()[name].topic: name for name in codec().names()}
-    for entry in subs:  # the same reader counts as wait_for_subscribers
-        topic, _, n = entry.partition(':')
-        name = topics[topic]
-        assert f'{codec()[name].writer}>{name}:{n or 1}' in links
-    assert all(parse_link_entry(entry) is not None for entry in links)
-    assert parse_link_entry('navigation>nonsense:2') is None
-    assert parse_link_entry('navigation>navigation_status:x') is None
-    assert parse_link_entry('navigation>navigation_status:0') is None
+    # the world reads only what its schemas say it reads
+    assert sorted(x for x in links if x.startswith('world:')) == [
+        'world:conveyor_command', 'world:steering_command', 'world:traction_drive']
+    assert not [x for x in links if PROGRESS in x]  # no paced nodes named: no progress links
+    for entry in links:  # each entry is NODE:RECORD or NODE>RECORD:N, of a real link
+        if '>' in entry:
+            node, _, rest = entry.partition('>')
+            record, _, count = rest.partition(':')
+            assert codec()[record].writer == node and int(count) >= 1, entry
+        else:
+            node, _, record = entry.partition(':')
+            assert node in codec()[record].readers, entry
     assert parse_links('navigation position_sensor_status navigation_status>3') == (
         'navigation', {'position_sensor_status'}, {'navigation_status': 3})
-    assert node_parameters(graph, graph.node('world'), Options())['wait_for_links'] == \
-        wait_links(graph, recording=False)
-    assert node_parameters(graph, graph.node('world'), Options(bag=Path('b')))[
-        'wait_for_links'] == links
     partial = replace(graph, nodes=[n for n in graph.nodes if n.name != 'position_sensor'])
-    assert not [x for x in wait_links(partial)
+    assert not [x for x in wait_links(partial, paced=['position_sensor', 'navigation'])
                 if x.startswith('position_sensor') or 'position_sensor_status' in x]
+    assert f'world>{PROGRESS}:1' not in wait_links(graph, paced=['world'])  # nodes only
     assert 'navigation:wheel_odometry' in wait_links(partial)
+
+
+def test_world_paces_on_every_node_by_its_sim_progress():
+    """With a simulated world on sim time every node publishes its sim progress and the world
+    paces on all of them, once each progress writer has matched it; on wall time neither."""
+    graph = load_graph()
+    nodes = sorted(n.name for n in graph.nodes if n.role == 'node')
+    for options in (Options(), Options(bag=Path('b'), time_factor=0.0)):
+        world = node_parameters(graph, graph.node('world'), options)
+        assert world['pace_nodes'] == nodes
+        assert world['wait_for_links'] == wait_links(graph, options.bag is not None, nodes)
+        assert {f'{n}>{PROGRESS}:1' for n in nodes} <= set(world['wait_for_links'])
+        assert not {'pace_on', 'pace_slack', 'wait_for_subscribers', 'wait_for_publishers',
+                    'ready_file'} & set(world)
+        assert all(node_parameters(graph, graph.node(n), options)['sim_progress']
+                   for n in nodes)
+    wall = Options(use_sim_time=False)
+    world = node_parameters(graph, graph.node('world'), wall)
+    assert world['pace_nodes'] == [] and world['publish_clock'] is False
+    assert world['wait_for_links'] == wait_links(graph) and PROGRESS not in str(world)
+    for options in (wall, Options(world='none')):
+        assert not any(node_parameters(graph, graph.node(n), options)['sim_progress']
+                       for n in nodes)
+    for spec in graph.nodes:
+        if spec.role != 'node':
+            assert 'sim_progress' not in node_parameters(graph, spec, Options())
+    ready = node_parameters(graph, graph.node('world'), Options(), Path('/tmp/x/world.ready'))
+    assert ready['ready_file'] == '/tmp/x/world.ready'
+
+
+def test_launch_is_moving_once_the_world_writes_its_ready_file():
+    """agv-launch knows time has started from the world's ready file, not from its log."""
+    import threading
+
+    launch = Launch(Options(quiet=True))
+    try:
+        assert launch.ready_file.parent.is_dir() and not launch.ready_file.exists()
+        assert not launch.moving.is_set()
+        assert launch.moving.wait(0.05) is False
+        threading.Timer(0.1, launch.ready_file.write_text, ['moving\n']).start()
+        assert launch.moving.wait(10.0) is True
+        assert launch.moving.is_set()
+    finally:
+        launch.stop()
+    assert not launch.ready_file.exists() and launch.moving.is_set()  # stays set
 
 
 def test_demo_waits_until_every_link_has_carried_a_record():
     """agv-demo sends the programme only once each reader's /diagnostics inputs row shows a
-    record accepted on each of its links (the world's pacing readers are not in its row)."""
+    record accepted on each of its links (writers' ends are not in a reader's row)."""
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
     from agv_nodes.demo import inputs_accepted, silent_links
-    from agv_nodes.launcher import wait_links
 
     def row(name: str, **accepted: int) -> DiagnosticStatus:
         values = [KeyValue(key=f'{k} accepted', value=str(v)) for k, v in accepted.items()]
         values.append(KeyValue(key='rejected', value='0'))
         return DiagnosticStatus(name=name, values=values)
 
-    links = wait_links(load_graph(), recording=True)
+    graph = load_graph()
+    links = wait_links(graph, recording=True, paced=paced_nodes(graph, Options()))
     msg = DiagnosticArray(status=[
         row('agv/navigation/inputs', navigation_command=19, position_sensor_status=0,
             wheel_odometry=101),
@@ -228,7 +282,7 @@ def test_demo_waits_until_every_link_has_carried_a_record():
     silent = silent_links(links, accepted)
     assert 'navigation:position_sensor_status' in silent  # nothing yet on the sensor's link
     assert 'navigation:wheel_odometry' not in silent
-    assert not [x for x in silent if x.startswith('world:')]  # pacing readers: not in its row
+    assert not [x for x in silent if x.startswith('world:')]  # all three accepted
     assert 'position_sensor:adc_snapshot' in silent  # not heard from yet
     assert not [x for x in silent if '>' in x]
     every = {link.partition(':')[0]: {} for link in links if '>' not in link}
@@ -245,16 +299,12 @@ def test_demo_waits_until_every_link_has_carried_a_record():
     (Options(realtime=20, time_factor=0.0), 'time factor > 0'),
 ])
 def test_bad_realtime_option_names_the_problem(options, words):
-    from agv_nodes.launcher import GraphError
-
     with pytest.raises(GraphError, match='--realtime') as err:
         Launch(options)
     assert words in str(err.value)
 
 
 def test_graph_realtime_flag_must_be_true_or_false(tmp_path):
-    from agv_nodes.launcher import GraphError
-
     doc = yaml.safe_load((REPO / 'config' / 'graph.yaml').read_text())
     doc['nodes'][1]['realtime'] = 'yes please'
     bad = tmp_path / 'graph.yaml'
@@ -270,13 +320,11 @@ def test_realtime_marks_the_sensor_to_traction_chain():
         'world', 'position_sensor', 'navigation', 'traction'}
 
 
-def test_launch_child_takes_the_priority_it_is_given():
-    """launch_child --sched-fifo N: the exec'd node runs SCHED_FIFO at N, or, where this user
-    may not, launch_child refuses with a message and status 2 (and agv-launch refuses first)."""
+def test_child_takes_the_priority_it_is_given():
+    """graph.child --sched-fifo N: the exec'd node runs SCHED_FIFO at N, or, where this user
+    may not, the child refuses with a message and status 2 (and agv-launch refuses first)."""
     import os
     import subprocess
-
-    from agv_nodes.launcher import GraphError, check_realtime
 
     before = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
     try:
@@ -288,7 +336,7 @@ def test_launch_child_takes_the_priority_it_is_given():
     assert (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority) == before
     probe = ('import os; p = os.sched_getparam(0); '
              'print(os.sched_getscheduler(0), p.sched_priority)')
-    run = subprocess.run([sys.executable, '-m', 'agv_nodes.launch_child', str(os.getpid()),
+    run = subprocess.run([sys.executable, '-m', CHILD, str(os.getpid()),
                           '--sched-fifo', '3', sys.executable, '-c', probe],
                          capture_output=True, text=True, timeout=60)
     if allowed:
@@ -296,7 +344,7 @@ def test_launch_child_takes_the_priority_it_is_given():
         assert run.stdout.split() == [str(os.SCHED_FIFO), '3']
     else:
         assert run.returncode == 2 and 'SCHED_FIFO priority 3 refused' in run.stderr
-    plain = subprocess.run([sys.executable, '-m', 'agv_nodes.launch_child', str(os.getpid()),
+    plain = subprocess.run([sys.executable, '-m', CHILD, str(os.getpid()),
                             sys.executable, '-c', probe], capture_output=True, text=True,
                            timeout=60)
     assert plain.stdout.split() == [str(os.SCHED_OTHER), '0']

@@ -17,15 +17,17 @@ BIN = Path(PYTHON).parent
     ('traction', 'record_integrity', 'maybe', "not one of ['e2e', 'none']"),
     ('traction', 'command_timeout', '-1.0', 'outside'),
     ('traction', 'control', 'fuzzy_logic', 'not one of'),
-    ('position_sensor', 'white_thresholds', '[1.0, 2.0]', 'needs exactly 8 values'),
-    ('position_sensor', 'min_consecutive_matches', '0', 'out of range'),  # rclpy's range check
+    ('traction', 'comand_timeout', '0.1', 'unknown parameter'),  # a typo is not ignored
+    ('position_sensor', 'white', '[1, 2]', 'needs exactly 8 values'),
+    ('position_sensor', 'min_consecutive_matches', '0', 'min_consecutive_matches'),
     ('navigation', 'stopping', 'anchor', 'not one of'),
-    ('route_following', 'wire_kp', 'fast', 'must be a number'),
-    ('executive', 'srm_map', "['1:99']", 'location:angle'),
-    ('communications', 'locations', '[0.5]', 'integers 0-31'),
+    ('route_following', 'wire.kp', 'fast', 'must be a number'),
+    ('executive', 'srm_map', "['1:99']", '1:99'),
+    ('executive', 'status_timout', '0.1', 'unknown parameter'),
+    ('communications', 'locations', '[0.5]', 'must be an integer'),
     ('world', 'layout', 'atlantis', 'atlantis.yaml'),
     ('world', 'time_factor', '-2.0', 'outside 0.0..1000.0'),
-    ('world', 'pace_on', "['adc_snapshot']", 'not a record another node writes'),
+    ('world', 'pace_on', "['adc_snapshot']", 'unknown parameter'),
     ('recorder', 'bag', str(REPO), 'exists already'),
 ])
 def test_bad_parameter_file_stops_start_up(tmp_path, node, key, value, words):
@@ -39,12 +41,75 @@ def test_bad_parameter_file_stops_start_up(tmp_path, node, key, value, words):
     assert 'Traceback' not in res.stderr
 
 
+def test_an_unparsable_parameter_file_names_the_file_and_line(tmp_path):
+    params = tmp_path / 'broken.yaml'
+    params.write_text('/**/traction:\n  ros__parameters:\n    kp: [1, 2\n')
+    res = subprocess.run([str(BIN / 'traction'), '--ros-args', '--params-file', str(params)],
+                         capture_output=True, text=True, timeout=60)
+    assert res.returncode == 2, res.stdout + res.stderr
+    line = res.stderr.strip().splitlines()[-1]
+    assert line.startswith(f'{params}: line ') and 'not YAML' in line, res.stderr
+
+
+def test_an_unknown_parameter_on_the_command_line_stops_the_node():
+    res = subprocess.run([str(BIN / 'navigation'), '--ros-args', '-p', 'stoping:=controlled'],
+                         capture_output=True, text=True, timeout=60)
+    assert res.returncode == 2, res.stdout + res.stderr
+    assert "unknown parameter 'stoping'" in res.stderr.strip().splitlines()[-1]
+
+
+@pytest.mark.dds
+@pytest.mark.timeout(240)
+def test_the_harness_and_the_launched_graph_run_with_the_same_settings():
+    """The lock-step harness builds every core from the graph's parameter file and the layout
+    exactly as the launched nodes do: every setting, queried from each running node."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import parameter_value_to_python
+    from rclpy.parameter_client import AsyncParameterClient
+
+    from agv_nodes.graph.parameters import Options
+    from agv_nodes.graph.supervisor import Launch
+    from agv_nodes.harness import truck
+    from agv_nodes.settings import values_of
+
+    h = truck('demo_1983')
+    expected = {name: values_of(core.p) for name, core in h.cores.items()}
+    expected['world'] = values_of(h.world.p)
+    launch = Launch(Options(quiet=True))
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node('settings_probe', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    launch.start()
+    try:
+        for name, want in expected.items():
+            client = AsyncParameterClient(node, name)
+            assert client.wait_for_services(timeout_sec=60), name
+            future = client.get_parameters(list(want))
+            executor.spin_until_future_complete(future, timeout_sec=20)
+            values = future.result().values
+            assert len(values) == len(want), (name, len(values), len(want))
+            got = {key: parameter_value_to_python(v) for key, v in zip(want, values,
+                                                                         strict=True)}
+            got = {key: list(v) if not isinstance(v, (str, bool, int, float)) else v
+                   for key, v in got.items()}
+            assert got == want, (name, {k: (got[k], want[k]) for k in want
+                                        if got[k] != want[k]})
+    finally:
+        launch.stop()
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+
+
 def test_shipped_parameter_file_is_valid_for_every_node(tmp_path):
     """Every node starts with config/agv_demo.yaml (and stops at once: duration / SIGINT)."""
     import signal
     import time
 
-    from agv_nodes.launcher import load_graph
+    from agv_nodes.graph.model import load_graph
 
     graph = load_graph()
     procs = []
@@ -65,7 +130,7 @@ def test_shipped_parameter_file_is_valid_for_every_node(tmp_path):
 
 _TEARDOWN = '''
 import sys, time
-from agv_nodes.core_node import _teardown
+from agv_nodes.node_process import _teardown
 
 class Stuck:
     """A node whose entities never go (as Fast DDS's deletion once hung)."""

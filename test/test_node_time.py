@@ -10,7 +10,8 @@ import rclpy
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 
-from agv_nodes.core_node import ClockTimers, make_executor
+from agv_nodes.core_node import ClockTimers
+from agv_nodes.node_process import make_executor
 from agv_nodes.odometry import Odometer, counter_step
 
 MS = 1_000_000  # ns

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from agv_nodes.records import RecordError, codec
+from agv_nodes.records import RecordError, Reject, codec
 from agv_nodes.records.e2e import crc8_sae_j1850, record_crc
 
 C = codec()
@@ -185,6 +185,63 @@ def test_encode_errors_name_the_place():
         C.encode('traction_links', {})
 
 
+def _crc_flipped(record: str) -> bytes:
+    raw = bytearray(C.encode(record, {}, counter=4))
+    raw[15] ^= 0x01
+    return bytes(raw)
+
+
+@pytest.mark.parametrize('record, data, integrity, code', [
+    ('navigation_status', bytes(15), 'none', Reject.WRONG_LENGTH),
+    ('navigation_status', bytes(17), 'e2e', Reject.WRONG_LENGTH),
+    ('traction_command', _crc_flipped('traction_command'), 'e2e', Reject.BAD_CRC),
+    ('traction_link', bytes([0x80]) + bytes(15), 'none', Reject.SPARE_SET),
+    ('navigation_status', bytes([0x0A, 0xFF]) + bytes(12) + b'\x01\x00', 'none',
+     Reject.SPARE_SET),  # byte 15 without E2E
+    ('wheel_odometry', bytes(15) + b'\x01', 'none', Reject.SPARE_SET),  # hardware spare byte
+    ('traction_command', bytes([0, 0x51]) + bytes(14), 'none', Reject.BAD_VALUE),
+    ('traction_drive', bytes([81]) + bytes(15), 'none', Reject.BAD_VALUE),
+    ('position_sensor_command', bytes([0x02]) + bytes(15), 'none', Reject.BAD_VALUE),
+])
+def test_decode_errors_carry_their_reject_code(record, data, integrity, code):
+    """Ports count rejections by `code`, never by the wording of the message."""
+    from agv_nodes.records.ports import CORRUPT, RecordReader
+
+    with pytest.raises(RecordError) as info:
+        C.decode(record, data, integrity=integrity)
+    assert info.value.code is code and code.value in CORRUPT
+    reader = RecordReader(C[record], integrity=integrity)
+    assert reader.accept(data, 0) is None
+    assert dict(reader.rejects) == {code.value: 1} and reader.last_reason == code.value
+
+
+def test_caller_errors_carry_their_reject_code():
+    cases = [
+        (lambda: C.encode('traction_link', {'sped': 3}), Reject.UNKNOWN_FIELD),
+        (lambda: C['traction_link'].field('sped'), Reject.UNKNOWN_FIELD),
+        (lambda: C.encode('traction_links', {}), Reject.UNKNOWN_RECORD),
+        (lambda: C.encode('traction_link', {}, integrity='crc'), Reject.UNKNOWN_INTEGRITY),
+        (lambda: C.decode('traction_link', bytes(16), integrity='crc'),
+         Reject.UNKNOWN_INTEGRITY),
+        (lambda: C.encode('traction_link', {}, counter=256), Reject.BAD_VALUE),
+        (lambda: C.encode('traction_link', {'speed': 32}), Reject.BAD_VALUE),
+        (lambda: C.encode('traction_link', {'speed': 1.0}), Reject.BAD_VALUE),
+        (lambda: C.encode('route_command', {'mode': 'reverse_wire'}), Reject.BAD_VALUE),
+    ]
+    for call, code in cases:
+        with pytest.raises(RecordError) as info:
+            call()
+        assert info.value.code is code, str(info.value)
+
+
+def test_reject_codes_are_the_diagnostics_counter_keys():
+    from agv_nodes.records.ports import CORRUPT
+
+    assert CORRUPT == {'bad_crc', 'wrong_length', 'spare_set', 'bad_value'}
+    assert all(type(key) is str for key in CORRUPT)
+    assert Reject('bad_crc') is Reject.BAD_CRC and Reject.BAD_CRC.value == 'bad_crc'
+
+
 def test_every_schema_names_topic_writer_readers_and_thesis():
     names = C.names()
     assert len(names) == 21
@@ -327,7 +384,7 @@ def _random_value(f, rng):
 
 
 def test_compiled_fast_paths_agree_with_the_field_by_field_codec():
-    """encode / decode try generated straight-line code first (codec.compile_fast_paths) and
+    """encode / decode try generated straight-line code first (fast_path.compile_fast_paths) and
     fall back to the general loop on None: whatever the fast path returns must be exactly what
     the general path makes of the same input, and the fast path must take the common cases."""
     import random

@@ -12,18 +12,18 @@ from agv_nodes.harness import Harness
 from agv_nodes.route_following.camera_guidance import (
     CameraSteering,
     ImageAnalyser,
-    ImageParams,
     Measurement,
-    SteeringParams,
     Validity,
     runs_of,
 )
-from agv_nodes.route_following.core import RouteCore, RouteParams, wire_offset
+from agv_nodes.route_following.core import RouteCore, wire_offset
+from agv_nodes.route_following.settings import ImageParams, RouteParams, SteeringParams
 from agv_nodes.traction.core import TractionCore
-from agv_nodes.world.camera import BinaryCamera, CameraParams
-from agv_nodes.world.core import WorldCore, WorldParams
-from agv_nodes.world.guide_wire import GuideWirePickup, PickupParams
+from agv_nodes.world.camera import BinaryCamera
+from agv_nodes.world.core import WorldCore
+from agv_nodes.world.guide_wire import GuideWirePickup
 from agv_nodes.world.layout import layout_path, load_layout
+from agv_nodes.world.settings import CameraParams, PickupParams, WorldParams
 
 
 @pytest.mark.parametrize('offset', [-0.35, -0.15, -0.05, -0.01, 0.0, 0.02, 0.09, 0.2, 0.3])
@@ -71,26 +71,6 @@ def test_follows_the_demo_wire_within_1_cm_and_reports_lost_at_its_end():
     assert route.state == 'lost' and ex.states[-1] == 'lost'  # wire A ends at x = 6
     sx, _sy = world.vehicle.sensor_point
     assert sx < 6.0
-
-
-def test_every_steering_demand_carries_the_count_of_guide_wire_records_taken():
-    # The world paces route following on it (world/pacing.py); it counts what was taken, so
-    # the demand sent after sample n says n, and the count wraps at 16 bits.
-    world = WorldCore(load_layout(layout_path('demo_1983')), WorldParams(seed=4))
-    h = Harness(world, [Exec(55), TractionCore(), RouteCore()])
-    sent = []
-    h.taps.append(lambda record, raw, now: sent.append((record, raw)) if record in (
-        'guide_wire', 'steering_command') else None)
-    h.run(1.0)
-    wires = [raw for r, raw in sent if r == 'guide_wire']
-    demands = [h.codec[r].decode(raw, integrity=h.integrity)['wire_count']
-               for r, raw in sent if r == 'steering_command']
-    assert len(wires) == world.wire_records == 100
-    assert demands[-1] == len(wires) and demands == sorted(demands)
-    route = RouteCore()
-    route.wire_count = 0xFFFF
-    route.on_record('guide_wire', {'left_coil': 700, 'right_coil': 700, 'sample': 1}, 0.0)
-    assert route.steering_command()['wire_count'] == 0
 
 
 def test_srm_leaves_wire_a_and_lands_on_wire_b():

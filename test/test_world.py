@@ -11,12 +11,13 @@ import pytest
 
 from agv_nodes.harness import Harness
 from agv_nodes.markers import LOCATION_PATTERNS, THRESHOLDS, code_of, stop_view_columns
-from agv_nodes.world.camera import BinaryCamera, CameraParams
-from agv_nodes.world.core import WorldCore, WorldParams
+from agv_nodes.world.camera import BinaryCamera
+from agv_nodes.world.core import WorldCore
 from agv_nodes.world.guide_wire import SCALAR_SEGMENTS
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
-from agv_nodes.world.marker_sensor import MarkerSensorModel, SensorParams, _belt_runs, calibrate
-from agv_nodes.world.vehicles import Electruk, ElectrukParams
+from agv_nodes.world.marker_sensor import MarkerSensorModel, _belt_runs, calibrate
+from agv_nodes.world.settings import CameraParams, ElectrukParams, SensorParams, WorldParams
+from agv_nodes.world.vehicles import Electruk
 
 
 def layout(name: str):
@@ -116,7 +117,7 @@ def test_calibration_reproduces_table_7_1():
     gains, blacks = calibrate(params)
     assert all(g > 0 for g in gains) and all(0 <= b < 0.5 for b in blacks)
     key = tuple(sorted((k, v) for k, v in vars(params).items()
-                       if k not in ('gains', 'blacks', 'extra', 'unit', 'noise', 'ambient',
+                       if k not in ('gains', 'blacks', 'unit', 'noise', 'ambient',
                                     'ambient_noise', 'dark_level')))
     runs = _belt_runs(key)
     from agv_nodes.markers import trough_and_peak
@@ -321,7 +322,8 @@ def test_conveyor_transfer_only_when_aligned_and_commanded(drive_codec):
     st = world.vehicle.state
     st.x = card.centre[0] - 0.02 - world.p.electruk.wheelbase
     st.y, st.heading = 0.0, 0.0
-    world.on_record('conveyor_command', {'first': 'load', 'second': 'off', 'station_request': 1})
+    world.on_record('conveyor_command', {'first': 'load', 'second': 'off', 'station_request': 1},
+                    0.0)
     for _ in range(340 * 5):
         world.step()
     assert world.loads[0] and world.station_loads['S0'] == 0
@@ -329,7 +331,7 @@ def test_conveyor_transfer_only_when_aligned_and_commanded(drive_codec):
     world2 = WorldCore(lay, WorldParams(seed=3))
     world2.vehicle.state.x = card.centre[0] - 0.3 - world.p.electruk.wheelbase
     world2.on_record('conveyor_command', {'first': 'load', 'second': 'off',
-                                          'station_request': 1})
+                                          'station_request': 1}, 0.0)
     for _ in range(340 * 5):
         world2.step()
     assert not world2.loads[0] and world2.station_loads['S0'] == 1

@@ -23,6 +23,9 @@ from dataclasses import dataclass, field
 import re
 from typing import Any
 
+from agv_nodes.communications.settings import CommsParams
+from agv_nodes.subsystem import SubsystemCore
+
 
 class TaskError(ValueError):
     """A task text that does not parse; names the column and the reason."""
@@ -165,24 +168,14 @@ STATE_WORDS = {'accepted': 'accepted', 'running': 'running', 'step_done': 'step 
                'completed': 'completed', 'failed': 'FAILED', 'rejected': 'rejected'}
 
 
-@dataclass
-class CommsParams:
-    """Communications settings."""
-
-    period: float = 0.100  # s between comms_status records
-    locations: tuple[int, ...] = (0, 1, 2, 3)  # the location markers on the floor
-
-
-class CommunicationsCore:
+class CommunicationsCore(SubsystemCore):
     """See the module docstring."""
 
-    node = 'communications'
+    node, settings_type, period_setting = 'communications', CommsParams, 'period'
 
     def __init__(self, params: CommsParams | None = None) -> None:
-        self.p = params or CommsParams()
-        self.period = self.p.period
+        super().__init__(params)
         self.queue: list[Task] = []
-        self.reports: list[str] = []  # human-readable, drained by the node (comms/report)
         self.results: list[tuple[int, str, str]] = []  # (task_id, final state, cause)
         self._next_id = 1
         self._last: tuple | None = None
@@ -192,22 +185,22 @@ class CommunicationsCore:
         try:
             task = parse_task(text, self.p.locations)
         except TaskError as exc:
-            self.reports.append(f'comms: {exc}')
+            self.notes.add(now, f'comms: {exc}')
             return None
         if task.op == 'status':  # a query: answered, never queued (demo.py's handshake)
             head = f'; head: task {self.queue[0].task_id} {self.queue[0].text!r}' \
                 if self.queue else ''
-            self.reports.append(f'comms: status: {len(self.queue)} in queue{head}')
+            self.notes.add(now, f'comms: status: {len(self.queue)} in queue{head}')
             return None
         task.task_id = self._next_id
         self._next_id = self._next_id % 255 + 1
         if task.op == 'abort':
             dropped = len(self.queue)
             self.queue = [task]
-            self.reports.append(f'task {task.task_id} abort: queue of {dropped} dropped')
+            self.notes.add(now, f'task {task.task_id} abort: queue of {dropped} dropped')
         else:
             self.queue.append(task)
-            self.reports.append(f'task {task.task_id} queued: {text!r} ({len(self.queue)} in '
+            self.notes.add(now, f'task {task.task_id} queued: {text!r} ({len(self.queue)} in '
                                 f'queue)')
         return self.tick(now)
 
@@ -228,7 +221,7 @@ class CommunicationsCore:
                 line += f' ({fields["subsystem"]})'
         if fields['location'] != 0xFF:
             line += f' [last marker L{fields["location"]}]'
-        self.reports.append(line)
+        self.notes.add(now, line)
         if fields['state'] in ('completed', 'failed', 'rejected'):
             self.results.append((task.task_id, fields['state'], fields['cause']))
             self.queue.pop(0)

@@ -28,90 +28,33 @@ executive supervises on every arrival, so a silent sub-system is noticed within 
 the timeout; the count keeps a starved executive from blaming a sub-system whose record is
 still waiting in its queue: after a stall its clock jumps ahead at once (the /clock reader
 keeps only the latest) while the records queued behind it are taken one per topic per turn.
-The executive node's `status_age` option `sent` goes further and ages each status from the sim
+The `status_age` setting `sent` goes further and ages each status from the sim
 time it was sent (agv_nodes.sent_time), so a starved executive blames nobody.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Any
 
+from agv_nodes.executive.itinerary import NO_TASK, Step, itinerary
+from agv_nodes.executive.settings import ExecutiveParams, parse_srm_map
+from agv_nodes.subsystem import SubsystemCore
+
 EXPLORE = 31  # a location identity no marker carries: "cruise and report every landmark"
-NO_TASK = 0xFF
 STATUS_RECORDS = {'navigation': 'navigation_status', 'traction': 'traction_status',
                   'route': 'route_status', 'load': 'load_status',
                   'communications': 'comms_status'}
 SUBSYSTEM_OF = {record: sub for sub, record in STATUS_RECORDS.items()}
 
 
-@dataclass
-class ExecutiveParams:
-    """Executive settings (node parameters map onto these)."""
-
-    period: float = 0.050  # s
-    cruise_demand: int = 55  # % duty, about 0.7 m/s, the practical top speed (thesis 7.2)
-    srm_demand: int = 27  # % duty, about 0.3 m/s for wire changes (thesis 6.2)
-    srm_map: dict[int, int] = field(default_factory=dict)  # location -> SRM angle, degrees
-    status_timeout: float = 0.300  # s: a status record older than this is a fault
-    stale_confirm: int = 6  # other sub-systems' records since, before age alone is believed
-    reject_limit: int = 5  # rejected records per second before it is a fault
-    route_limit: float = 80.0  # m travelled within one step before it is a fault
-    positioning_limit: float = 4.0  # m creeping toward a stop marker before it is a fault
-    load_timeout: int = 20  # s, passed to load handling
-    trip_grace: float = 1.0  # s after a task starts before a traction trip counts
-    rest_speed: int = 3  # mm/s: below this (traction_status speed) the truck is at rest
-    rest_time: float = 0.3  # s at rest before a stop is complete
-    speed_request_path: str = 'direct_link'  # or 'via_executive' (forward navigation's request)
-
-
-@dataclass
-class Step:
-    """One itinerary step."""
-
-    kind: str
-    location: int = NO_TASK
-    edge: int = 0
-    value: int = 0  # seconds, SRM angle, conveyor index
-    name: str = ''
-
-
-def itinerary(task: dict[str, Any]) -> list[Step]:
-    """Fig 3.1 level 2: the steps of one task record (empty = nothing to do / bad task)."""
-    op, n = task['op'], task['location']
-    edge = 1 if task['marker'] == 'second' else 0
-    conveyor = 1 if task['conveyor'] == 'second' else 0
-    steps: list[Step] = []
-    if op in ('stop', 'load', 'unload', 'wait'):
-        steps.append(Step('goto', n, edge, name=f'go to L{n}, stop marker {edge + 1}'))
-        if op == 'stop' and task['marker'] == 'first_then_second':
-            steps.append(Step('next_marker', n, 1, name=f'advance to the 2nd stop marker at L{n}'))
-        elif op in ('load', 'unload'):
-            steps.append(Step(op, n, value=conveyor, name=f'{op} on conveyor {conveyor + 1}'))
-        elif op == 'wait':
-            steps.append(Step('wait', n, value=task['dwell'], name=f'wait {task["dwell"]} s'))
-    elif op == 'srm':
-        steps.append(Step('srm', n, value=task['srm_angle'],
-                          name=f'SRM at L{n}, {task["srm_angle"]} deg'))
-    elif op == 'transfer':
-        b, c = n, task['destination']
-        steps += [Step('goto', b, 0, name=f'go to B = L{b}'),
-                  Step('load', b, value=0, name='check A is there, load A'),
-                  Step('goto', c, 0, name=f'go to C = L{c}'),
-                  Step('unload', c, value=0, name='check C can accept, unload A')]
-    if steps and task['then'] == 'continue':
-        steps.append(Step('continue', name='carry on along the wire'))
-    return steps
-
-
-class ExecutiveCore:
+class ExecutiveCore(SubsystemCore):
     """See the module docstring."""
 
-    node = 'executive'
+    node, settings_type, period_setting = 'executive', ExecutiveParams, 'period'
 
     def __init__(self, params: ExecutiveParams | None = None) -> None:
-        self.p = params or ExecutiveParams()
-        self.period = self.p.period
+        super().__init__(params)
+        self.srm_map = parse_srm_map(self.p.srm_map)  # location -> SRM angle, degrees
         self._last_tick: float | None = None
         self.status: dict[str, dict[str, Any]] = {}  # latest status record per sub-system
         self.status_time: dict[str, float] = {}
@@ -146,7 +89,6 @@ class ExecutiveCore:
         self.positioning_distance = 0.0
         self.task_start = 0.0
         self.arm_until = 0.0
-        self.log: list[tuple[float, str]] = []
 
     # -- inputs -----------------------------------------------------------------------------
     def on_record(self, record: str, fields: dict[str, Any], now: float,
@@ -233,7 +175,7 @@ class ExecutiveCore:
         self._log(now, f'landmark L{marker}')
         if self.slow and self.route['mode'] == 'follow_wire':
             self.slow = False  # the landmark after an SRM: back to cruise
-        angle = self._srm_pending if (self._srm_at == marker) else self.p.srm_map.get(marker)
+        angle = self._srm_pending if (self._srm_at == marker) else self.srm_map.get(marker)
         if angle is not None and self.mode in ('running', 'cruising'):
             self._start_srm(marker, angle, now)
 
@@ -265,11 +207,11 @@ class ExecutiveCore:
             self.demand = self.p.cruise_demand
             departing = self.stopped_at
             self.stopped_at = None
-            if departing is not None and (departing in self.p.srm_map or (
+            if departing is not None and (departing in self.srm_map or (
                     step.kind == 'srm' and step.location == departing)):
                 # Stopped at an SRM location's workstation: the manoeuvre starts on departure.
                 angle = step.value if step.kind == 'srm' and step.location == departing \
-                    else self.p.srm_map[departing]
+                    else self.srm_map[departing]
                 self._start_srm(departing, angle, now)
                 if step.kind == 'srm' and step.location == departing:
                     step = Step('continue', name=step.name)
@@ -433,7 +375,7 @@ class ExecutiveCore:
             self.route = {**self.route, 'mode': 'follow_wire'}
 
     def _log(self, now: float, text: str) -> None:
-        self.log.append((now, text))
+        self.notes.add(now, text)
 
     # -- the loop ---------------------------------------------------------------------------
     def tick(self, now: float) -> dict[str, dict[str, Any]]:

@@ -15,7 +15,6 @@ from typing import Any
 from agv_nodes.records.ports import RecordReader, RecordWriter
 
 OK, WARN, ERROR = 0, 1, 2
-LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR'}
 SUBSYSTEMS = {  # name: (status record in, command record out)
     'navigation': ('navigation_status', 'navigation_command'),
     'traction': ('traction_status', 'traction_command'),

@@ -14,87 +14,36 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rosgraph_msgs.msg import Clock
 
 from agv_nodes import qos
-from agv_nodes.core_node import CoreNode, declare_executor, spin_main
-from agv_nodes.executive.core import ExecutiveCore, ExecutiveParams
+from agv_nodes.core_node import CoreNode, spin_main
+from agv_nodes.executive.core import ExecutiveCore
 from agv_nodes.executive.diagnostics import HealthMonitor
-from agv_nodes.params import Parameters
 from agv_nodes.ros_ports import diagnostic_status
 from agv_nodes.sent_time import SentTimeline
 
 
-def parse_srm_map(entries: list[str]) -> dict[int, int]:
-    """['1:15', '3:15'] -> {1: 15, 3: 15} (location: SRM angle in degrees, + = left)."""
-    out = {}
-    for entry in entries:
-        location, _, angle = entry.partition(':')
-        loc, ang = int(location), int(angle)
-        if not (0 <= loc <= 31 and -45 <= ang <= 45):
-            raise ValueError(entry)
-        out[loc] = ang
-    return out
-
-
 class ExecutiveNode(CoreNode):
-    """Parameters -> ExecutiveCore -> ports, plus /diagnostics."""
+    """ExecutiveCore on its ports, plus /diagnostics and the age of statuses.
+
+    `status_age: sent` (a departure from the 1983 receiver-side monostables, thesis 6.3) ages a
+    status from when it was sent, not from when this process got round to it. With the
+    EventsExecutor every input, /clock included, is taken in arrival order (core_node
+    ClockTimers), so that needs nothing more; with the SingleThreadedExecutor it needs the DDS
+    source timestamps (agv_nodes.sent_time) and a FIFO /clock reader of its own.
+    """
+
+    @property
+    def sent_stamps(self) -> bool:
+        """Readers keep each record's DDS source timestamp (status_age sent, `single`)."""
+        return self.core.p.status_age == 'sent' and self.node_settings.executor == 'single'
 
     def __init__(self) -> None:
-        super().__init__('executive')
-        p = Parameters(self)
-        d = ExecutiveParams()
-        srm = p.texts('srm_map', [], 'route map: location:angle pairs where the route leaves '
-                      'the wire by an SRM (demo_1983: 1:15, 3:15)')
-        try:
-            srm_map = parse_srm_map(srm)
-        except ValueError:
-            p.fail('srm_map', srm, 'entries must be location:angle, 0-31 and -45..45')
-        ep = ExecutiveParams(
-            cruise_demand=p.integer('cruise_demand', d.cruise_demand, 'cruise, % armature duty '
-                                    '(55 ~ 0.7 m/s, the practical top speed)', 6, 80),
-            srm_demand=p.integer('srm_demand', d.srm_demand, 'wire changes, % duty (27 ~ '
-                                 '0.3 m/s)', 6, 80),
-            srm_map=srm_map,
-            status_timeout=p.number('status_timeout', d.status_timeout, 'a status record older '
-                                    'than this is a fault, s', 0.05, 10.0),
-            stale_confirm=p.integer('stale_confirm', d.stale_confirm, 'records from the other '
-                                    'sub-systems that must arrive after a status before its '
-                                    'age alone makes it stale', 0, 1000),
-            reject_limit=p.integer('reject_limit', d.reject_limit, 'rejected records per second '
-                                   'tolerated', 0, 10000),
-            route_limit=p.number('route_limit', d.route_limit, 'metres per step before the '
-                                 'route is declared overrun', 1.0, 10000.0),
-            positioning_limit=p.number('positioning_limit', d.positioning_limit, 'metres of '
-                                       'positioning without reaching the stop marker', 0.5,
-                                       100.0),
-            load_timeout=p.integer('load_timeout', d.load_timeout, 'seconds per load transfer',
-                                   1, 255),
-            speed_request_path=p.choice('speed_request_path', d.speed_request_path, 'forward '
-                                        "navigation's speed request (via_executive) or let the "
-                                        'direct link carry it', ('direct_link',
-                                                                 'via_executive')),
-        )
-        # Departure from the 1983 receiver-side monostables (thesis 6.3), default off: under
-        # sim time `sent` ages a status from when it was sent, not from when this process got
-        # round to it (agv_nodes.sent_time). Needs /clock and one wall clock for the graph.
-        self.status_age = p.choice('status_age', 'arrival', 'age of a status record: from '
-                                   'its arrival here (1983) or, under sim time, from when it '
-                                   'was sent (a starved executive blames nobody)',
-                                   ('arrival', 'sent'))
-        self.executor_kind = declare_executor(p)
-        # With the EventsExecutor every input, /clock included, is taken in arrival order
-        # (core_node.ClockTimers), so a status is aged from its arrival in the queue, not from
-        # when a starved executive took it: `sent` needs nothing more. With the
-        # SingleThreadedExecutor it needs the DDS source timestamps (agv_nodes.sent_time).
-        self.sent_stamps = self.status_age == 'sent' and self.executor_kind == 'single'
         self.timeline = SentTimeline()
+        super().__init__(ExecutiveCore)
         if self.sent_stamps and self.get_parameter('use_sim_time').value:
-            # FIFO, unlike the ROS clock's keep-last-1 reader: time as the executive sees it
-            # advances no faster than it takes its records (one sample per topic per turn).
             self.create_subscription(Clock, '/clock', self._on_clock, qos.CLOCK_READER)
-        self.health = HealthMonitor(ep.status_timeout)
-        self.attach(ExecutiveCore(ep), p)
+        self.health = HealthMonitor(self.core.p.status_timeout)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos.EVENTS)
         self.periodic(1.0, self._diagnostics)
-        self._logged = 0
 
     def _on_clock(self, msg: Clock, info: dict[str, Any]) -> None:
         raised = self.timeline.clock(info.get('source_timestamp') or 0,
@@ -115,13 +64,6 @@ class ExecutiveNode(CoreNode):
                 else None
             self.publish(self.core.on_record(name, fields, self.now_s(), sent))
         return callback
-
-    def _tick(self) -> None:
-        super()._tick()
-        log = self.core.log
-        for _t, text in log[self._logged:]:
-            self.get_logger().info(text)
-        self._logged = len(log)
 
     def _diagnostics(self) -> None:
         # The readers stamp arrivals on the ROS clock: the display ages them on it too.

@@ -9,26 +9,19 @@ no_load, truck_moving, station_full). action = stop turns everything off at once
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
-
-@dataclass
-class LoadParams:
-    """Load handling settings."""
-
-    period: float = 0.050  # s
-    align_wait: float = 3.0  # s for the truck to come to rest aligned before failing
+from agv_nodes.load_handling.settings import LoadParams
+from agv_nodes.subsystem import SubsystemCore
 
 
-class LoadHandlingCore:
+class LoadHandlingCore(SubsystemCore):
     """See the module docstring."""
 
-    node = 'load_handling'
+    node, settings_type, period_setting = 'load_handling', LoadParams, 'period'
 
     def __init__(self, params: LoadParams | None = None) -> None:
-        self.p = params or LoadParams()
-        self.period = self.p.period
+        super().__init__(params)
         self.job = None  # the job number being (or last) handled
         self.action = 'idle'
         self.conveyor = 'first'

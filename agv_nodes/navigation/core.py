@@ -36,42 +36,15 @@ saturated) makes navigation report LOST and request speed 0.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 from agv_nodes.markers import CENTRE_VIEW, EDIM, SLOW1, STOP_VIEWS
+from agv_nodes.navigation.settings import NavigationParams
 from agv_nodes.odometry import Odometer
+from agv_nodes.subsystem import SubsystemCore
 
 NO_TASK = 0xFF
 AT_REST = 0.005  # m/s: below this a controlled stop counts the truck at rest
-
-
-@dataclass
-class NavigationParams:
-    """Navigation settings (node parameters map onto these)."""
-
-    variant: str = 'intended'  # or 'as_listed'
-    speed_request_path: str = 'direct_link'  # or 'via_executive'
-    stopping: str = 'controlled'  # or 'friction_1983' (as built)
-    period: float = 0.010  # s, the loop (CHK) and controlled-stop update rate
-    status_period: float = 0.050  # s between navigation_status heartbeats
-    link_period: float = 0.020  # s between traction_link records (and at once on change)
-    command_period: float = 0.050  # s between position_sensor_command records
-    landmark_wait: float = 0.052  # s, WAIT after reporting a landmark (PC6/1: ~52 ms)
-    sensor_timeout: float = 0.050  # s without a sensor status -> LOST
-    centre_lead: float = 5.0  # mm: a view is first matched this far before its alignment
-    reverse_speed: int = 12  # % duty of the slow reverse after an overshoot (F5)
-    settle_time: float = 0.3  # s at rest before a controlled stop reports 0BH
-
-    def check(self) -> list[tuple[str, Any, str]]:
-        """Problems as (name, value, reason)."""
-        bad = []
-        for name, allowed in (('variant', ('intended', 'as_listed')),
-                              ('speed_request_path', ('direct_link', 'via_executive')),
-                              ('stopping', ('friction_1983', 'controlled'))):
-            if getattr(self, name) not in allowed:
-                bad.append((name, getattr(self, name), f'not one of {allowed}'))
-        return bad
 
 
 def link_byte(link: dict[str, int]) -> int:
@@ -79,14 +52,13 @@ def link_byte(link: dict[str, int]) -> int:
     return link['executive_priority'] << 6 | link['reverse'] << 5 | link['speed']
 
 
-class NavigationCore:
+class NavigationCore(SubsystemCore):
     """See the module docstring."""
 
-    node = 'navigation'
+    node, settings_type, period_setting = 'navigation', NavigationParams, 'period'
 
     def __init__(self, params: NavigationParams | None = None) -> None:
-        self.p = params or NavigationParams()
-        self.period = self.p.period
+        super().__init__(params)
         self.mode = 'idle'  # idle (INSTRS) | navigating (OPLOP/SAM) | positioning (CLOP)
         # OUTFO[0] bits and OUTFO[1]: power-up record 0AH / FFH.
         self.at_location, self.slow, self.lost = 0, 1, 1
@@ -104,7 +76,6 @@ class NavigationCore:
         self.input_fault = False
         self._sensor_time: float | None = None
         self._task_since: float | None = None  # first tick of a task before any sensor status
-        self.warnings: list[str] = []  # why the sensor was called lost (the node logs them)
         self._seen_recognitions: int | None = None
         self._blind_until = 0.0
         self._guard = False  # ignore the centre view until another view is seen
@@ -234,8 +205,9 @@ class NavigationCore:
     def _sensor_status(self, fields: dict[str, Any], now: float) -> None:
         lost = bool(fields['adc_stale'] or fields['saturated'])
         if lost and not self.sensor_lost:
-            self.warnings.append(f'{now:.3f} s: sensor lost: the position sensor reports '
-                                 + ('no ADC snapshot' if fields['adc_stale'] else 'saturation'))
+            self.notes.add(now, f'{now:.3f} s: sensor lost: the position sensor reports '
+                           + ('no ADC snapshot' if fields['adc_stale'] else 'saturation'),
+                           'warn')
         self._set_lost(lost)
         count = fields['recognitions']
         if self._seen_recognitions is None:
@@ -346,13 +318,13 @@ class NavigationCore:
             elif self._task_since is None:
                 self._task_since = now
             elif now - self._task_since > self.p.sensor_timeout and not self.sensor_lost:
-                self.warnings.append(f'{now:.3f} s: sensor lost: no position sensor status '
-                                     f'since the task came at {self._task_since:.3f} s (none '
-                                     'heard yet)')
+                self.notes.add(now, f'{now:.3f} s: sensor lost: no position sensor status '
+                               f'since the task came at {self._task_since:.3f} s (none '
+                               'heard yet)', 'warn')
                 self._set_lost(True)
         elif now - self._sensor_time > self.p.sensor_timeout and not self.sensor_lost:
-            self.warnings.append(f'{now:.3f} s: sensor lost: the last position sensor status '
-                                 f'came at {self._sensor_time:.3f} s')
+            self.notes.add(now, f'{now:.3f} s: sensor lost: the last position sensor status '
+                           f'came at {self._sensor_time:.3f} s', 'warn')
             self._set_lost(True)
         if self.mode == 'positioning' and self.p.stopping == 'controlled':
             self._controlled(now)

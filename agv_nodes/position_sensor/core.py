@@ -33,98 +33,25 @@ entries, so stop views 6 and 7 never match. The default `intended` is the design
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Any
 
-from agv_nodes.markers import DARK_FIELDS, LIT_FIELDS, LOCATION_TABLE, STOP_VIEWS, THRESHOLDS
+from agv_nodes.markers import DARK_FIELDS, LIT_FIELDS, LOCATION_TABLE, STOP_VIEWS
 from agv_nodes.position_sensor.sequence import SequenceDecoder
+from agv_nodes.position_sensor.settings import SensorProcessing
+from agv_nodes.subsystem import SubsystemCore
 
 
-@dataclass
-class SensorProcessing:
-    """Position sensor settings (node parameters map onto these)."""
-
-    white: tuple[int, ...] = THRESHOLDS['sensor1']['white']  # THRON, x4 units
-    black: tuple[int, ...] = THRESHOLDS['sensor1']['black']  # THROFF
-    min_consecutive_matches: int = 2  # thesis 7.1.4 (the printed listing: 1)
-    variant: str = 'intended'  # or 'as_listed'
-    # Running-sum filter length (thesis 5.2.2.2, fig 5.21: 4). The thresholds stay in the
-    # thesis's x4 units and are scaled by run_length / 4; a shorter filter smears a marker over
-    # fewer samples, so fast passes give more matching snapshots (bench/recognition_bench.py).
-    run_length: int = 4
-    # A detector between its thresholds: 'invalid' (thesis 5.2.3, spec 2.4: no CODE this
-    # snapshot) or 'hold' (a Schmitt trigger: it keeps its last WHITE/BLACK decision until it
-    # crosses the other threshold). A held code only extends a streak of matches: one snapshot
-    # of the streak must have every detector decided (bench/recognition_bench.py).
-    invalid_band: str = 'invalid'
-    # How the navigating table is read: 'sequence' (modern, default: each column reads the
-    # passing card's elements in time; bench/recognition_bench.py: no miss and no misread in
-    # 10,020 passes across the tolerance band at 1 and 2 m/s, where the thesis rule missed
-    # 974 and 4,528) or 'snapshot' (thesis 5.2.3: one snapshot with every detector decided,
-    # min_consecutive_matches times in a row).
-    decoder: str = 'sequence'
-    # Columns that must read the same card, of 4 (none of the others may read it otherwise).
-    # With 2, before the column-delay checks of sequence.py, a truck stopping or changing
-    # speed over a card misread it 3 times in 1,800 scripted passes (bench --motion); with
-    # those checks neither 2, 3 nor 4 misread in 2,700, and 4 missed 1 of 10,020 passes at
-    # 2 m/s where 3 missed none.
-    sequence_agree: int = 3
-    # The sequence decoder's own running sum, snapshots: it reads each element at its middle,
-    # and a 20 mm element lasts 3.4 snapshots at 2 m/s, so it wants less smear than THRESH's
-    # run_length 4 (10,020 passes at 2 m/s: 335 missed with 4, none with 2 or 1).
-    sequence_run_length: int = 2
-    sequence_margin: float = 0.25  # band units an element's reading must keep from mid-band
-    heartbeat: float = 0.020  # s between heartbeat status records
-    # While snapshots arrive the heartbeat is counted in snapshots (6 at 340 Hz = 17.6 ms, just
-    # inside the 20 ms period so the timer stays quiet), so its sample_count keeps reaching the
-    # world even when a paced world has stopped the clock to let this node catch up
-    # (world/pacing.py); the timer covers a silent ADC.
-    heartbeat_samples: int = 6
-    adc_timeout: float = 0.050  # s without a snapshot -> adc_stale
-    saturation: int = 255  # a dark reading at this level means the sensor is blinded
-    extra: dict = field(default_factory=dict)
-
-    def check(self) -> list[tuple[str, Any, str]]:
-        """Problems as (name, value, reason)."""
-        bad = []
-        for name in ('white', 'black'):
-            values = getattr(self, name)
-            if len(values) != 8 or not all(0 <= v <= 1020 for v in values):
-                bad.append((f'{name}_thresholds', list(values), 'needs 8 values in 0..1020'))
-        if len(self.white) == 8 and len(self.black) == 8 and any(
-                b >= w for w, b in zip(self.white, self.black, strict=True)):
-            bad.append(('black_thresholds', list(self.black), 'each must be below its white '
-                        'threshold'))
-        if self.variant not in ('intended', 'as_listed'):
-            bad.append(('variant', self.variant, 'not intended or as_listed'))
-        if self.invalid_band not in ('invalid', 'hold'):
-            bad.append(('invalid_band', self.invalid_band, 'not invalid or hold'))
-        if self.decoder not in ('sequence', 'snapshot'):
-            bad.append(('decoder', self.decoder, 'not sequence or snapshot'))
-        if not 1 <= self.sequence_agree <= 4:
-            bad.append(('sequence_agree', self.sequence_agree, 'outside 1..4'))
-        if not 0.0 <= self.sequence_margin < 0.5:
-            bad.append(('sequence_margin', self.sequence_margin, 'outside 0..0.5'))
-        if not 1 <= self.sequence_run_length <= 8:
-            bad.append(('sequence_run_length', self.sequence_run_length, 'outside 1..8'))
-        if not 1 <= self.run_length <= 8:
-            bad.append(('run_length', self.run_length, 'outside 1..8'))
-        if not 1 <= self.min_consecutive_matches <= 10:
-            bad.append(('min_consecutive_matches', self.min_consecutive_matches, 'outside 1..10'))
-        return bad
-
-
-class PositionSensorCore:
+class PositionSensorCore(SubsystemCore):
     """Snapshots in, recognitions out; see the module docstring."""
 
-    node = 'position_sensor'
+    node, settings_type, period_setting = 'position_sensor', SensorProcessing, 'heartbeat'
 
     def __init__(self, params: SensorProcessing | None = None) -> None:
-        self.p = params or SensorProcessing()
-        self.period = self.p.heartbeat
+        super().__init__(params)
+        self.white, self.black = self.p.thresholds()  # THRON, THROFF (x4 units)
         n = self.p.run_length
-        self._white = [w * n // 4 for w in self.p.white]  # THRON in run_length units
-        self._black = [b * n // 4 for b in self.p.black]  # THROFF
+        self._white = [w * n // 4 for w in self.white]  # THRON in run_length units
+        self._black = [b * n // 4 for b in self.black]  # THROFF
         self.table = 'navigating'
         self.epoch = 0
         self._oldest = [[0] * 8 for _ in range(self.p.run_length)]  # OLDEST rows
@@ -145,13 +72,12 @@ class PositionSensorCore:
         self._last_adc: float | None = None
         self._first_now: float | None = None  # the first time a status was made
         self._last_status: float | None = None  # sim time of the last status record
-        self._since_status = 0  # snapshots since the last status record
         self._templates = self._table()
         self._sequence = SequenceDecoder(self._templates, self.p.sequence_agree,
                                          self.p.sequence_margin)
         m = self.p.sequence_run_length / 4  # its thresholds, like THRESH's, scale by n/4
-        self._seq_black = [b * m for b in self.p.black]
-        self._seq_band = [max(1e-6, (w - b) * m) for w, b in zip(self.p.white, self.p.black,
+        self._seq_black = [b * m for b in self.black]
+        self._seq_band = [max(1e-6, (w - b) * m) for w, b in zip(self.white, self.black,
                                                                   strict=True)]
         self._clear_sequence_sum()
         self._passage = -1  # the sequence decoder's passage the set below belongs to
@@ -199,11 +125,7 @@ class PositionSensorCore:
         lit = [fields[k] for k in LIT_FIELDS]
         dark = [fields[k] for k in DARK_FIELDS]
         self._last_adc = now
-        self._since_status += 1
-        out = self.sample(lit, dark, now)
-        if out is None and self._since_status >= self.p.heartbeat_samples:
-            out = {'position_sensor_status': self.status(recognised=False, now=now)}
-        return out
+        return self.sample(lit, dark, now)
 
     def sample(self, lit: list[int], dark: list[int], now: float) -> dict | None:
         """One SAMPLE + DECODE; returns a status record when a recognition is made."""
@@ -299,8 +221,8 @@ class PositionSensorCore:
 
     # -- outputs ----------------------------------------------------------------------------
     def status(self, recognised: bool = False, now: float = 0.0) -> dict[str, Any]:
-        """The position_sensor_status record (restarts the heartbeat count)."""
-        self._last_status, self._since_status = now, 0
+        """The position_sensor_status record (restarts the heartbeat period)."""
+        self._last_status = now
         if self._first_now is None:
             self._first_now = now
         # Stale: no snapshot for adc_timeout - counted from the first time this node kept

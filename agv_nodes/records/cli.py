@@ -12,7 +12,8 @@ from typing import Any
 
 import yaml
 
-from agv_nodes.records.codec import Codec, RecordError, SchemaError, load_codec
+from agv_nodes.records.codec import Codec, load_codec
+from agv_nodes.records.errors import RecordError, SchemaError
 from agv_nodes.records.tables import record_table, render_markdown
 
 

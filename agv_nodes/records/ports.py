@@ -11,8 +11,9 @@ from collections import Counter
 from collections.abc import Mapping
 from typing import Any
 
-from agv_nodes.records.codec import RecordError, RecordSchema, e2e_counter
 from agv_nodes.records.e2e import Sequence, SequenceCheck
+from agv_nodes.records.errors import RecordError, Reject
+from agv_nodes.records.schema import RecordSchema, e2e_counter
 
 
 class RecordWriter:
@@ -37,7 +38,8 @@ class RecordWriter:
 
 
 # Rejections that mean the bytes themselves are corrupt (as opposed to stale or out of order).
-CORRUPT = frozenset({'bad_crc', 'wrong_length', 'spare_set', 'bad_value'})
+CORRUPT = frozenset(r.value for r in (Reject.BAD_CRC, Reject.WRONG_LENGTH, Reject.SPARE_SET,
+                                      Reject.BAD_VALUE))
 
 
 class RecordReader:
@@ -66,7 +68,7 @@ class RecordReader:
         try:
             fields = self.schema.decode(data, integrity=self.integrity)
         except RecordError as exc:
-            self._reject(_reason(exc), str(exc))
+            self._reject(exc.code.value, str(exc))
             return None
         if self.schema.protected and self.integrity == 'e2e':
             verdict = self.sequence.check(e2e_counter(data))
@@ -97,17 +99,6 @@ class RecordReader:
         self.rejects[reason] += 1
         self.last_error = text
         self.last_reason = reason
-
-
-def _reason(exc: RecordError) -> str:
-    """A short counter key for a rejection."""
-    if exc.field == 'e2e_crc':
-        return 'bad_crc'
-    if exc.reason.startswith('length'):
-        return 'wrong_length'
-    if 'spare' in exc.reason:
-        return 'spare_set'
-    return 'bad_value'
 
 
 def inputs_report(readers: Mapping[str, RecordReader], rejected_before: int = 0,

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from agv_nodes.records.codec import Codec, Field, RecordSchema
+from agv_nodes.records.codec import Codec
+from agv_nodes.records.schema import Field, RecordSchema
 
 HEADER = """# Record tables
 

@@ -14,6 +14,8 @@ import math
 
 import numpy as np
 
+from agv_nodes.route_following.settings import ImageParams, SteeringParams
+
 
 class Validity(enum.Enum):
     """imageok_flag as an explicit enum (digest 1.5)."""
@@ -35,20 +37,6 @@ class Measurement:
     rows_used: int
     left_edge: bool  # column 0 dark in >= sign_rows rows
     right_edge: bool  # column 127 dark in >= sign_rows rows
-
-
-@dataclass
-class ImageParams:
-    """Window calibration and the noise filter (thesis 4.2, Table 6.1, App F.2)."""
-
-    depth: float = 0.050  # m along travel (64 rows)
-    width: float = 0.250  # m across (128 columns)
-    min_run: int = 16  # px: shorter dark runs are noise (thesis: 2 bytes)
-    rows: tuple[int, ...] = ()  # rows analysed; () = all 64 (thesis used 3, 29, 55)
-    normal_width: float = 0.0  # px of a normal track; 0 = learn from the first frames
-    wide_factor: float = 1.35  # a run this much wider than normal flags a road sign
-    sign_rows: int = 10  # rows with an edge column dark to flag a branch (thesis 4.3)
-    saturated_fraction: float = 0.7  # dark pixels beyond this fraction: a saturated frame
 
 
 SIGNS = {(1, 0, 0): 'P11', (0, 1, 0): 'P12', (1, 0, 1): 'P21', (0, 1, 1): 'P22',
@@ -135,36 +123,6 @@ class ImageAnalyser:
         validity = Validity.WIDE if width > p.wide_factor * self.normal_width else \
             Validity.NORMAL
         return Measurement(b, math.atan(a), validity, width, len(ys), left, right)
-
-
-@dataclass
-class SteeringParams:
-    """Camera steering laws and the CONCIC-II geometry (thesis 5.2, digest 2.5, 3.2)."""
-
-    law: str = 'pi'  # 'p' (Eq 5.4) or 'pi' (Eq 5.6)
-    gain_d: float = 2.5  # rad per m of eps_d (thesis P = 2.5)
-    gain_theta: float = 0.0  # rad per rad of eps_theta (not fed back in the experiments)
-    gain_i: float = 0.07  # thesis I = 0.07 (see integral_form)
-    # Eq 5.8 as printed adds G3 eps_d(n) every frame, without the Delta-T of Eq 5.6: at ~20
-    # frames/s that is 1.4 rad per m s (digest 2.3). 'per_frame' (default) follows the printed
-    # velocity form the vehicle ran; 'with_dt' integrates Eq 5.6 with the measured Delta-T.
-    integral_form: str = 'per_frame'
-    max_angle: float = math.radians(60.0)  # caster angle limit
-    # Modern option, off (0) by default: above this cruise (m/s) the gain on eps_d falls as
-    # 1/speed, so the loop's bandwidth in distance stays that of this speed (with G_theta 0.4
-    # it kept the 0.065 m step's overshoot under 5 % up to 0.79 m/s; see route_bench step).
-    schedule_speed: float = 0.0
-    # Modern option, off (0) by default: the integral only gathers while |eps_d| is within
-    # this band (m), so a step's transient does not wind it up; a curve's small steady offset
-    # still does.
-    integral_band: float = 0.0
-    wheel_span: float = 0.52  # m, L
-    caster_distance: float = 0.31  # m, L_a
-    caster_trail: float = 0.05  # m, s
-    absent_frames: int = 4  # consecutive absent frames before the motor-off stop
-    # m/s^2 of the speed asked for when setting off from rest; 0 = cruise at once (the drive's
-    # trapezoid then ramps both wheels alike, without steering, until the slower one is there)
-    set_off_acceleration: float = 0.2
 
 
 class CameraSteering:

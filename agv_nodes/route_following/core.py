@@ -23,78 +23,15 @@ where the track ends stops it by the four absent frames.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 import math
 from typing import Any
 
 import numpy as np
 
 from agv_nodes.odometry import Odometer
-from agv_nodes.route_following.camera_guidance import (
-    CameraSteering,
-    ImageAnalyser,
-    ImageParams,
-    SteeringParams,
-    Validity,
-)
-
-
-@dataclass
-class WireParams:
-    """Guide-wire steering settings ([A]; tuned in bench/route_bench.py)."""
-
-    coil_spacing: float = 0.20  # m between the coils (as fitted on the truck)
-    coil_height: float = 0.08  # m above the floor
-    nominal: float = 732.0  # counts per coil over the wire (calibration)
-    kp: float = 20.0  # rad of steering per m of lateral offset
-    ki: float = 20.0  # rad per m s
-    kd: float = 2.0  # rad per m/s of offset rate
-    max_steer: float = math.radians(40.0)
-    lost_level: float = 0.25  # of nominal: below this the wire is not there
-    lost_samples: int = 5  # consecutive samples (50 ms at 100 Hz)
-    found_level: float = 0.55  # of nominal: a wire found during an SRM
-    srm_timeout: float = 12.0  # s: an SRM that finds no wire ends LOST
-    found_hold: float = 0.5  # s the wire_found state is shown after an SRM
-    wheelbase: float = 1.20  # m (heading change = v sin(delta) / wheelbase)
-    steer_rate: float = math.radians(45.0)  # rad/s of the steering actuator
-    look_ahead: float = 0.40  # m: capture aims the front wheels at the wire this far ahead
-    capture_done: float = 0.03  # m of offset held for 0.3 s that ends the capture
-
-
-@dataclass
-class TurningParams:
-    """Taking a branch at a road sign (Rajagopalan App. F.6; the manoeuvre itself is not
-    described there [?]: a spin in place, which the differential drive allows, is assumed)."""
-
-    camera_ahead: float = 0.64  # m, L_c: camera window centre ahead of the axle centre
-    # The thesis drives L_c from the detection, which puts the axle where the window was when
-    # a frame first showed the branch: up to one frame's travel (31 mm at 0.63 m/s) and the
-    # ten rows the edge column needs short of the crossing. `image` (default) places the
-    # crossing from the branch's near edge in each frame that shows it, plus half the tape's
-    # width; `thesis` uses L_c + detect_lead.
-    crossing_from: str = 'image'  # or 'thesis'
-    detect_lead: float = 0.045  # m added to L_c under `thesis` (the rows needed to flag it)
-    approach_speed: float = 0.16  # m/s once the branch is seen ("decelerate gradually")
-    position_tolerance: float = 0.004  # m: the axle centre is over the crossing
-    stop_deceleration: float = 0.25  # m/s^2 of the stops (the drive's trapezoid: 0.3)
-    spin_speed: float = 0.15  # m/s of each wheel, opposite ways
-    spin_angle: float = 90.0  # deg: the branches of the floor are at right angles
-    angle_tolerance: float = 0.2  # deg of the spin, by wheel odometry
-    turn_timeout: float = 20.0  # s from the sighting to following the branch (bench: 6-10 s)
-
-
-@dataclass
-class RouteParams:
-    """All route-following settings."""
-
-    period: float = 0.010  # s
-    status_period: float = 0.050  # s
-    vehicle: str = 'electruk'  # or 'concic2' (steering_command mode)
-    camera_speed: float = 0.47  # m/s cruise in camera mode (thesis "normal industrial speed")
-    wire: WireParams = field(default_factory=WireParams)
-    image: ImageParams = field(default_factory=ImageParams)
-    steering: SteeringParams = field(default_factory=SteeringParams)
-    turning: TurningParams = field(default_factory=TurningParams)
+from agv_nodes.route_following.camera_guidance import CameraSteering, ImageAnalyser, Validity
+from agv_nodes.route_following.settings import RouteParams
+from agv_nodes.subsystem import SubsystemCore
 
 
 def wire_offset(left: float, right: float, spacing: float, height: float,
@@ -119,14 +56,13 @@ def wire_offset(left: float, right: float, spacing: float, height: float,
     return 0.5 * (a + b)
 
 
-class RouteCore:
+class RouteCore(SubsystemCore):
     """See the module docstring."""
 
-    node = 'route_following'
+    node, settings_type, period_setting = 'route_following', RouteParams, 'period'
 
     def __init__(self, params: RouteParams | None = None) -> None:
-        self.p = params or RouteParams()
-        self.period = self.p.period
+        super().__init__(params)
         self.mode = 'idle'
         self.state = 'idle'
         self.srm_angle = 0.0
@@ -145,7 +81,6 @@ class RouteCore:
         self._srm_start = 0.0
         self._found_at = -1e9
         self._wire_time: float | None = None
-        self.wire_count = 0  # guide_wire records taken (u16): steering_command echoes it
         self._mode_since = 0.0
         self.speed = 0.0  # m/s from wheel odometry
         self.steer_actual = 0.0  # model of the actuator's position
@@ -180,7 +115,6 @@ class RouteCore:
             return self._command(fields, now)
         if record == 'guide_wire':
             self._wire_time = now
-            self.wire_count = (self.wire_count + 1) & 0xFFFF
             self._wire(fields['left_coil'], fields['right_coil'], now)
         elif record == 'wheel_odometry':
             self.speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
@@ -473,11 +407,11 @@ class RouteCore:
             left, right = self.wheels
             return {'mode': 'wheel_speeds', 'enable': int(self.motor_on and self.mode == 'camera'),
                     'angle': 0, 'left_speed': int(round(left * 1000)),
-                    'right_speed': int(round(right * 1000)), 'wire_count': self.wire_count}
+                    'right_speed': int(round(right * 1000))}
         active = self.mode in ('follow_wire', 'srm') and self.state != 'lost'
         angle = int(round(max(-1.0, min(1.0, self.steer)) * 1000))
         return {'mode': 'angle', 'enable': 1, 'angle': angle if active else 0,
-                'left_speed': 0, 'right_speed': 0, 'wire_count': self.wire_count}
+                'left_speed': 0, 'right_speed': 0}
 
     def status(self) -> dict[str, Any]:
         """The route_status record."""

@@ -37,81 +37,12 @@ open loop gives 0.195 / 0.161). `open_loop_1983` remains one parameter away.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 from agv_nodes.odometry import Odometer
 from agv_nodes.records.ports import CORRUPT
-
-SOURCES = ('executive', 'position', 'manual', 'emergency_stop', 'radio_stop', 'trip')
-
-
-@dataclass
-class TractionParams:
-    """Traction program settings (node parameters map onto these)."""
-
-    loop_period: float = 0.010  # s, one pass of START (and the traction_drive rate)
-    status_period: float = 0.050  # s between traction_status records
-    runout_wait: float = 0.200  # s after a limited step: prose 200 ms; listing formula 100 ms
-    field_wait: float = 0.100  # s, each FLIP half and the start-up build-up: prose; formula 50
-    field_duty: int = 90  # %: thesis 6.3 says 90 %; the listing loads 98
-    step_limit: int = 16  # % per pass (SUM)
-    max_duty: int = 80  # % (COMP CP 80)
-    estop_ref: int = -5  # % (0FBH)
-    arithmetic: str = 'saturating'  # or 'faithful_8bit'
-    # The listing reaches the -5 % e-stop through SUM's 16 %-per-pass slew, each step followed
-    # by the 200 ms runout: from 55 % the drive pushes for ~0.6 s after the e-stop. `immediate`
-    # (modern, the default) cuts the armature on the first pass that sees byte 2 = 00H and
-    # abandons any wait, then FLIPs and plug-brakes as the listing does; `as_listed` keeps
-    # the slew. Issue 9 wants the drive off within 200 ms of a fault.
-    emergency_stop: str = 'immediate'
-    # A traction_link with new contents (navigation's slow-down, stop, or a controlled stop's
-    # new distance to go) waits up to one loop_period for the next pass of START in the
-    # listing (`loop`). `at_once` (modern, the default) runs a pass of the closed loop the
-    # moment it arrives, so a recognition reaches the drive in one chain of messages (issue
-    # 8: sensor-to-traction latency; bench/latency_bench.py --live). The open loop always
-    # keeps the listing's passes: its SUM slews 16 % per pass, so an extra pass would steepen
-    # its ramp.
-    link_reaction: str = 'at_once'
-    command_timeout: float = 0.200  # s
-    link_timeout: float = 0.200  # s
-    # A command or link older than its timeout is stale only once this many wheel_odometry
-    # records (100 Hz) have arrived since it, or at twice the timeout. For a simulated graph
-    # on sim time (config/agv_demo.yaml sets 5): a traction node that was starved of CPU sees
-    # its clock jump ahead at once (the /clock reader keeps only the latest) while the record
-    # it waits for is still queued. 0 (default) = the timeout alone, as on the hardware, whose
-    # clock never jumps (and the 1983 truck had no odometry).
-    stale_confirm: int = 0
-    stall_limit: float = 0.200  # s: a gap between loop passes this long trips
-    control: str = 'closed_loop'  # or 'open_loop_1983' (the listing)
-    # closed loop
-    kp: float = 40.0  # % duty per m/s of speed error
-    ki: float = 60.0  # % duty per m of integrated speed error
-    max_accel: float = 0.5  # m/s^2 of the speed demand ramp, speeding up
-    max_decel: float = 1.0  # m/s^2 of the ramp slowing down (plug braking helps friction)
-    max_jerk: float = 2.0  # m/s^3
-    v_per_percent: float = 1.0 / 75.0  # m/s per % above the 5 % dead band (spec 6.1 map)
-    dead_band: float = 5.0  # %
-    flip_hysteresis: float = 8.0  # %: smaller demands against the field coast instead
-    brake_margin: float = 0.08  # m/s over the demand before plug braking starts
-    brake_gain: float = 60.0  # % reverse duty per m/s of overspeed
-    stop_decel: float = 0.30  # m/s^2 of the controlled-stop profile v = sqrt(2 a d)
-    coast_decel: float = 0.50  # m/s^2 the truck loses coasting: the drive is cut this far out
-
-    def check(self) -> list[tuple[str, Any, str]]:
-        """Problems as (name, value, reason); empty when the settings are usable."""
-        bad = []
-        if self.arithmetic not in ('saturating', 'faithful_8bit'):
-            bad.append(('arithmetic', self.arithmetic, 'not saturating or faithful_8bit'))
-        if self.emergency_stop not in ('immediate', 'as_listed'):
-            bad.append(('emergency_stop', self.emergency_stop, 'not immediate or as_listed'))
-        if self.link_reaction not in ('at_once', 'loop'):
-            bad.append(('link_reaction', self.link_reaction, 'not at_once or loop'))
-        if self.control not in ('open_loop_1983', 'closed_loop'):
-            bad.append(('control', self.control, 'not open_loop_1983 or closed_loop'))
-        if not 0 < self.field_duty <= 100:
-            bad.append(('field_duty', self.field_duty, 'outside 1..100'))
-        return bad
+from agv_nodes.subsystem import SubsystemCore
+from agv_nodes.traction.settings import TractionParams
 
 
 def _signed8(value: int) -> int:
@@ -119,14 +50,13 @@ def _signed8(value: int) -> int:
     return value - 256 if value & 0x80 else value
 
 
-class TractionCore:
+class TractionCore(SubsystemCore):
     """See the module docstring. Inputs by record; outputs traction_drive / traction_status."""
 
-    node = 'traction'
+    node, settings_type, period_setting = 'traction', TractionParams, 'loop_period'
 
     def __init__(self, params: TractionParams | None = None) -> None:
-        self.p = params or TractionParams()
-        self.period = self.p.loop_period
+        super().__init__(params)
         # ADATA (PIO1-A): bit 7 armature disable, bit 6 field disable, bit 5 field forward.
         self.armature_off = True
         self.field_off = True
@@ -293,19 +223,28 @@ class TractionCore:
             return False
         return self.link is not None and not self.link['executive_priority']
 
-    def _program(self, now: float) -> None:
-        """Continue the listing from where its last wait left it."""
-        if self.state == 'start':  # BEGIN/INIT: enable the field, WAIT1(D=100) build-up
+    def _field_wait(self, now: float, forward_at_start: bool) -> bool:
+        """The field's timed waits, the same in both controls: BEGIN/INIT (field on, WAIT1
+        build-up; the listing's INIT leaves the field reversed, the closed loop starts it
+        forward) and the second half of FLIP (toggle, field on, wait). True when this pass was
+        one of them."""
+        if self.state == 'start':
             self.field_off = False
             self.armature_off = True
+            self.field_forward = self.field_forward or forward_at_start
             self.state = 'run'
-            self.wait_until = now + self.p.field_wait
-            return
-        if self.state == 'flip_decay':  # FLIP second half: toggle, field on, wait
+        elif self.state == 'flip_decay':
             self.field_forward = not self.field_forward
             self.field_off = False
             self.state = 'flip_build'
-            self.wait_until = now + self.p.field_wait
+        else:
+            return False
+        self.wait_until = now + self.p.field_wait
+        return True
+
+    def _program(self, now: float) -> None:
+        """Continue the listing from where its last wait left it."""
+        if self._field_wait(now, forward_at_start=False):
             return
         if self.state == 'flip_build':
             self._comp_tail(now)
@@ -386,17 +325,7 @@ class TractionCore:
 
     # -- closed loop (beyond 1983) -------------------------------------------------------------
     def _closed_loop(self, now: float, dt: float) -> None:
-        if self.state == 'start':
-            self.field_off = False
-            self.field_forward = True
-            self.state = 'run'
-            self.wait_until = now + self.p.field_wait
-            return
-        if self.state == 'flip_decay':  # FLIP, as in the listing: toggle, field on, wait
-            self.field_forward = not self.field_forward
-            self.field_off = False
-            self.state = 'flip_build'
-            self.wait_until = now + self.p.field_wait
+        if self._field_wait(now, forward_at_start=True):
             return
         self.state = 'run'
         if not self._getref():

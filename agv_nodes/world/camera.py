@@ -9,24 +9,14 @@ same window at -L_c, mounted facing backwards (its image is rotated 180 degrees)
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
 
 import numpy as np
 
 from agv_nodes.world.layout import Path2D
+from agv_nodes.world.settings import CameraParams
 
 ROWS, COLS = 64, 128
-
-
-@dataclass
-class CameraParams:
-    """Window geometry and noise ([T] Table 6.1, [D] digest 4.4)."""
-
-    depth: float = 0.050  # m along travel (64 rows)
-    width: float = 0.250  # m across (128 columns)
-    specks: int = 6  # random dark runs per frame
-    speck_max: int = 6  # px, longest speck (below the 16 px noise filter)
 
 
 class BinaryCamera:

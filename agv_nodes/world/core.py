@@ -8,7 +8,6 @@ Everything is seeded: the same seed and inputs give the same samples.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 import math
 import random
 from typing import Any
@@ -16,39 +15,14 @@ from typing import Any
 import numpy as np
 
 from agv_nodes.markers import SNAPSHOT_FIELDS
-from agv_nodes.world.camera import BinaryCamera, CameraParams
-from agv_nodes.world.guide_wire import GuideWirePickup, PickupParams
+from agv_nodes.world.camera import BinaryCamera
+from agv_nodes.world.guide_wire import GuideWirePickup
 from agv_nodes.world.layout import Layout, Marker
-from agv_nodes.world.marker_sensor import MarkerSensorModel, SensorParams
-from agv_nodes.world.vehicles import Concic2, Concic2Params, Electruk, ElectrukParams
+from agv_nodes.world.marker_sensor import MarkerSensorModel
+from agv_nodes.world.settings import WorldParams
+from agv_nodes.world.vehicles import Concic2, Electruk
 
 NEAR_MOVE = 0.3  # m the lens moves before the list of cards near it is redone
-
-
-@dataclass
-class WorldParams:
-    """World settings (the world node's parameters map onto these)."""
-
-    seed: int = 1
-    sample_rate: float = 340.0  # Hz, marker sensor snapshots [T 5.3.5.2]
-    substeps: int = 4  # physics steps per sample
-    guide_wire_rate: float = 100.0  # Hz
-    odometry_rate: float = 100.0  # Hz
-    conveyor_rate: float = 20.0  # Hz
-    camera_rate: float = 20.0  # Hz [T Table 6.1: 20-25 frames/s]
-    rear_camera: bool = False
-    drive_watchdog: float = 0.200  # s: trip relay opens if the watchdog count stalls [T B.2.1]
-    steering_timeout: float = 0.200  # s: no steering_command -> hold (tug) / motor off (concic2)
-    ride_height_per_tonne: float = 0.008  # m the card appears higher per 1000 kg payload [A]
-    align_tolerance: float = 0.060  # m: conveyor transfer works within this of the stop marker
-    conveyor_speed: float = 0.25  # m/s
-    transfer_length: float = 0.80  # m a load travels between conveyors
-    start_loaded: tuple[bool, bool] = (False, False)  # truck conveyors first, second
-    electruk: ElectrukParams = field(default_factory=ElectrukParams)
-    concic2: Concic2Params = field(default_factory=Concic2Params)
-    sensor: SensorParams = field(default_factory=SensorParams)
-    pickup: PickupParams = field(default_factory=PickupParams)
-    camera: CameraParams = field(default_factory=CameraParams)
 
 
 class _Every:
@@ -92,11 +66,11 @@ class WorldCore:
         self._steer_time = -1e9
         self.conveyor_command: dict[str, Any] = {'first': 'off', 'second': 'off',
                                                  'station_request': 0}
-        self.loads = list(self.p.start_loaded)
+        self.loads = [name in self.p.start_loaded for name in ('first', 'second')]
         self.station_loads = {sid: int(st.has_load) for sid, st in layout.stations.items()}
         self.transfer = 0.0  # fraction of the transfer in progress
-        self.counters = {'guide_wire': 0, 'wheel_odometry': 0}  # records published (the
-        # records carry the low byte; pacing compares steering_command.wire_count with the whole)
+        # records published, whole counts (the records carry the low byte)
+        self.counters = {'guide_wire': 0, 'wheel_odometry': 0}
         self._odo_dist = [0.0, 0.0]  # m per driven wheel
         self._odo_time = 0.0
         self.events: list[dict[str, Any]] = []
@@ -133,22 +107,17 @@ class WorldCore:
         return self.sample * self.dt
 
     # -- inputs ---------------------------------------------------------------------------
-    @property
-    def wire_records(self) -> int:
-        """guide_wire records published so far (pacing: steering_command.wire_count)."""
-        return self.counters['guide_wire']
-
-    def on_record(self, record: str, fields: dict[str, Any]) -> None:
-        """Apply a hardware-side input record."""
+    def on_record(self, record: str, fields: dict[str, Any], now: float) -> None:
+        """Apply a hardware-side input record that arrived at sim time `now`."""
         if record == 'traction_drive' and isinstance(self.vehicle, Electruk):
             if fields['watchdog'] != self._last_watchdog:
                 self._last_watchdog = fields['watchdog']
-                self._watchdog_time = self.time
+                self._watchdog_time = now
             self.vehicle.set_drive(fields['armature_duty'] / 100.0, fields['field_duty'] / 100.0,
                                    bool(fields['field_forward']), bool(fields['armature_enable']),
                                    bool(fields['field_enable']), bool(fields['contactor']))
         elif record == 'steering_command':
-            self._steer_time = self.time
+            self._steer_time = now
             if isinstance(self.vehicle, Electruk):
                 self.vehicle.steer_demand = fields['angle'] / 1000.0
                 self.vehicle.steer_enable = bool(fields['enable'])

@@ -9,30 +9,12 @@ point is over the wire, unequal to one side, and falling off to nothing far from
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
 
 import numpy as np
 
 from agv_nodes.world.layout import Path2D
-
-
-@dataclass
-class PickupParams:
-    """Coil geometry and scaling ([A])."""
-
-    coil_spacing: float = 0.20  # m between the two coils (each 0.10 m off centre)
-    coil_height: float = 0.08  # m above the wire
-    gain: float = 75.0  # ADC counts per unit of 2h/(h^2 + y^2) (1/m); 12-bit full scale 4095
-    noise: float = 2.0  # counts rms
-    reach: float = 1.5  # m: wire segments farther than this are ignored
-
-    @property
-    def nominal(self) -> float:
-        """Counts of each coil with the sensor point right over a long straight wire."""
-        h, y = self.coil_height, self.coil_spacing / 2.0
-        return self.gain * 2.0 * h / (h * h + y * y)
-
+from agv_nodes.world.settings import PickupParams
 
 NEAR_MOVE = 0.5  # m the sensor may move before `coils` refreshes its list of candidates
 SCALAR_SEGMENTS = 12  # up to this many candidates `coils` sums in scalar arithmetic

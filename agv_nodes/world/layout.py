@@ -15,9 +15,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from agv_nodes.markers import LOCATION_PATTERNS, STOP_STRIP, WHITE_CARD
+from agv_nodes.yaml_files import read_mapping
 
 
 class LayoutError(ValueError):
@@ -184,10 +184,14 @@ class Layout:
     route_limit: float = 0.0  # m of travel per task before the world reports a limit (0 = none)
     description: str = ''
     signs: list[dict[str, Any]] = field(default_factory=list)  # junction road signs (tape)
+    # Where the route leaves a wire by a software-resident manoeuvre: 'location:angle' (deg,
+    # + = left). The floor's route map: launches and the lock-step harness hand it to the
+    # executive (its srm_map), which on the 1983 truck held it in its programme.
+    srm_map: tuple[str, ...] = ()
 
 
 _TOP_KEYS = {'layout', 'description', 'vehicle', 'kind', 'wires', 'tapes', 'markers',
-             'stations', 'start', 'sensor', 'rig', 'route_limit', 'step', 'signs'}
+             'stations', 'start', 'sensor', 'rig', 'route_limit', 'step', 'signs', 'srm_map'}
 # Road-sign primitives (Rajagopalan 4.3, digest 1.6): which branches a junction offers.
 SIGN_BRANCHES = {'P11': ('left',), 'P12': ('right',), 'P21': ('left', 'straight'),
                  'P22': ('right', 'straight'), 'R1': ('left', 'right'),
@@ -206,15 +210,7 @@ def _num(value: Any, file: Path, key: str, lo: float | None = None,
 def load_layout(file: Path | str) -> Layout:
     """Load and validate a layout file."""
     file = Path(file)
-    try:
-        doc = yaml.safe_load(file.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise LayoutError(f'{file}: cannot read: {" ".join(str(exc).split())}') from None
-    if not isinstance(doc, dict):
-        raise LayoutError(f'{file}: expected a mapping at the top level')
-    extra = set(doc) - _TOP_KEYS
-    if extra:
-        raise LayoutError(f'{file}: unknown key {sorted(extra)[0]!r}')
+    doc = read_mapping(file, LayoutError, _TOP_KEYS)
     name = doc.get('layout')
     if name != file.stem:
         raise LayoutError(f'{file}: key layout: {name!r} must equal the file name')
@@ -276,7 +272,8 @@ def load_layout(file: Path | str) -> Layout:
                                         -90.0, 90.0)),
         sensor_lateral=sensor_lateral, kind=kind, rig=rig,
         route_limit=_num(doc.get('route_limit', 0.0), file, 'route_limit', 0.0, 1e4),
-        description=' '.join(str(doc.get('description', '')).split()), signs=signs)
+        description=' '.join(str(doc.get('description', '')).split()), signs=signs,
+        srm_map=_srm_map(doc.get('srm_map') or [], file))
     if kind == 'rig':
         _check_rig(layout, file)
     return layout
@@ -365,12 +362,36 @@ def _add_sign(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
             'branch': branch_length}
 
 
+def _srm_map(entries: Any, file: Path) -> tuple[str, ...]:
+    """The layout's route map: 'location:angle' entries, location 0-31, angle -45..45 deg."""
+    if not isinstance(entries, list):
+        raise LayoutError(f'{file}: key srm_map: {entries!r} must be a list of '
+                          "'location:angle'")
+    for entry in entries:
+        location, _, angle = str(entry).partition(':')
+        try:
+            ok = 0 <= int(location) <= 31 and -45 <= int(angle) <= 45
+        except ValueError:
+            ok = False
+        if not ok:
+            raise LayoutError(f"{file}: key srm_map: {entry!r} is not 'location:angle' "
+                              '(location 0-31, angle -45..45 degrees)')
+    return tuple(str(e) for e in entries)
+
+
 def _check_rig(layout: Layout, file: Path) -> None:
     rig = layout.rig
     for key, lo, hi in (('speed', 0.01, 5.0), ('standoff', 0.2, 0.4), ('height', -0.05, 0.05),
                         ('angle', -45.0, 45.0)):
         if key in rig:
             _num(rig[key], file, f'rig.{key}', lo, hi)
+
+
+def layout_parameters(layout: Layout) -> dict[str, dict[str, Any]]:
+    """What a layout sets in the nodes of a truck on it: the executive's route map and the
+    kind of steering route following drives (agv-launch and the lock-step harness both)."""
+    return {'executive': {'srm_map': list(layout.srm_map)},
+            'route_following': {'vehicle': layout.vehicle}}
 
 
 def layout_path(name_or_file: str) -> Path:

@@ -15,7 +15,6 @@ furthest forward, so a card passing in forward travel moves across the image fro
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 import functools
 import math
 import random
@@ -23,6 +22,7 @@ import random
 import numpy as np
 
 from agv_nodes.markers import ELEMENT_HEIGHT, ELEMENT_WIDTH, LOCATION_PATTERNS, trough_and_peak
+from agv_nodes.world.settings import SensorParams
 
 NOISE_PER_SNAPSHOT = 17  # standard normals a snapshot uses: 8 lit, 8 dark, 1 ambient
 SQRT2 = math.sqrt(2.0)
@@ -39,40 +39,6 @@ def _psi(z: float) -> float:
     if z <= -8.5:
         return 0.0
     return z * 0.5 * (1.0 + math.erf(z / SQRT2)) + INV_SQRT_2PI * math.exp(-0.5 * z * z)
-
-
-@dataclass
-class SensorParams:
-    """Optics and electronics of the Mk 1 sensor ([A] unless noted)."""
-
-    focus: float = 0.300  # m, lens to marker plane in focus [T 5.1]
-    aperture_width: float = 0.014  # m at focus: the photodiode's image inside its 20 mm cell
-    aperture_height: float = ELEMENT_HEIGHT  # m at focus [T 5.1]
-    flat_height: float = 0.5  # fraction of the aperture height at full sensitivity
-    base_blur: float = 0.0015  # m, blur sigma in focus (lens, photodiode edge)
-    defocus_blur: float = 0.15  # blur sigma per metre of range error
-    dark_level: float = 8.0  # ADC counts of the front end with the IREDs off
-    ambient: float = 0.0  # ADC counts of ambient light (lit and dark alike)
-    ambient_noise: float = 0.5  # counts rms of ambient flicker (common to lit and dark)
-    noise: float = 1.0  # counts rms, each conversion
-    unit: str = 'sensor1'  # which Table 7.1 sensor the gains are derived from
-    # Counts for white paper filling the patch at focus, and the black level as a fraction of
-    # white (card + stray light); empty = derive both from Table 7.1 (`calibrate`).
-    gains: tuple[float, ...] = ()
-    blacks: tuple[float, ...] = ()
-    skew: tuple[float, ...] = (0.0,) * 8  # m, along-track misalignment of each detector
-    column_pitch: float = ELEMENT_WIDTH  # m at focus between adjacent columns
-    row_pitch: float = ELEMENT_HEIGHT  # m at focus between the two rows
-    extra: dict = field(default_factory=dict)
-
-
-@dataclass
-class View:
-    """A card as one detector column sees it."""
-
-    u: float  # along-card position of the patch centre, m (+ = downstream, toward C1)
-    range: float  # m
-    cos_incidence: float
 
 
 class MarkerSensorModel:
@@ -294,7 +260,7 @@ def calibrate(params: SensorParams) -> tuple[tuple[float, ...], tuple[float, ...
     black threshold.
     """
     key = tuple(sorted((k, v) for k, v in vars(params).items()
-                       if k not in ('gains', 'blacks', 'extra', 'unit', 'noise', 'ambient',
+                       if k not in ('gains', 'blacks', 'unit', 'noise', 'ambient',
                                     'ambient_noise', 'dark_level')))
     runs = _belt_runs(key)
     gains, blacks = [], []

@@ -21,62 +21,12 @@ followed with a first-order lag; "motor off" coasts down (5 mm from 0.16 m/s).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 import math
-from typing import Any
+
+from agv_nodes.world.settings import Concic2Params, ElectrukParams
 
 G = 9.81
-
-
-@dataclass
-class ElectrukParams:
-    """Electruk parameters (all [A] unless noted)."""
-
-    wheelbase: float = 1.20  # m
-    track: float = 0.80  # m, rear wheels
-    wheel_radius: float = 0.20  # m
-    mass: float = 800.0  # kg, truck with batteries
-    payload: float = 0.0  # kg (thesis: up to 1000 kg)
-    inertia_factor: float = 1.08  # rotating masses as extra equivalent mass
-    battery_voltage: float = 24.0  # V [T 6.1]
-    motors: int = 2  # [T 6.1] in parallel
-    armature_resistance: float = 0.12  # ohm per motor
-    armature_inductance: float = 0.0012  # H per motor
-    k_phi: float = 0.0562  # V s/rad (= N m/A) at full field
-    field_time_constant: float = 0.060  # s (the 100 ms waits of FLIP cover ~1.7 time constants)
-    gear_ratio: float = 63.0  # motor rev per wheel rev (gearbox + chain)
-    drivetrain_friction: float = 0.50  # N m per motor at the motor shaft (Coulomb)
-    viscous_friction: float = 0.0004  # N m s/rad per motor
-    rolling_resistance: float = 0.015  # of the weight on the wheels
-    current_limit: float = 60.0  # A per motor, controller limit
-    max_steer: float = math.radians(40.0)  # rad
-    steer_rate: float = math.radians(45.0)  # rad/s, actuator slew
-
-
-@dataclass
-class Concic2Params:
-    """CONCIC-II parameters (Rajagopalan 3.1-3.3; [D] values of the digest)."""
-
-    wheel_radius: float = 0.075  # m [T Table B.3]
-    wheel_span: float = 0.52  # m [D]
-    caster_distance: float = 0.31  # m, L_a [D]
-    caster_trail: float = 0.05  # m, s [D]
-    camera_distance: float = 0.64  # m, L_c [D]
-    acceleration: float = 0.30  # m/s^2, LM628 trapezoid (shared, fixed during motion)
-    lag: float = 0.05  # s, wheel speed loop time constant
-    coast_deceleration: float = 2.6  # m/s^2 in motor-off (5 mm from 0.16 m/s, digest 4.6)
-    max_wheel_speed: float = 1.14  # m/s (145 rpm)
-
-
-def params_from(cls: type, overrides: dict[str, Any], where: str) -> Any:
-    """Build a params dataclass, refusing unknown keys and non-numbers (naming `where`)."""
-    known = {f.name for f in fields(cls)}
-    for key, value in overrides.items():
-        if key not in known:
-            raise ValueError(f'{where}: unknown vehicle parameter {key!r}')
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ValueError(f'{where}: vehicle parameter {key!r}: {value!r} is not a number')
-    return cls(**overrides)
 
 
 @dataclass

@@ -1,6 +1,6 @@
 """Start one node process that dies with its launcher (agv-launch's child wrapper).
 
-`python -m agv_nodes.launch_child PARENT_PID [--sched-fifo N] COMMAND...` asks Linux to send
+`python -m agv_nodes.graph.child PARENT_PID [--sched-fifo N] COMMAND...` asks Linux to send
 this process SIGTERM when the thread that started it exits (prctl PR_SET_PDEATHSIG, kept across
 exec), optionally takes SCHED_FIFO priority N (also kept across exec, and inherited by every
 thread the node starts: its DDS threads too), then execs COMMAND in its place (same pid).
@@ -23,7 +23,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point; never returns when the exec succeeds."""
     args = sys.argv[1:] if argv is None else argv
     if len(args) < 2:
-        print('usage: python -m agv_nodes.launch_child PARENT_PID [--sched-fifo N] COMMAND...',
+        print('usage: python -m agv_nodes.graph.child PARENT_PID [--sched-fifo N] COMMAND...',
               file=sys.stderr)
         return 2
     parent, command = int(args[0]), args[1:]
@@ -32,7 +32,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
         except OSError as exc:  # EPERM without the right, EINVAL outside 1-99
-            print(f'launch_child: SCHED_FIFO priority {priority} refused ({exc})',
+            print(f'agv_nodes.graph.child: SCHED_FIFO priority {priority} refused ({exc})',
                   file=sys.stderr)
             return 2
     if sys.platform.startswith('linux'):

@@ -1,0 +1,47 @@
+"""The itinerary: a task record into steps (Baker 1983, fig 3.1, level 2), ROS-free."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+NO_TASK = 0xFF
+
+
+@dataclass
+class Step:
+    """One itinerary step."""
+
+    kind: str
+    location: int = NO_TASK
+    edge: int = 0
+    value: int = 0  # seconds, SRM angle, conveyor index
+    name: str = ''
+
+
+def itinerary(task: dict[str, Any]) -> list[Step]:
+    """Fig 3.1 level 2: the steps of one task record (empty = nothing to do / bad task)."""
+    op, n = task['op'], task['location']
+    edge = 1 if task['marker'] == 'second' else 0
+    conveyor = 1 if task['conveyor'] == 'second' else 0
+    steps: list[Step] = []
+    if op in ('stop', 'load', 'unload', 'wait'):
+        steps.append(Step('goto', n, edge, name=f'go to L{n}, stop marker {edge + 1}'))
+        if op == 'stop' and task['marker'] == 'first_then_second':
+            steps.append(Step('next_marker', n, 1, name=f'advance to the 2nd stop marker at L{n}'))
+        elif op in ('load', 'unload'):
+            steps.append(Step(op, n, value=conveyor, name=f'{op} on conveyor {conveyor + 1}'))
+        elif op == 'wait':
+            steps.append(Step('wait', n, value=task['dwell'], name=f'wait {task["dwell"]} s'))
+    elif op == 'srm':
+        steps.append(Step('srm', n, value=task['srm_angle'],
+                          name=f'SRM at L{n}, {task["srm_angle"]} deg'))
+    elif op == 'transfer':
+        b, c = n, task['destination']
+        steps += [Step('goto', b, 0, name=f'go to B = L{b}'),
+                  Step('load', b, value=0, name='check A is there, load A'),
+                  Step('goto', c, 0, name=f'go to C = L{c}'),
+                  Step('unload', c, value=0, name='check C can accept, unload A')]
+    if steps and task['then'] == 'continue':
+        steps.append(Step('continue', name='carry on along the wire'))
+    return steps

@@ -1,0 +1,84 @@
+"""agv-launch: start the graph one process per node, as `ros2 launch` would on a ROS install.
+
+It reads the graph description (config/graph.yaml) and the parameter file, and starts every
+node as its own process (agv_nodes.graph.supervisor) with what the launch sets on top of the
+file (agv_nodes.graph.parameters: the same values launch/agv_demo.launch.py passes).
+SIGINT/SIGTERM shut the graph down in order. The world waits before it moves until every link
+of the graph has matched at both ends (and, on sim time, every node's progress writer has
+matched its reader): the graph is complete before time starts.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+import sys
+
+from agv_nodes.graph.model import GraphError, load_graph
+from agv_nodes.graph.parameters import Options, parse_fault
+from agv_nodes.graph.supervisor import Launch
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """agv-launch arguments."""
+    ap = argparse.ArgumentParser(prog='agv-launch', description=__doc__.splitlines()[0])
+    ap.add_argument('--graph', type=Path, help='graph description (default config/graph.yaml)')
+    ap.add_argument('--params', type=Path, help="ROS parameter file (default: the graph's)")
+    ap.add_argument('--namespace', default='', help='e.g. /agv2 for a second truck')
+    ap.add_argument('--use-sim-time', choices=('true', 'false'), default='true')
+    ap.add_argument('--time-factor', type=float, default=1.0,
+                    help='simulated seconds per real second (0 = as fast as possible)')
+    ap.add_argument('--record-integrity', choices=('e2e', 'none'), default='e2e')
+    ap.add_argument('--world', choices=('sim', 'none'), default='sim',
+                    help='none: the hardware topics come from drivers')
+    ap.add_argument('--domain-id', type=int, help='ROS_DOMAIN_ID 1-232 (default: a free one)')
+    ap.add_argument('--bag', type=Path, help='record every topic into this new bag directory')
+    ap.add_argument('--layout', help='world layout (overrides the parameter file)')
+    ap.add_argument('--respawn', action='store_true', help='restart nodes that die')
+    ap.add_argument('--duration', type=float, help='stop after this many real seconds')
+    ap.add_argument('--log-dir', type=Path, help="also write each node's output here")
+    ap.add_argument('--fault', action='append', default=[], metavar='RECORD:loss=P,delay=S',
+                    help='lose a fraction of one record and/or delay it (sim s) at its writer, '
+                    'e.g. navigation_status:loss=0.1 or traction_link:delay=0.02')
+    ap.add_argument('-p', '--param', action='append', default=[], metavar='NODE:NAME:=VALUE',
+                    help='extra parameter for one node, e.g. traction:control:=closed_loop')
+    ap.add_argument('--realtime', type=int, default=0, metavar='PRIORITY',
+                    help='run the sensor-to-traction chain (the `realtime` nodes of the graph) '
+                    'at this SCHED_FIFO priority, 1-99; needs a time factor > 0 and the right '
+                    'to (root or CAP_SYS_NICE); default 0: the normal scheduler')
+    return ap
+
+
+def options_from(args: argparse.Namespace) -> Options:
+    """Options from parsed arguments."""
+    extra: dict[str, list[str]] = {}
+    for item in args.param:
+        node, sep, rest = item.partition(':')
+        if not sep or ':=' not in rest:
+            raise GraphError(f'-p {item!r}: expected NODE:NAME:=VALUE')
+        extra.setdefault(node, []).append(rest)
+    graph = load_graph(args.graph)
+    faults = dict(parse_fault(text, graph) for text in args.fault)
+    return Options(faults=faults, graph=args.graph, params=args.params, namespace=args.namespace,
+                   use_sim_time=args.use_sim_time == 'true', time_factor=args.time_factor,
+                   record_integrity=args.record_integrity, world=args.world,
+                   domain_id=args.domain_id, bag=args.bag, respawn=args.respawn,
+                   layout=args.layout, extra=extra, log_dir=args.log_dir,
+                   realtime=args.realtime)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of agv-launch."""
+    args = build_parser().parse_args(argv)
+    try:
+        launch = Launch(options_from(args))
+    except GraphError as exc:
+        print(f'agv-launch: {exc}', file=sys.stderr)
+        return 2
+    print(f'agv-launch: graph {launch.graph.name}, ROS_DOMAIN_ID={launch.domain}, '
+          f'{len(launch.specs())} processes', flush=True)
+    return launch.run(args.duration)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,74 @@
+"""The graph description: which nodes the graph has, how each is started, and its role.
+
+config/graph.yaml names each node, its console script and module, its role (`node`: a
+sub-system; `world`: the simulated world; `recorder`: the bag writer), whether it is on the
+sensor-to-traction chain (`realtime`), and the ROS parameter file of the graph.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from agv_nodes.package_share import config_dir
+from agv_nodes.yaml_files import read_mapping
+
+NODE_KEYS = frozenset({'name', 'executable', 'module', 'role', 'realtime'})
+ROLES = ('node', 'world', 'recorder')
+
+
+class GraphError(ValueError):
+    """A graph description or launch option that cannot be used (names the file, key, value)."""
+
+
+@dataclass
+class NodeSpec:
+    """One node of the graph."""
+
+    name: str
+    executable: str
+    module: str
+    role: str = 'node'
+    realtime: bool = False  # on the sensor-to-traction chain: SCHED_FIFO with --realtime
+
+
+@dataclass
+class Graph:
+    """The graph description."""
+
+    name: str
+    nodes: list[NodeSpec]
+    parameters: Path
+    file: Path
+
+    def node(self, name: str) -> NodeSpec:
+        """The node called `name`."""
+        return next(n for n in self.nodes if n.name == name)
+
+
+def load_graph(file: Path | None = None) -> Graph:
+    """Load and check config/graph.yaml (or another description)."""
+    file = Path(file) if file else config_dir() / 'graph.yaml'
+    doc = read_mapping(file, GraphError, ('graph', 'parameters', 'nodes'))
+    if not isinstance(doc.get('nodes'), list):
+        raise GraphError(f'{file}: key nodes: a list of nodes is required')
+    nodes = []
+    for i, spec in enumerate(doc['nodes']):
+        if not isinstance(spec, dict):
+            raise GraphError(f'{file}: key nodes[{i}]: {spec!r} must be a mapping')
+        extra = set(spec) - NODE_KEYS
+        if extra:
+            raise GraphError(f'{file}: key nodes[{i}].{sorted(extra)[0]}: unknown key')
+        for key in ('name', 'executable', 'module'):
+            if not isinstance(spec.get(key), str) or not spec[key]:
+                raise GraphError(f'{file}: key nodes[{i}].{key}: {spec.get(key)!r} missing')
+        role = spec.get('role', 'node')
+        if role not in ROLES:
+            raise GraphError(f'{file}: key nodes[{i}].role: {role!r} not one of {ROLES}')
+        realtime = spec.get('realtime', False)
+        if not isinstance(realtime, bool):
+            raise GraphError(f'{file}: key nodes[{i}].realtime: {realtime!r} is not true/false')
+        nodes.append(NodeSpec(spec['name'], spec['executable'], spec['module'], role,
+                              realtime))
+    params = file.parent / str(doc.get('parameters', 'agv_demo.yaml'))
+    return Graph(str(doc.get('graph', 'agv')), nodes, params, file)

@@ -1,0 +1,217 @@
+"""What the launch sets for each node on top of the parameter file.
+
+The one source for both agv-launch (agv_nodes.graph.supervisor) and
+launch/agv_demo.launch.py, so the two cannot drift (test/test_launch_file.py compares them):
+sim time, record integrity, injected faults, the simulation channel (each node's
+`sim_progress`, the world's `pace_nodes`), the links the world waits for before it moves
+(`wait_for_links`), and the real-time priority of the sensor-to-traction chain.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+import os
+from pathlib import Path
+
+import yaml
+
+from agv_nodes.graph.model import Graph, GraphError, NodeSpec
+from agv_nodes.records import codec
+from agv_nodes.settings import ParameterFileError, parameter_file_values
+from agv_nodes.sim_progress import LINK as PROGRESS
+from agv_nodes.world.layout import LayoutError, layout_parameters, layout_path, load_layout
+from agv_nodes.world.settings import WorldNodeSettings
+
+
+@dataclass
+class Options:
+    """Everything agv-launch can be told (and the launch file's arguments)."""
+
+    graph: Path | None = None
+    params: Path | None = None
+    namespace: str = ''
+    use_sim_time: bool = True
+    time_factor: float = 1.0
+    record_integrity: str = 'e2e'
+    world: str = 'sim'
+    domain_id: int | None = None
+    bag: Path | None = None
+    respawn: bool = False
+    layout: str | None = None
+    extra: dict[str, list[str]] = field(default_factory=dict)  # node -> extra -p args
+    # record -> {'loss': fraction, 'delay': s, 'seed': n}: injected at its writer (--fault)
+    faults: dict[str, dict[str, float]] = field(default_factory=dict)
+    quiet: bool = False
+    log_dir: Path | None = None
+    realtime: int = 0  # SCHED_FIFO priority of the graph's `realtime` nodes (0 = off)
+
+
+def record_readers(graph: Graph, world: bool, recording: bool) -> dict[str, int]:
+    """Each record whose writer and at least one reader run -> its number of readers: the
+    schema's readers that run (the world among them only where the schema lists it), plus the
+    recorder when recording."""
+    running = {n.name for n in graph.nodes if n.role == 'node' or (n.role == 'world' and world)}
+    out = {}
+    for s in codec():
+        if s.kind == 'ground_truth':
+            continue
+        readers_up = [r for r in s.readers if r in running]
+        if s.writer in running and readers_up:
+            out[s.name] = len(readers_up) + recording
+    return out
+
+
+def paced_nodes(graph: Graph, options: Options) -> list[str]:
+    """The nodes the world paces on (its `pace_nodes`): every sub-system node of the graph when
+    the graph runs on sim time, none on wall time (there is no clock to hold back)."""
+    if not options.use_sim_time:
+        return []
+    return sorted(n.name for n in graph.nodes if n.role == 'node')
+
+
+def wait_links(graph: Graph, recording: bool = False, paced: Iterable[str] = ()) -> list[str]:
+    """The world's `wait_for_links`: both ends of every link of the graph.
+
+    'reader:record' - the reader's node has matched the record's writer - for each reader of
+    each record (both ends launched); 'writer>record:N' - the writer has matched all N readers
+    (record_readers); and 'node>progress:1' for each paced node - its `sim/progress` writer has
+    matched the world's reader. Discovery is two-sided and either side may lag: a writer that
+    has not matched a reader sends it nothing (a volatile reader never sees what went before),
+    and a reader that has not matched the writer drops what comes. Either would leave a node
+    without its first records (navigation would call a silent sensor lost), and an unmatched
+    progress writer would leave the world pacing on a node it cannot hear.
+    """
+    running = {n.name for n in graph.nodes if n.role in ('node', 'world')}
+    progress = {n.name for n in graph.nodes if n.role == 'node'}  # the world has no progress
+    links = set()
+    for s in codec():
+        if s.kind == 'ground_truth' or s.writer not in running:
+            continue
+        links.update(f'{r}:{s.name}' for r in s.readers if r in running)
+    for name, n in record_readers(graph, 'world' in running, recording).items():
+        links.add(f'{codec()[name].writer}>{name}:{n}')
+    links.update(f'{node}>{PROGRESS}:1' for node in paced if node in progress)
+    return sorted(links)
+
+
+def parse_fault(text: str, graph: Graph) -> tuple[str, dict[str, float]]:
+    """'RECORD:loss=0.1,delay=0.02' -> (record, {'loss': 0.1, 'delay': 0.02})."""
+    record, _, spec = text.partition(':')
+    c = codec()
+    writers = {n.name for n in graph.nodes if n.role == 'node'}
+    if record not in c or c[record].writer not in writers:
+        raise GraphError(f'--fault {text!r}: {record!r} is not a record a node of the graph '
+                         f'writes ({", ".join(s.name for s in c if s.writer in writers)})')
+    out: dict[str, float] = {}
+    for item in filter(None, spec.split(',')):
+        key, _, value = item.partition('=')
+        try:
+            number = float(value)
+        except ValueError:
+            number = -1.0
+        if key not in ('loss', 'delay', 'seed') or number < 0 or (key == 'loss' and number > 1):
+            raise GraphError(f'--fault {text!r}: {item!r} (expected loss=0..1, delay=S, seed=N)')
+        out[key] = number
+    if not out:
+        raise GraphError(f'--fault {text!r}: nothing to inject (loss=..., delay=...)')
+    return record, out
+
+
+def layout_name(graph: Graph, options: Options) -> str:
+    """The layout the world loads: --layout, else the parameter file's, else its default."""
+    if options.layout:
+        return options.layout
+    try:
+        shared, own = parameter_file_values(options.params or graph.parameters, 'world')
+    except ParameterFileError as exc:
+        raise GraphError(str(exc)) from None
+    return str(own.get('layout', shared.get('layout', WorldNodeSettings().layout)))
+
+
+def from_layout(graph: Graph, options: Options) -> dict[str, dict[str, object]]:
+    """What the layout sets in the nodes (the executive's route map, route following's
+    vehicle): agv_nodes.world.layout.layout_parameters, as the lock-step harness applies it."""
+    name = layout_name(graph, options)
+    try:
+        return layout_parameters(load_layout(layout_path(name)))
+    except (LayoutError, FileNotFoundError) as exc:
+        raise GraphError(f'layout {name!r}: {exc}') from None
+
+
+def node_parameters(graph: Graph, spec: NodeSpec, options: Options,
+                    ready_file: Path | None = None) -> dict[str, object]:
+    """The parameters the launch sets for one node on top of the parameter file.
+
+    The one source for both agv-launch and launch/agv_demo.launch.py (a test compares them).
+    `ready_file` is the file the world writes when it starts moving: agv-launch watches for
+    it; the launch file passes none (the world then writes no file).
+    """
+    out: dict[str, object] = {'use_sim_time': options.use_sim_time}
+    if spec.role == 'node':
+        out.update(from_layout(graph, options).get(spec.name, {}))
+        out['record_integrity'] = options.record_integrity
+        # the simulation channel exists only with a simulated world on sim time: hardware
+        # has no world to pace, and on wall time nothing holds the clock back
+        out['sim_progress'] = options.world == 'sim' and options.use_sim_time
+        for record, fault in options.faults.items():
+            if codec()[record].writer == spec.name:
+                out.update(fault_record=record, fault_loss=fault.get('loss', 0.0),
+                           fault_delay=fault.get('delay', 0.0),
+                           fault_seed=int(fault.get('seed', 1)))
+    if spec.role == 'world':
+        paced = paced_nodes(graph, options)
+        out.update(time_factor=float(options.time_factor), publish_clock=options.use_sim_time,
+                   wait_for_links=wait_links(graph, options.bag is not None, paced),
+                   pace_nodes=paced)
+        if ready_file is not None:
+            out['ready_file'] = str(ready_file)
+        if options.layout:
+            out['layout'] = options.layout
+    if spec.role == 'recorder':
+        out['bag'] = str(options.bag)
+    return out
+
+
+def override_parameters(graph: Graph, spec: NodeSpec, options: Options,
+                        ready_file: Path | None = None) -> dict[str, object]:
+    """node_parameters() plus the node's `-p NAME:=VALUE` extras (values parsed as YAML)."""
+    out = node_parameters(graph, spec, options, ready_file)
+    for arg in options.extra.get(spec.name, []):
+        name, _sep, text = arg.partition(':=')
+        try:
+            out[name] = yaml.safe_load(text) if text else ''
+        except yaml.YAMLError as exc:
+            raise GraphError(f'-p {spec.name}:{arg}: value is not YAML ({exc})') from exc
+    return out
+
+
+def realtime_priority(spec: NodeSpec, options: Options) -> int:
+    """The SCHED_FIFO priority one node runs at (0 = the normal scheduler).
+
+    With `--realtime N` (launch file: realtime:=N) the nodes marked `realtime` in the graph
+    description - the sensor-to-traction chain and the world that feeds it - run at real-time
+    priority N, as a robot's control processes would; each of the 1983 sub-systems had a Z-80
+    of its own. The one source for agv-launch and the launch file (a test compares them).
+    """
+    return options.realtime if spec.realtime else 0
+
+
+def check_realtime(options: Options) -> None:
+    """Refuse a --realtime the graph cannot use, naming why (before anything starts)."""
+    if not options.realtime:
+        return
+    if not 1 <= options.realtime <= 99:
+        raise GraphError(f'--realtime {options.realtime}: a SCHED_FIFO priority is 1-99')
+    if options.time_factor <= 0:
+        raise GraphError(f'--realtime {options.realtime} needs a time factor > 0: at time '
+                         'factor 0 the world never sleeps, and at real-time priority it would '
+                         'hold a core against every other node')
+    policy, param = os.sched_getscheduler(0), os.sched_getparam(0)
+    try:  # try it on this thread, then back: a graph must not start half real-time
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(options.realtime))
+        os.sched_setscheduler(0, policy, param)
+    except PermissionError:
+        raise GraphError(f'--realtime {options.realtime}: this user may not use SCHED_FIFO '
+                         '(it needs CAP_SYS_NICE, or an rtprio limit in '
+                         '/etc/security/limits.conf)') from None

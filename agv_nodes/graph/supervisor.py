@@ -1,0 +1,272 @@
+"""The running graph: one process per node, started, watched and stopped in order.
+
+Each node starts as its own process with the venv's python, through `agv_nodes.graph.child`
+(so that it dies with its launcher): `--ros-args -r __ns:=<namespace> --params-file <file>
+--params-file <overrides>`, where the second file holds what the launch sets on top
+(agv_nodes.graph.parameters, and `-p NODE:NAME:=VALUE`). A second file, not `-p`: whether a
+plain `-p` beats the file's node-specific entry (`/**/executive:`) depends on where it stands on
+the command line, while a later file's entry for the same node always does, and a file is how
+`ros2 launch` passes dict parameters too (test_launch_file.py checks it with rcl's parser).
+Output is prefixed with the node's name; the graph is shut down in order (world first, so time
+stops, recorder last, so the bag sees the end); a node that dies is reported with its exit
+status and ends the launch with a non-zero status (or is restarted with --respawn).
+Discovery is localhost-only, on a ROS domain of this graph's own (never 0).
+"""
+
+from __future__ import annotations
+
+import atexit
+import fcntl
+import os
+from pathlib import Path
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from typing import TextIO
+
+import yaml
+
+from agv_nodes.graph.model import GraphError, NodeSpec, load_graph
+from agv_nodes.graph.parameters import (
+    Options,
+    check_realtime,
+    override_parameters,
+    realtime_priority,
+)
+
+CHILD = 'agv_nodes.graph.child'
+
+
+def claim_domain(explicit: int | None = None) -> tuple[int, TextIO | None]:
+    """A ROS domain id for this graph: explicit, ROS_DOMAIN_ID, or a free one by lock file."""
+    if explicit is None and os.environ.get('ROS_DOMAIN_ID'):
+        explicit = int(os.environ['ROS_DOMAIN_ID'])
+    if explicit is not None:
+        if not 1 <= explicit <= 232:
+            raise GraphError(f'domain id {explicit}: use 1-232 (never 0: other graphs on this '
+                             'host may be on it)')
+        return explicit, None
+    start = 1 + os.getpid() % 200
+    for i in range(232):
+        domain = 1 + (start + i - 1) % 232
+        handle = open(f'/tmp/agv_nodes_ros_domain_{domain}.lock', 'w')  # noqa: SIM115
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return domain, handle
+        except OSError:
+            handle.close()
+    raise GraphError('no free ROS domain id 1-232 on this host')
+
+
+class ReadyFile:
+    """The world's signal that time has started: the file it writes (its `ready_file`).
+
+    Offers what a threading.Event would (is_set, wait). Once seen it stays set, even after
+    the launch has removed its temporary directory.
+    """
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._seen = False
+
+    def is_set(self) -> bool:
+        """True once the world has written the file."""
+        if not self._seen:
+            self._seen = self.path.exists()
+        return self._seen
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Wait until the world moves (or `timeout` seconds); True if it does."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while not self.is_set():
+            if deadline is not None and time.monotonic() >= deadline:
+                return False
+            time.sleep(0.02)
+        return True
+
+
+class Launch:
+    """A running graph."""
+
+    def __init__(self, options: Options) -> None:
+        self.o = options
+        self.graph = load_graph(options.graph)
+        check_realtime(options)
+        self.params = Path(options.params) if options.params else self.graph.parameters
+        if not self.params.is_file():
+            raise GraphError(f'parameter file {self.params} not found')
+        self.domain, self._lock = claim_domain(options.domain_id)
+        self.env = dict(os.environ, ROS_DOMAIN_ID=str(self.domain),
+                        ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
+        self.env.pop('ROS_LOCALHOST_ONLY', None)
+        self.procs: dict[str, subprocess.Popen] = {}
+        self.exits: dict[str, int] = {}
+        self.stopping = False
+        self.failed: list[str] = []
+        self.escalated: dict[str, str] = {}  # node -> the signal it took to stop (not SIGINT)
+        self.lines: list[str] = []
+        self._threads: list[threading.Thread] = []
+        self._logs: dict[str, TextIO] = {}
+        self._overrides = Path(tempfile.mkdtemp(prefix='agv_launch_'))
+        self.ready_file = self._overrides / 'world.ready'
+        self.moving = ReadyFile(self.ready_file)
+
+    def specs(self) -> list[NodeSpec]:
+        """Nodes to start, in order."""
+        out = []
+        for n in self.graph.nodes:
+            if n.role == 'world' and self.o.world == 'none':
+                continue
+            if n.role == 'recorder' and self.o.bag is None:
+                continue
+            out.append(n)
+        return out
+
+    def command(self, spec: NodeSpec) -> list[str]:
+        """The command line of one node."""
+        exe = Path(sys.executable).parent / spec.executable
+        cmd = [str(exe)] if exe.exists() else [sys.executable, '-m', spec.module]
+        cmd += ['--ros-args', '-r', f'__node:={spec.name}']
+        if self.o.namespace:
+            cmd += ['-r', f'__ns:={self.o.namespace}']
+        overrides = self._overrides / f'{spec.name}.yaml'
+        overrides.write_text(yaml.safe_dump({f'/**/{spec.name}': {'ros__parameters': (
+            override_parameters(self.graph, spec, self.o, self.ready_file))}}))
+        return cmd + ['--params-file', str(self.params), '--params-file', str(overrides)]
+
+    def _pump(self, name: str, stream) -> None:
+        width = max(len(s.name) for s in self.graph.nodes)
+        log = self._logs.get(name)
+        for raw in stream:
+            line = raw.rstrip('\n')
+            if log is not None:
+                log.write(line + '\n')
+            self.lines.append(f'{name}: {line}')
+            if not self.o.quiet:
+                print(f'[{name:{width}s}] {line}', flush=True)
+
+    def child_command(self, spec: NodeSpec) -> list[str]:
+        """command() through the child wrapper: the node gets SIGTERM if this launcher dies
+        (even by SIGKILL), and takes its real-time priority (if any) before it execs."""
+        command = [sys.executable, '-m', CHILD, str(os.getpid())]
+        priority = realtime_priority(spec, self.o)
+        if priority:
+            command += ['--sched-fifo', str(priority)]
+        return command + self.command(spec)
+
+    def _start(self, spec: NodeSpec) -> None:
+        command = self.child_command(spec)
+        proc = subprocess.Popen(command, env=self.env, stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, text=True, bufsize=1,
+                                start_new_session=True)
+        self.procs[spec.name] = proc
+        thread = threading.Thread(target=self._pump, args=(spec.name, proc.stdout), daemon=True)
+        thread.start()
+        self._threads.append(thread)
+
+    def start(self) -> None:
+        """Start every node (recorder first, world last)."""
+        if self.o.log_dir:
+            self.o.log_dir.mkdir(parents=True, exist_ok=True)
+            self._logs = {s.name: open(self.o.log_dir / f'{s.name}.log', 'w')  # noqa: SIM115
+                          for s in self.specs()}
+        atexit.register(self._stop_at_exit)  # never leave a graph behind on the domain
+        for spec in self.specs():
+            self._start(spec)
+
+    def _stop_at_exit(self) -> None:
+        if not self.stopping:
+            self.stop(timeout=2.0)
+
+    def poll(self) -> list[str]:
+        """Check the processes; return the names of those that died unexpectedly."""
+        dead = []
+        for name, proc in list(self.procs.items()):
+            code = proc.poll()
+            if code is None or name in self.exits:
+                continue
+            self.exits[name] = code
+            if self.stopping:
+                continue
+            spec = self.graph.node(name)
+            if spec.role == 'world' and code == 0:
+                continue  # the world ran its `duration`
+            dead.append(name)
+            message = f'agv-launch: node {name} exited with status {code}'
+            if self.o.respawn and spec.role == 'node':
+                print(f'{message}; respawning', file=sys.stderr, flush=True)
+                self.respawn(spec)
+            else:
+                print(message, file=sys.stderr, flush=True)
+                self.failed.append(name)
+        return dead
+
+    def respawn(self, spec: NodeSpec) -> None:
+        """Start a node that died again (after a second, so that its peers see it go)."""
+        self.exits.pop(spec.name, None)
+        time.sleep(1.0)
+        self._start(spec)
+
+    def world_done(self) -> bool:
+        """True once the world process has exited."""
+        proc = self.procs.get('world')
+        return proc is not None and proc.poll() is not None
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Shut the graph down in order: world, nodes, recorder (SIGINT, then SIGTERM, KILL)."""
+        self.stopping = True
+        self.moving.is_set()  # note a world that moved before its file goes with the directory
+        for group in ('world', 'node', 'recorder'):
+            names = [n for n in self.procs if self.graph.node(n).role == group]
+            for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 3.0),
+                              (signal.SIGKILL, 3.0)):
+                alive = [n for n in names if self.procs[n].poll() is None]
+                if not alive:
+                    break
+                if sig != signal.SIGINT:
+                    print(f'agv-launch: {", ".join(alive)} still running: sending '
+                          f'{signal.Signals(sig).name}', file=sys.stderr, flush=True)
+                    self.escalated.update(dict.fromkeys(alive, signal.Signals(sig).name))
+                for name in alive:
+                    self.procs[name].send_signal(sig)
+                deadline = time.monotonic() + wait
+                for name in alive:
+                    try:
+                        self.procs[name].wait(timeout=max(0.05, deadline - time.monotonic()))
+                    except subprocess.TimeoutExpired:
+                        pass
+            for name in names:
+                self.exits.setdefault(name, self.procs[name].poll())
+        for thread in self._threads:
+            thread.join(timeout=2.0)
+        for log in self._logs.values():
+            log.close()
+        shutil.rmtree(self._overrides, ignore_errors=True)
+
+    def run(self, duration: float | None = None) -> int:
+        """Start, wait for a signal, a dead node or the world's end, stop; exit status."""
+        stop = threading.Event()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, lambda *_: stop.set())
+        self.start()
+        t0 = time.monotonic()
+        code = 0
+        while not stop.is_set():
+            if self.poll() and not self.o.respawn:
+                code = 1
+                break
+            if self.world_done():
+                code = self.exits.get('world', 0)
+                break
+            if duration and time.monotonic() - t0 > duration:
+                break
+            stop.wait(0.2)
+        self.stop()
+        if self.failed:
+            print(f'agv-launch: failed nodes: {", ".join(self.failed)}', file=sys.stderr)
+            code = code or 1
+        return code

@@ -1,0 +1,188 @@
+"""The life of one node process: rclpy's main() idiom, clean stops, a bounded teardown.
+
+`spin_main` is what every console script's main() calls: init, make the node, spin on the
+executor the node asks for (never MultiThreadedExecutor), and end with the right exit status.
+A bad parameter file or value ends start-up with one line and status 2; SIGINT and SIGTERM end
+the spin between two callbacks; the DDS teardown is bounded (`_teardown`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+import faulthandler
+import gc
+import os
+import signal
+import sys
+import threading
+import time
+from typing import Any
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+
+from agv_nodes.params import ParameterError, params_files
+from agv_nodes.settings import ParameterFileError, read_parameter_file
+
+
+def make_executor(kind: str = 'single') -> Any:
+    """The executor for one node process (never MultiThreadedExecutor: anchors.md 3.3).
+
+    `events` is rclpy's EventsExecutor (rclpy.experimental in Jazzy): measured on the demo
+    graph it halves each node's CPU (bench/graph_bench.py), which is what lets the full
+    programme run faster than real time on two cores. It also takes every input in the order
+    it arrived, /clock included, so a record is handled at the sim time it came in even when
+    the process falls behind (the SingleThreadedExecutor takes one sample per ready topic per
+    turn, and its keep-last-1 clock runs ahead of the records still queued). Two limits of the
+    PyPI rclpy 7.1.6 shape the nodes: (msg, info) callbacks raise SystemError (so only a
+    SingleThreadedExecutor reader asks for source timestamps) and spin() misses the shutdown
+    (spin_main loops on spin_once).
+    """
+    if kind == 'events':
+        try:
+            from rclpy.experimental import EventsExecutor
+
+            return EventsExecutor()
+        except ImportError:  # an rclpy without it
+            pass
+    return SingleThreadedExecutor()
+
+
+class _StopRequest:
+    """SIGINT / SIGTERM as a request the spin loop takes between callbacks.
+
+    rclpy's own handlers shut the context down from a signal thread at once and raise
+    KeyboardInterrupt wherever the main thread is: a callback that is publishing then fails
+    with 'context is invalid' and the EventsExecutor logs it FATAL. Under sim time the nodes
+    sit idle once the world has stopped, but on the wall clock (the hardware configuration)
+    their timers and inputs keep running and every Ctrl-C printed those errors. So the node
+    processes install these handlers instead (rclpy.init without its own) and the loop ends
+    after the callback in hand; a second signal raises KeyboardInterrupt for a node stuck in
+    one.
+    """
+
+    def __init__(self) -> None:
+        self.requested = False
+
+    def install(self) -> None:
+        """Take over SIGINT and SIGTERM (main thread only)."""
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, self._handle)
+
+    def _handle(self, signum: int, _frame: object) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+
+_stop = _StopRequest()
+
+
+def running() -> bool:
+    """True while the node process should keep spinning: the context is up and no SIGINT or
+    SIGTERM has come (spin_main's handlers)."""
+    return not _stop.requested and rclpy.ok()
+
+
+def _shutting_down(wait: float = 0.5) -> bool:
+    """True when SIGINT is shutting the context down (rclpy's signal thread does it a moment
+    after the signal). Meanwhile rclpy 7.1 can raise from inside the executor - RCLError
+    'context is not valid' between two waits, RuntimeError from take_message - instead of
+    ExternalShutdownException; both are a clean exit, any other error is not."""
+    deadline = time.monotonic() + wait
+    while rclpy.ok():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.01)
+    return True
+
+
+TEARDOWN_LIMIT = 2.0  # s: a node's DDS teardown normally takes well under 0.5 s
+
+
+def _teardown(node: Node | None, spinner: Any, code: int, limit: float = TEARDOWN_LIMIT) -> None:
+    """Let go of the node: its own last words (`finish()`: the recorder closes its bag), then
+    the executor, the node's entities and the context, the last three bounded by `limit`.
+
+    The executor goes first: destroying entities while the EventsExecutor still took their DDS
+    callbacks hung 2 of 6 wall-clock shutdowns. Even so about one in twenty wall-clock
+    shutdowns (test_wall_clock_dds, 2 in 44 runs) left a node in Fast DDS's entity deletion
+    (seen in `delete_datareader`, py-spy), deaf to SIGINT and SIGTERM until the launcher's
+    SIGKILL: a Fast DDS teardown deadlock (eProsima/Fast-DDS#6193 reports a similar one).
+    Everything the node owes is done by then, so past `limit` it says so, with every thread's
+    stack, and exits with its status rather than wait for a SIGKILL.
+    """
+    if node is not None and hasattr(node, 'finish'):
+        node.finish()
+    done = threading.Event()
+
+    def give_up() -> None:
+        if done.wait(limit):
+            return
+        name = node.get_name() if node is not None else 'node'
+        print(f'{name}: DDS teardown still blocked after {limit:g} s; exiting without it '
+              f'(status {code}). Stacks:', file=sys.stderr, flush=True)
+        faulthandler.dump_traceback(file=sys.stderr, all_threads=True)
+        sys.stdout.flush()
+        os._exit(code)
+    threading.Thread(target=give_up, name='teardown_limit', daemon=True).start()
+    try:
+        if spinner is not None:
+            spinner.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    finally:
+        done.set()
+
+
+def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
+              executor: Callable[[], Any] | None = None,
+              run: Callable[[Any, Any], int] | None = None) -> int:
+    """The rclpy main() idiom for one node: init, spin, clean shutdown, exit status.
+
+    A ParameterError (bad value or parameter file) ends start-up with its one-line message
+    and exit status 2; SIGINT and SIGTERM end the spin cleanly, between two callbacks
+    (_StopRequest), and the teardown is bounded (_teardown). `run(node, executor)` replaces
+    the plain spin for a node with a loop of its own (the world), which checks running().
+    """
+    try:  # before rclpy reads them: its own error names neither the file nor the line
+        for path in params_files(sys.argv if args is None else args):
+            read_parameter_file(path)
+    except ParameterFileError as exc:
+        print(exc, file=sys.stderr)
+        return 2
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    _stop.install()
+    node = spinner = None
+    code = 0
+    try:
+        node = make_node()
+        spinner = executor() if executor is not None else \
+            make_executor(getattr(node, 'executor_kind', 'single'))
+        spinner.add_node(node)
+        # Start-up objects (rclpy, the codec, the node: ~34,000) out of the collector's reach.
+        # A full collection over them took 14 ms (measured, navigation), a pause that lands on
+        # whatever record is in flight: the worst sensor-to-traction times were of that size.
+        # Frozen, a full collection scans only what the run itself keeps (~0 ms).
+        gc.collect()
+        gc.freeze()
+        if run is not None:
+            code = run(node, spinner)
+        else:
+            while running():  # not spin(): the EventsExecutor's misses the shutdown
+                spinner.spin_once(timeout_sec=0.1)
+    except ParameterError as exc:
+        print(exc, file=sys.stderr)
+        code = 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception:  # noqa: BLE001
+        if not _shutting_down():
+            code = 1
+            raise
+    finally:
+        _teardown(node, spinner, code)
+    return code

@@ -1,0 +1,297 @@
+"""Settings: every parameter of a node declared once, as a field of a settings dataclass.
+
+ROS-free. A field made with `setting()` carries its default, what it means and its constraints
+(range, choices, list length, whether it may change at run time). Nodes declare one ROS
+parameter per field from it (agv_nodes/params.py); the lock-step harness reads the same
+parameter file with `settings_from_file`; both build the dataclass through `build`, the one
+place values are checked. A nested settings dataclass gives dotted names (`wire.kp`), as ROS 2
+does for nested mappings in a parameter file. A dataclass may add a `problems()` method for
+checks that span fields; it returns (name, value, reason) triples.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+from dataclasses import MISSING, Field, dataclass, field, fields, is_dataclass
+import functools
+from pathlib import Path
+import re
+import typing
+from typing import Any
+
+import yaml
+
+SPEC = 'agv_nodes.setting'
+SCALARS = (bool, int, float, str)
+
+
+@dataclass(frozen=True)
+class Spec:
+    """What a setting means and what values it takes."""
+
+    description: str
+    lo: float | None = None
+    hi: float | None = None
+    choices: tuple[str, ...] = ()
+    length: int | None = None  # a list: exactly this many items (or none: "derive it")
+    read_only: bool = True  # False: may be set while the node runs
+
+    def text(self) -> str:
+        """The description with its constraints, as the parameter descriptor shows it."""
+        words = [self.description]
+        if self.choices:
+            words.append(f'(one of {", ".join(self.choices)})')
+        if self.lo is not None or self.hi is not None:
+            words.append(f'[{self.lo}, {self.hi}]')
+        return ' '.join(words)
+
+
+def setting(default: Any, description: str, *, lo: float | None = None, hi: float | None = None,
+            choices: tuple[str, ...] = (), length: int | None = None,
+            read_only: bool = True) -> Any:
+    """A dataclass field that is a node parameter (lists are stored as tuples)."""
+    if isinstance(default, list):
+        default = tuple(default)
+    return field(default=default, metadata={SPEC: Spec(description, lo, hi, tuple(choices),
+                                                        length, read_only)})
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One setting as a parameter: dotted name, type, default, spec."""
+
+    name: str
+    kind: type  # bool, int, float, str or tuple
+    item: type | None  # the element type of a tuple
+    default: Any
+    spec: Spec
+
+
+class SettingError(ValueError):
+    """A value a setting cannot take; names the parameter, the value and why."""
+
+    def __init__(self, name: str, value: Any, reason: str) -> None:
+        self.name, self.value, self.reason = name, value, reason
+        super().__init__(f'parameter {name!r} = {value!r}: {reason}')
+
+
+def _kind(hint: Any) -> tuple[type, type | None]:
+    if typing.get_origin(hint) is tuple:
+        return tuple, typing.get_args(hint)[0]
+    if hint in SCALARS:
+        return hint, None
+    raise TypeError(f'settings: unsupported type {hint!r}')
+
+
+@functools.cache
+def parameters(cls: type, prefix: str = '') -> tuple[Parameter, ...]:
+    """Every setting of `cls` and of its nested settings dataclasses, in declaration order."""
+    hints = typing.get_type_hints(cls)
+    out: list[Parameter] = []
+    for f in fields(cls):
+        hint = hints[f.name]
+        if SPEC in f.metadata:
+            kind, item = _kind(hint)
+            out.append(Parameter(prefix + f.name, kind, item, _default(f), f.metadata[SPEC]))
+        elif isinstance(hint, type) and is_dataclass(hint):
+            out.extend(parameters(hint, f'{prefix}{f.name}.'))
+    return tuple(out)
+
+
+def _default(f: Field) -> Any:
+    return f.default if f.default is not MISSING else f.default_factory()
+
+
+def _scalar(p: Parameter, kind: type, value: Any) -> Any:
+    if kind is bool:
+        if not isinstance(value, bool):
+            raise SettingError(p.name, value, 'must be true or false')
+        return value
+    if isinstance(value, bool) or not isinstance(value, (int, float) if kind is float else kind):
+        raise SettingError(p.name, value, {int: 'must be an integer', float: 'must be a number',
+                                           str: 'must be a string'}[kind])
+    if kind is float:
+        value = float(value)
+    if p.spec.choices and value not in p.spec.choices:
+        raise SettingError(p.name, value, f'not one of {list(p.spec.choices)}')
+    if (p.spec.lo is not None and value < p.spec.lo) or \
+            (p.spec.hi is not None and value > p.spec.hi):
+        raise SettingError(p.name, value, f'outside {p.spec.lo}..{p.spec.hi}')
+    return value
+
+
+def convert(p: Parameter, value: Any) -> Any:
+    """`value` as the setting holds it (a list as a tuple); SettingError when it cannot be."""
+    if p.kind is not tuple:
+        return _scalar(p, p.kind, value)
+    if value is None:  # an empty list in a parameter file has no type: ROS gives None
+        return ()
+    if not isinstance(value, (list, tuple)):
+        raise SettingError(p.name, value, 'must be a list')
+    items = tuple(_scalar(p, p.item, v) for v in value)
+    if p.spec.length is not None and items and len(items) != p.spec.length:
+        raise SettingError(p.name, list(value), f'needs exactly {p.spec.length} values')
+    return items
+
+
+def build(cls: type, values: Mapping[str, Any]) -> Any:
+    """An instance of the settings dataclass `cls` from parameter values by dotted name
+    (missing ones take their defaults); SettingError for an unknown name or a bad value."""
+    known = {p.name: p for p in parameters(cls)}
+    for name in values:
+        if name not in known:
+            raise SettingError(name, values[name], 'no such parameter')
+    converted = {name: convert(known[name], value) for name, value in values.items()}
+    obj = _assemble(cls, converted, '')
+    for name, value, reason in getattr(obj, 'problems', lambda: [])():
+        raise SettingError(name, value, reason)
+    return obj
+
+
+def _assemble(cls: type, values: Mapping[str, Any], prefix: str) -> Any:
+    hints = typing.get_type_hints(cls)
+    kwargs = {}
+    for f in fields(cls):
+        if not f.init:
+            continue
+        name, hint = prefix + f.name, hints[f.name]
+        if SPEC in f.metadata:
+            if name in values:
+                kwargs[f.name] = values[name]
+        elif isinstance(hint, type) and is_dataclass(hint):
+            kwargs[f.name] = _assemble(hint, values, name + '.')
+    return cls(**kwargs)
+
+
+def values_of(obj: Any) -> dict[str, Any]:
+    """The parameter values an instance holds, by dotted name (lists as lists)."""
+    out = {}
+    for p in parameters(type(obj)):
+        value: Any = obj
+        for part in p.name.split('.'):
+            value = getattr(value, part)
+        out[p.name] = list(value) if isinstance(value, tuple) else value
+    return out
+
+
+# -- ROS 2 parameter files ---------------------------------------------------------------------
+def _pattern(key: str) -> re.Pattern[str]:
+    """A parameter file's node key (`/**`, `/**/traction`, `traction`, `/agv2/traction`) as a
+    regular expression over a node's full name (`/traction`, `/agv2/traction`)."""
+    parts = []
+    for token in str(key).strip('/').split('/'):
+        parts.append({'**': '(?:/[^/]+)*', '*': '/[^/]+'}.get(token, '/' + re.escape(token)))
+    return re.compile(''.join(parts) + '$')
+
+
+def flatten(mapping: Mapping[str, Any], prefix: str = '') -> Iterator[tuple[str, Any]]:
+    """Nested parameter mappings as dotted names (what ROS 2 makes of them)."""
+    for key, value in mapping.items():
+        if isinstance(value, dict):
+            yield from flatten(value, f'{prefix}{key}.')
+        else:
+            yield prefix + str(key), value
+
+
+class ParameterFileError(ValueError):
+    """A parameter file that cannot be read, or a key no parameter of its node has."""
+
+
+def read_parameter_file(path: Path | str) -> dict[str, Any]:
+    """A ROS 2 parameter file's top-level mapping; ParameterFileError naming the file (and
+    the line, when YAML says which) if it cannot be read."""
+    path = Path(path)
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, 'problem_mark', None)
+        line = f' line {mark.line + 1}' if mark is not None else ''
+        reason = ' '.join(str(getattr(exc, 'problem', '') or exc).split())
+        raise ParameterFileError(f'{path}:{line}: not YAML: {reason}') from None
+    except OSError as exc:
+        raise ParameterFileError(f'{path}: cannot read: {exc.strerror}') from None
+    if not isinstance(doc, dict):
+        raise ParameterFileError(f'{path}: expected node names at the top level')
+    for key, section in doc.items():
+        if not isinstance(section, dict) or not isinstance(section.get('ros__parameters'),
+                                                              dict):
+            raise ParameterFileError(f'{path}: key {key!r}: needs a ros__parameters mapping')
+    return doc
+
+
+def parameter_file_values(path: Path | str, node: str,
+                          namespace: str = '') -> tuple[dict[str, Any], dict[str, Any]]:
+    """(shared, own): the values a parameter file gives one node, by dotted name.
+
+    `shared` comes from sections whose last part is a wildcard (`/**`: every node; a node
+    ignores the names it has no parameter for), `own` from sections that name the node
+    (`/**/traction`), where a name the node does not have is an error. Later sections win,
+    as in ROS 2.
+    """
+    full = f'{namespace.rstrip("/")}/{node}' if namespace else f'/{node}'
+    shared: dict[str, Any] = {}
+    own: dict[str, Any] = {}
+    for key, section in read_parameter_file(path).items():
+        if not _pattern(key).match(full):
+            continue
+        target = shared if str(key).rstrip('/').split('/')[-1] in ('*', '**') else own
+        target.update(flatten(section['ros__parameters']))
+    return shared, own
+
+
+def settings_from_file(cls: type, path: Path | str, node: str,
+                       overrides: Mapping[str, Any] | None = None,
+                       also_known: frozenset[str] = frozenset()) -> Any:
+    """`cls` as the node `node` gets it from a parameter file plus `overrides` (by dotted
+    name, as `-p NAME:=VALUE` would give them): what the lock-step harness runs with.
+    ParameterFileError names the file, node and key of a name the node does not have
+    (`also_known`: the node's parameters besides `cls` and every node's own)."""
+    known = {p.name for p in parameters(cls)}
+    shared, own = parameter_file_values(path, node)
+    for name, value in own.items():
+        if name not in known and name not in also_known and name not in node_level_names():
+            raise ParameterFileError(f'{path}: node {node}: unknown parameter {name!r} '
+                                     f'(= {value!r})')
+    values = {k: v for k, v in {**shared, **own}.items() if k in known}
+    values.update(overrides or {})
+    try:
+        return build(cls, values)
+    except SettingError as exc:
+        raise ParameterFileError(f'{path}: node {node}: {exc}') from None
+
+
+@dataclass
+class ProcessSettings:
+    """What every node process of the package has (agv_nodes/node_process.py)."""
+
+    executor: str = setting('events', "rclpy executor of the node's process: events "
+                            "(rclpy's EventsExecutor: about half the CPU, inputs taken in "
+                            'arrival order) or single (SingleThreadedExecutor)',
+                            choices=('events', 'single'))
+
+
+@dataclass
+class NodeSettings(ProcessSettings):
+    """What every sub-system node has besides its core's settings (agv_nodes/core_node.py)."""
+
+    record_integrity: str = setting('e2e', 'end-to-end protection of the inter-processor '
+                                    'records (none: a legacy peer sending plain thesis records)',
+                                    choices=('e2e', 'none'))
+    sim_progress: bool = setting(False, 'publish sim/progress/<node>, the sim time this node has '
+                                 'handled, for a simulated world to pace itself on (set by '
+                                 'agv-launch with world:=sim; never with hardware)')
+    fault_record: str = setting('', 'inject faults into this record on its way out (empty: '
+                                'none; agv-launch --fault)')
+    fault_loss: float = setting(0.0, 'fraction of fault_record records dropped', lo=0.0, hi=1.0)
+    fault_delay: float = setting(0.0, 'extra delay of fault_record records, s (released on the '
+                                 'next /clock step)', lo=0.0, hi=1.0)
+    fault_seed: int = setting(1, 'seed of the injected losses', lo=0, hi=2**31 - 1)
+
+
+# Parameters rclpy itself declares on every node.
+RCLPY_PARAMETERS = frozenset({'use_sim_time', 'start_type_description_service'})
+
+
+def node_level_names() -> frozenset[str]:
+    """Names any node may be given besides its core's settings."""
+    return RCLPY_PARAMETERS | {p.name for p in parameters(NodeSettings)}
