@@ -60,7 +60,8 @@ class SimProgress:
 
 class CoreNode(Node):
     """A node around one core (see the module docstring); subclasses add what a node has
-    besides its records (camera frames, text topics, /diagnostics)."""
+    besides its records (camera frames, text topics, /diagnostics).
+    """
 
     sent_stamps = False  # (msg, info) readers: see RecordSubscription
 
@@ -84,7 +85,8 @@ class CoreNode(Node):
 
     def extend(self) -> None:
         """Declare what a subclass needs besides the core's settings (before the check for
-        parameters nobody declared)."""
+        parameters nobody declared).
+        """
 
     def _attach(self, progress: SimProgress | None) -> None:
         ns = self.node_settings
@@ -122,7 +124,8 @@ class CoreNode(Node):
 
     def periodic(self, period: float, callback: Callable[[], None]) -> None:
         """Call `callback` every `period` s of ROS time, as a rclpy timer would (under sim
-        time with the EventsExecutor: from the node's own /clock reader, see ClockTimers)."""
+        time with the EventsExecutor: from the node's own /clock reader, see ClockTimers).
+        """
         if self._clock_timers is not None:
             self._clock_timers.add(period, callback)
         else:
@@ -130,7 +133,8 @@ class CoreNode(Node):
 
     def ros_now_s(self) -> float:
         """ROS time in seconds (sim time when use_sim_time is set): under the EventsExecutor
-        the latest /clock taken in arrival order (ClockTimers), else the ROS clock."""
+        the latest /clock taken in arrival order (ClockTimers), else the ROS clock.
+        """
         if self._clock_timers is not None and self._clock_timers.now_ns is not None:
             return self._clock_timers.now_ns * 1e-9
         return self.get_clock().now().nanoseconds * 1e-9

@@ -52,7 +52,8 @@ def silent_links(links: list[str], accepted: dict[str, dict[str, int]]) -> list[
     """The 'reader:record' links of `links` whose reader has accepted no record yet, from the
     readers' `/diagnostics` inputs rows (`accepted`: node -> record -> count). A node's row
     lists only the records it decodes (the world's pacing readers are not in it), and a node
-    not heard from yet has every link silent."""
+    not heard from yet has every link silent.
+    """
     silent = []
     for link in links:
         node, sep, record = link.partition(':')
@@ -65,13 +66,13 @@ def silent_links(links: list[str], accepted: dict[str, dict[str, int]]) -> list[
 
 
 def accepted_counts(values: dict[str, str]) -> dict[str, int]:
-    """record -> records accepted, from one inputs row's values (`'<record> accepted'`)."""
+    """Record -> records accepted, from one inputs row's values (`'<record> accepted'`)."""
     return {key[:-len(' accepted')]: int(value) for key, value in values.items()
             if key.endswith(' accepted') and value.isdigit()}
 
 
 def inputs_accepted(msg: Any) -> dict[str, dict[str, int]]:
-    """node -> record -> accepted, from the `agv[/ns]/<node>/inputs` rows of a DiagnosticArray."""
+    """Node -> record -> accepted, from the `agv[/ns]/<node>/inputs` rows of a DiagnosticArray."""
     out: dict[str, dict[str, int]] = {}
     for status in msg.status:
         parts = status.name.split('/')

@@ -233,7 +233,8 @@ def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
     """World + all seven node cores in lock step, each with the settings a launched node of the
     graph gets: the graph's parameter file (config/agv_demo.yaml), what the layout sets
     (`layout_parameters`), then `overrides` ({node: {name: value}}, as agv-launch's
-    `-p NODE:NAME:=VALUE`). `seed` seeds the world and the harness."""
+    `-p NODE:NAME:=VALUE`). `seed` seeds the world and the harness.
+    """
     from agv_nodes.communications.core import CommunicationsCore
     from agv_nodes.executive.core import ExecutiveCore
     from agv_nodes.load_handling.core import LoadHandlingCore

@@ -1,7 +1,8 @@
 """The marker facts of Baker (1983): patterns, templates and the detector threshold tables.
 
 Shared by the world (which draws the cards and calibrates its photodiode model) and the
-position sensor (which thresholds and matches). Everything is in CODE space (spec 2.5): the
+position sensor (which thresholds and matches). Everything is in CODE space (Baker 1983, 5.3.5.2):
+the
 high nibble is image row R1, the low nibble row R2, and bit 3 of a nibble is column C1, the
 column that sees a feature first during forward travel; detector d = 1..8 (ADC address d-1) is
 row R1 column C_d for d <= 4 and row R2 column C_(d-4) otherwise.
@@ -14,14 +15,15 @@ LIT_FIELDS = tuple(f'lit_{d}' for d in range(1, 9))
 DARK_FIELDS = tuple(f'dark_{d}' for d in range(1, 9))
 SNAPSHOT_FIELDS = LIT_FIELDS + DARK_FIELDS
 
-# Location markers (spec 3.2; templates of UCTAB): rows R1/R2, columns C1..C4.
+# Location markers (Baker 1983, 4.3, fig 4.6; templates of UCTAB): rows R1/R2, columns C1..C4.
 LOCATION_PATTERNS: dict[int, tuple[str, str]] = {
     0: ('BWWW', 'WBBB'),  # 78H
     1: ('BBWW', 'WWBB'),  # 3CH
     2: ('BWBW', 'WBWB'),  # 5AH
     3: ('BBBW', 'WWWB'),  # 1EH
 }
-# The 200 x 80 mm stop strip S1..S10 reconstructed from the EDGE table (spec 3.3): view k is
+# The 200 x 80 mm stop strip S1..S10 reconstructed from the EDGE table (Baker 1983, 4.3, fig 4.4):
+# view k is
 # columns S(8-k)..S(11-k); the centre view 4 is S4..S7.
 STOP_STRIP: tuple[str, str] = ('BBBWBWBBBB', 'BBBBBWWBBB')
 WHITE_CARD: tuple[str, str] = ('WWWW', 'WWWW')  # all-white control of the belt tests (7.1.2)
@@ -31,11 +33,12 @@ ELEMENT_HEIGHT = 0.040  # m
 EDIM = 0x0E  # identity reported for the stop-marker centre view while navigating
 SLOW1 = 0x14  # 20 % duty: positioning creep speed (PC6/1 constant at 0022H)
 
-# UCTAB (PC6/1 0031H): template -> identity, in listing order (spec 2.6).
+# UCTAB (PC6/1 0031H): template -> identity, in listing order (Baker 1983, App. B.1).
 LOCATION_TABLE: tuple[tuple[int, int], ...] = (
     (0x78, 0), (0x5A, 2), (0x3C, 1), (0x1E, 3), (0xA3, EDIM))
-# EDGE (PC6/1 0023H): views 1-7, template and speed byte (spec 2.6), and the distance still to
-# travel to the stop point when the view is aligned (spec 3.3, fig 4.4b), mm.
+# EDGE (PC6/1 0023H): views 1-7, template and speed byte (Baker 1983, App. B.1), and the distance
+# still to
+# travel to the stop point when the view is aligned (Baker 1983, 4.3, fig 4.4b), mm.
 STOP_VIEWS: tuple[tuple[int, int, int], ...] = (
     (0x08, SLOW1, 60), (0x8C, SLOW1, 40), (0x46, SLOW1, 20), (0xA3, 0x00, 0),
     (0x51, SLOW1, -20), (0x20, SLOW1, -40), (0x10, SLOW1, -60))
@@ -69,7 +72,7 @@ def trough_and_peak(unit: str, fraction: tuple[float, float] = (0.2, 0.8)) -> li
     """Per detector (trough, peak) in x4 units implied by threshold = trough + p * amplitude.
 
     The thesis set WHITE at 80 % and BLACK at 20 % of the worst-case amplitude (7.1.3); reading
-    the percentages from the trough fits Table 7.1 (spec 2.4, 2.9).
+    the percentages from the trough fits Table 7.1 (Baker 1983, 7.1.3, Table 7.1).
     """
     lo, hi = fraction
     out = []

@@ -28,7 +28,8 @@ from agv_nodes.settings import ParameterFileError, read_parameter_file
 
 
 def make_executor(kind: str = 'single') -> Any:
-    """The executor for one node process (never MultiThreadedExecutor: anchors.md 3.3).
+    """Return the executor for one node process (never MultiThreadedExecutor: it drops
+    messages at these rates).
 
     `events` is rclpy's EventsExecutor (rclpy.experimental in Jazzy): measured on the demo
     graph it halves each node's CPU (bench/graph_bench.py), which is what lets the full
@@ -82,7 +83,8 @@ _stop = _StopRequest()
 
 def running() -> bool:
     """True while the node process should keep spinning: the context is up and no SIGINT or
-    SIGTERM has come (spin_main's handlers)."""
+    SIGTERM has come (spin_main's handlers).
+    """
     return not _stop.requested and rclpy.ok()
 
 
@@ -90,7 +92,8 @@ def _shutting_down(wait: float = 0.5) -> bool:
     """True when SIGINT is shutting the context down (rclpy's signal thread does it a moment
     after the signal). Meanwhile rclpy 7.1 can raise from inside the executor - RCLError
     'context is not valid' between two waits, RuntimeError from take_message - instead of
-    ExternalShutdownException; both are a clean exit, any other error is not."""
+    ExternalShutdownException; both are a clean exit, any other error is not.
+    """
     deadline = time.monotonic() + wait
     while rclpy.ok():
         if time.monotonic() > deadline:
@@ -110,7 +113,7 @@ def _teardown(node: Node | None, spinner: Any, code: int, limit: float = TEARDOW
     callbacks hung 2 of 6 wall-clock shutdowns. Even so about one in twenty wall-clock
     shutdowns (test_wall_clock_dds, 2 in 44 runs) left a node in Fast DDS's entity deletion
     (seen in `delete_datareader`, py-spy), deaf to SIGINT and SIGTERM until the launcher's
-    SIGKILL: a Fast DDS teardown deadlock (eProsima/Fast-DDS#6193 reports a similar one).
+    SIGKILL: a Fast DDS teardown deadlock (a known class of Fast DDS entity-deletion deadlock).
     Everything the node owes is done by then, so past `limit` it says so, with every thread's
     stack, and exits with its status rather than wait for a SIGKILL.
     """

@@ -83,7 +83,8 @@ def descriptor(p: Parameter) -> ParameterDescriptor:
 
 def parameter_error(node: Node, name: str, value: Any, reason: str) -> ParameterError:
     """The one-line error that stops a node's start-up: node, parameter, value, reason and
-    the parameter files it was given."""
+    the parameter files it was given.
+    """
     return ParameterError(f'{node.get_name()}: parameter {name!r} = {value!r}: {reason}'
                           f'{_where()}')
 
@@ -120,7 +121,8 @@ def declare(node: Node, cls: type) -> Any:
 
 def refuse_unknown(node: Node) -> None:
     """Stop start-up on a parameter the node does not have: in a parameter file section that
-    names this node, or given on the command line (-p); an unreadable file stops it too."""
+    names this node, or given on the command line (-p); an unreadable file stops it too.
+    """
     declared = set(node.get_parameters_by_prefix(''))
     shared: set[str] = set()
     for path in params_files():

@@ -54,7 +54,8 @@ def check_version() -> bool:
 
 def drop_clock_reader(node: Any) -> Any | None:
     """Destroy the /clock subscription of `node`'s TimeSource and return the TimeSource (so
-    the caller can feed it), or None when this rclpy does not have one where expected."""
+    the caller can feed it), or None when this rclpy does not have one where expected.
+    """
     check_version()
     time_source = getattr(node, '_time_source', None)
     own = getattr(time_source, '_clock_sub', None)
@@ -67,7 +68,8 @@ def drop_clock_reader(node: Any) -> Any | None:
 
 def parameter_overrides(node: Any) -> Mapping[str, Any]:
     """The values `node` was given for its parameters (files and -p), by name; empty when
-    this rclpy keeps them elsewhere."""
+    this rclpy keeps them elsewhere.
+    """
     check_version()
     overrides = getattr(node, '_parameter_overrides', None)
     return {name: getattr(p, 'value', p) for name, p in (overrides or {}).items()}
@@ -75,7 +77,8 @@ def parameter_overrides(node: Any) -> Mapping[str, Any]:
 
 def take_all(subscription: Any, limit: int) -> Iterator[tuple[bytes, dict[str, Any]]]:
     """(serialized message, message info) of each message queued on a raw subscription,
-    oldest first, at most `limit`."""
+    oldest first, at most `limit`.
+    """
     check_version()
     handle = subscription.handle
     for _ in range(limit):

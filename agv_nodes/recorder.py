@@ -268,7 +268,8 @@ class Recorder(Node):
 
     def _release(self, final: bool) -> None:
         """Write the held messages that the clock samples taken place (all of them when
-        `final`, and any held longer than `hold`: a world that stopped publishing /clock)."""
+        `final`, and any held longer than `hold`: a world that stopped publishing /clock).
+        """
         if not self._held:
             return
         latest = self.timeline.latest_ns()

@@ -52,7 +52,8 @@ class RecordPublisher(RecordWriter):
 
 def node_time(node: Node) -> Callable[[], int]:
     """The node's time in ns: a CoreNode's ros_now_s (its FIFO /clock under the
-    EventsExecutor, see core_node.ClockTimers), else the ROS clock."""
+    EventsExecutor, see core_node.ClockTimers), else the ROS clock.
+    """
     ros_now_s = getattr(node, 'ros_now_s', None)
     if ros_now_s is not None:
         return lambda: round(ros_now_s() * 1e9)
@@ -61,7 +62,8 @@ def node_time(node: Node) -> Callable[[], int]:
 
 def record_bytes(raw: bytes) -> bytes:
     """The record in a serialized UInt8MultiArray: read straight from the CDR when it has the
-    shape this package sends, else through rclpy's deserializer (a foreign writer's layout)."""
+    shape this package sends, else through rclpy's deserializer (a foreign writer's layout).
+    """
     data = uint8_array_data(raw)
     if data is None:
         data = bytes(deserialize_message(raw, UInt8MultiArray).data)
@@ -70,7 +72,8 @@ def record_bytes(raw: bytes) -> bytes:
 
 def clock_time_ns(raw: bytes) -> int:
     """The time in a serialized rosgraph_msgs/Clock, ns: read straight from the CDR when it
-    has the shape the world sends, else through rclpy's deserializer."""
+    has the shape the world sends, else through rclpy's deserializer.
+    """
     ns = clock_ns(raw)
     if ns is None:
         msg = deserialize_message(raw, Clock)
@@ -219,7 +222,8 @@ class LinkAnnouncer:
 
 def parse_links(text: str) -> tuple[str, set[str], dict[str, int]]:
     """`"<node> rec1 rec2 ... out1>N1 ..."` (LinkAnnouncer) -> (node, {inputs matched},
-    {output: readers matched})."""
+    {output: readers matched}).
+    """
     words = text.split()
     inputs, outputs = set(), {}
     for word in words[1:]:

@@ -136,7 +136,8 @@ def convert(p: Parameter, value: Any) -> Any:
 
 def build(cls: type, values: Mapping[str, Any]) -> Any:
     """An instance of the settings dataclass `cls` from parameter values by dotted name
-    (missing ones take their defaults); SettingError for an unknown name or a bad value."""
+    (missing ones take their defaults); SettingError for an unknown name or a bad value.
+    """
     known = {p.name: p for p in parameters(cls)}
     for name in values:
         if name not in known:
@@ -177,7 +178,8 @@ def values_of(obj: Any) -> dict[str, Any]:
 # -- ROS 2 parameter files ---------------------------------------------------------------------
 def _pattern(key: str) -> re.Pattern[str]:
     """A parameter file's node key (`/**`, `/**/traction`, `traction`, `/agv2/traction`) as a
-    regular expression over a node's full name (`/traction`, `/agv2/traction`)."""
+    regular expression over a node's full name (`/traction`, `/agv2/traction`).
+    """
     parts = []
     for token in str(key).strip('/').split('/'):
         parts.append({'**': '(?:/[^/]+)*', '*': '/[^/]+'}.get(token, '/' + re.escape(token)))
@@ -199,7 +201,8 @@ class ParameterFileError(ValueError):
 
 def read_parameter_file(path: Path | str) -> dict[str, Any]:
     """A ROS 2 parameter file's top-level mapping; ParameterFileError naming the file (and
-    the line, when YAML says which) if it cannot be read."""
+    the line, when YAML says which) if it cannot be read.
+    """
     path = Path(path)
     try:
         doc = yaml.safe_load(path.read_text())
@@ -245,7 +248,8 @@ def settings_from_file(cls: type, path: Path | str, node: str,
     """`cls` as the node `node` gets it from a parameter file plus `overrides` (by dotted
     name, as `-p NAME:=VALUE` would give them): what the lock-step harness runs with.
     ParameterFileError names the file, node and key of a name the node does not have
-    (`also_known`: the node's parameters besides `cls` and every node's own)."""
+    (`also_known`: the node's parameters besides `cls` and every node's own).
+    """
     known = {p.name for p in parameters(cls)}
     shared, own = parameter_file_values(path, node)
     for name, value in own.items():

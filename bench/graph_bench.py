@@ -1,4 +1,4 @@
-"""Live-graph benchmark (issue 8): the nine processes over DDS at a given time factor.
+"""Live-graph benchmark: the nine processes over DDS at a given time factor.
 
 Runs the demo graph with the recorder for a while with the truck cruising (task
 "srm at 1 angle 15" keeps it moving), samples each process's CPU from /proc, then reads the
@@ -123,7 +123,8 @@ def lockstep() -> None:
 def where_the_time_goes(seconds: float = 60.0) -> None:
     """Wall time per simulated second by part, over the programme's first minute (timers
     around the world's step and each core's calls; the rest is the harness's delivery and the
-    codec): what a real-time factor of 100 (10 ms a simulated second) would have to fit in."""
+    codec): what a real-time factor of 100 (10 ms a simulated second) would have to fit in.
+    """
     h = truck('demo_1983', seed=1)
     for text in DEMO_PROGRAMME:
         submit(h, text)

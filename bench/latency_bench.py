@@ -1,4 +1,4 @@
-"""Sensor-to-traction latency from a recorded run (issue 8), hop by hop, in sim time.
+"""Sensor-to-traction latency from a recorded run, hop by hop, in sim time.
 
 Run: .venv/bin/python bench/latency_bench.py BAG [BAG ...]
      (a bag of `agv-demo`, `bench/graph_bench.py` or `agv-launch --bag`)
@@ -17,7 +17,7 @@ so the bag holds each hop of the chain the 1983 truck ran on a recognition:
 Sensor-to-traction is 1 + 2 + 3 for each recognition that changed the link. Under sim time every
 node's clock moves in /clock steps (3 samples, 8.8 ms), which quantises hops 2 and 3 in a bag.
 
-`--live` measures the same hops in wall time on a running graph instead (issue 8's "live graph
+`--live` measures the same hops in wall time on a running graph instead (the "live graph
 at real time"): it launches the graph (recorder included, as in the demo) at `--time-factor`,
 runs the first `--tasks` tasks of the demonstration programme (default 2, the quick programme:
 two stops and a landmark each), and a probe in this process
@@ -50,7 +50,8 @@ TOPICS = {'/hw/position_sensor/adc': 'adc_snapshot',
 
 def read(bag: Path) -> dict[str, list]:
     """Sent times (s) of every ADC snapshot and traction_drive; (time, fields) of the statuses
-    and links."""
+    and links.
+    """
     from rosbags.highlevel import AnyReader
 
     c = codec()
@@ -179,7 +180,8 @@ def why(launch, lines: list[str]) -> str:
 def live(time_factor: float, extra: dict[str, list[str]], tasks: int = 2,
          realtime: int = 0) -> dict[str, list]:
     """Run the first `tasks` tasks of the demonstration programme on a launched graph; every
-    message's send time (wall s)."""
+    message's send time (wall s).
+    """
     from agv_nodes.demo import comms_handshake
     from agv_nodes.harness import DEMO_PROGRAMME
 

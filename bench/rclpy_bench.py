@@ -1,4 +1,4 @@
-"""What one subscription costs a node process: the floor under issue 8's CPU per node.
+"""What one subscription costs a node process: the floor under each node's CPU.
 
 A publisher process sends /clock (or, with `--message record`, a 16-byte record as a
 std_msgs/UInt8MultiArray) at RATE Hz; a subscriber process takes it with an empty callback, in

@@ -1,4 +1,4 @@
-"""Recognition benchmark on the belt rig of thesis 7.1.1 (issue 4).
+"""Recognition benchmark on the belt rig of thesis 7.1.1.
 
 The six test patterns (locations 0-3, the stop marker, all white) pass the sensor on a belt at a
 set speed, standoff, height and angle; the world's photodiode model makes the ADC snapshots and
@@ -44,7 +44,8 @@ def run_belt(speed: float, standoff: float = 0.300, height: float = 0.0, angle: 
 
     With `misses`, each missed pass is appended to it with one character per snapshot while
     the card is in front of the lens: '.' invalid, '-' a code of no template, else the template
-    matched (E = the stop-marker centre), '*' after a match some detector held."""
+    matched (E = the stop-marker centre), '*' after a match some detector held.
+    """
     lay = _rig_layout(speed, standoff, height, angle)
     rng = random.Random(seed)
     skew = tuple(rng.uniform(-skew_mm, skew_mm) / 1000 for _ in range(8))
@@ -132,7 +133,8 @@ MOTIONS = {
 
 def lens_track(kind: str, rng: random.Random, centre: float, dt: float = 1 / 340):
     """Lens positions along the belt, one per snapshot, for a truck moving as MOTIONS[kind]
-    says past a card at `centre` from 0.4 m before it to 0.4 m after (cruise 0.3-1.2 m/s)."""
+    says past a card at `centre` from 0.4 m before it to 0.4 m after (cruise 0.3-1.2 m/s).
+    """
     v0, acc, s = rng.uniform(0.3, 1.2), rng.uniform(0.3, 2.0), centre - 0.4
     if kind == 'stop':
         stop_at, v = centre + rng.uniform(-0.1, 0.1), v0
@@ -173,7 +175,8 @@ def lens_track(kind: str, rng: random.Random, centre: float, dt: float = 1 / 340
 def motion_study(trials: int, decoders: tuple[str, ...] = ('snapshot', 'sequence')) -> None:
     """Cards met while the truck stops, reverses or changes speed over them: each trial draws
     a standoff (280-320 mm), height (+-10 mm), detector skew (+-3 mm) and one track per card;
-    every decoder sees the same snapshots."""
+    every decoder sees the same snapshots.
+    """
     print(f'\nCards met at changing speed ({trials} trials x 6 patterns per motion; noise 2 '
           'counts)\n')
     print('| motion | decoder | cards | recognised | misreads |\n|---|---|---|---|---|')

@@ -1,4 +1,4 @@
-"""Route-following benchmark (issue 6): guide wire on demo_1983, SRM landings, camera guidance.
+"""Route-following benchmark: guide wire on demo_1983, SRM landings, camera guidance.
 
 Run: .venv/bin/python bench/route_bench.py [wire] [srm] [circle] [step] [recovery] [stop]
      [junction]
@@ -97,7 +97,8 @@ def camera_point(world: WorldCore) -> tuple[float, float]:
 def camera_truck(world: WorldCore, speed: float, law: str = 'p', gain_i: float = 0.0,
                  gain_theta: float = 0.0, schedule: float = 0.0) -> tuple[Harness, RouteCore]:
     """The CONCIC-II on `world`, route following in camera mode with the given law ('pi_b':
-    PI whose integral gathers only within 10 mm of the tape, the integral_band option)."""
+    PI whose integral gathers only within 10 mm of the tape, the integral_band option).
+    """
     route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed,
                                   steering=SteeringParams(law=law[:2], gain_i=gain_i,
                                                           gain_theta=gain_theta,
@@ -119,7 +120,8 @@ def camera_trace(h: Harness, world: WorldCore, until: float) -> list[tuple[float
 
 def tape(*strips: tuple[str, list[float], float]):
     """tape_1991 with its tape replaced by straight strips (name, [x, y, heading], length),
-    no road signs; the vehicle starts 1 m along the first."""
+    no road signs; the vehicle starts 1 m along the first.
+    """
     lay = load_layout(layout_path('tape_1991'))
     width = lay.paths['circle'].width
     lay.paths = {name: build_path(name, start, [{'straight': length}], 0.02, lay.file, name,
@@ -162,7 +164,8 @@ def camera_recovery(law: str, gain_i: float, gain_theta: float, speed: float, of
                     angle_deg: float, schedule: float = 0.0) -> tuple[float, float, float]:
     """Start `offset` m beside the tape (at the camera) and `angle_deg` off its heading (thesis
     S5: -0.08 m and 40 deg at 0.471 m/s): worst |error| (mm), time to stay within 5 mm (s),
-    steady error (mm); nan when the tape is lost."""
+    steady error (mm); nan when the tape is lost.
+    """
     world = WorldCore(tape(('a', [-1.0, 0.0, 0.0], 30.0)), WorldParams(seed=2))
     s = world.vehicle.state
     s.heading = math.radians(angle_deg)
@@ -181,7 +184,8 @@ def camera_recovery(law: str, gain_i: float, gain_theta: float, speed: float, of
 def camera_stop(speed: float) -> tuple[float, float]:
     """The tape ends: four absent frames turn the motors off (thesis 7.3.4). Returns the
     distance coasted after motor-off (mm) and the distance from the tape's end to rest (mm),
-    both at the camera."""
+    both at the camera.
+    """
     world = WorldCore(tape(('a', [-1.0, 0.0, 0.0], 4.0)), WorldParams(seed=2))
     h, route = camera_truck(world, speed)
     off_x = None
@@ -197,7 +201,8 @@ def camera_stop(speed: float) -> tuple[float, float]:
 
 def camera_junction(junction: str, speed: float) -> dict[str, float | str]:
     """Take a branch of junction_1991's R2 crossing (App. F.6): where the spin began, the
-    heading it ended on, the camera's offset on the branch then and over the next 3 s."""
+    heading it ended on, the camera's offset on the branch then and over the next 3 s.
+    """
     lay = load_layout(layout_path('junction_1991'))
     world = WorldCore(lay, WorldParams(seed=3))
     route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed))

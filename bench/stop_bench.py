@@ -1,4 +1,4 @@
-"""Stop-accuracy benchmark: repeated stops at a stop marker, both stopping modes (issue 4).
+"""Stop-accuracy benchmark: repeated stops at a stop marker, both stopping modes.
 
 Each run is a fresh truck on straight_track (seeded; start position varied), told "stop at 1
 first": it cruises at the given demand, navigation slows it at location 1 and stops it at its
@@ -26,7 +26,8 @@ def one_stop(seed: int, demand: int, payload: float, mode: str,
              trace: list[str] | None = None, link_reaction: str = 'at_once') -> dict:
     """One run; returns the stop error (mm) and the speed at the location marker. With
     `trace`, every change of navigation's view or link while positioning is appended to it
-    with the ground truth (sensor axis past the centre, mm) and the truck's speed."""
+    with the ground truth (sensor axis past the centre, mm) and the truck's speed.
+    """
     controlled = mode == 'controlled'
     h = truck('straight_track', seed=seed, overrides={
         'world': {'electruk.payload': payload},

@@ -1,4 +1,4 @@
-"""Traction benchmark: speed steps on the world core, open loop (1983) and closed loop (issue 5).
+"""Traction benchmark: speed steps on the world core, open loop (1983) and closed loop.
 
 A stand-in executive commands a demand step on straight_track; traction drives the simulated
 Electruk. Printed: time to 90 % of the final speed, overshoot, 2 % settling time and steady

@@ -112,7 +112,8 @@ def exit_point(name: str, pos: dict, start: tuple[float, float],
 
 def anchor(name: str, pos: dict, other: str) -> tuple[float, float]:
     """The point a box aims from: a wide box aims from the part of it above or below the
-    other node (its own centre for a node beside it)."""
+    other node (its own centre for a node beside it).
+    """
     x, y = pos[name]
     if name in WIDE and abs(pos[other][1] - y) > BOX_H:
         half = WIDE[name] / 2 - 0.4

@@ -1,7 +1,7 @@
 """Test-session set-up: a ROS domain of our own, localhost discovery, hypothesis profiles.
 
 Same-host graphs on one ROS_DOMAIN_ID cross-talk even with localhost-only discovery
-(anchors.md section 7), so the session claims a free domain id 1-232 with an exclusive lock
+(measured), so the session claims a free domain id 1-232 with an exclusive lock
 file before anything touches rclpy, and every child process inherits it. Domain 0 is never used.
 """
 
@@ -52,7 +52,7 @@ settings.register_profile('long', max_examples=5000, deadline=None,
 settings.load_profile(os.environ.get('AGV_HYPOTHESIS_PROFILE', 'ci'))
 
 # The venv's own python must start node processes (it re-executes itself to set
-# LD_LIBRARY_PATH for the ROS wheels; anchors.md section 8).
+# LD_LIBRARY_PATH for the ROS wheels).
 PYTHON = sys.executable
 
 

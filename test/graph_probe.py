@@ -107,7 +107,7 @@ class GraphProbe:
                 self.inputs[st.hardware_id] = {kv.key: kv.value for kv in st.values}
 
     def accepted(self) -> dict[str, dict[str, int]]:
-        """node -> record -> records accepted, from the latest /diagnostics inputs rows."""
+        """Node -> record -> records accepted, from the latest /diagnostics inputs rows."""
         from agv_nodes.demo import accepted_counts
 
         return {node: accepted_counts(values) for node, values in self.inputs.items()}

@@ -1,6 +1,6 @@
 """Malformed records for the fuzz tests: hypothesis strategies of defects, applied per topic.
 
-Every recipe makes a record the receiving port must reject (issue 9: wrong lengths, random
+Every recipe makes a record the receiving port must reject (wrong lengths, random
 bytes, bad CRC, repeated or skipped counters, spare bits set, out-of-range values). Recipes
 that need a live counter start from the latest genuine record seen on the topic (`genuine`).
 

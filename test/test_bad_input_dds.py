@@ -100,7 +100,8 @@ class Graph:
 
     def spin_until(self, condition, what: str, wall_limit: float = 60.0) -> None:
         """Spin until `condition()` holds; a /diagnostics row comes once a (sim) second, and
-        how much wall time that takes depends on the machine, so wait for it, not a fixed time."""
+        how much wall time that takes depends on the machine, so wait for it, not a fixed time.
+        """
         deadline = time.monotonic() + wall_limit
         while not condition():
             assert time.monotonic() < deadline, f'{what} within {wall_limit:.0f} s (wall)'

@@ -24,7 +24,7 @@ import pytest
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
-DRIVE_OFF_WITHIN = 0.200  # s (sim), issue 9
+DRIVE_OFF_WITHIN = 0.200  # s (sim): the fault budget
 LIMIT = 4.0  # m, the executive's positioning_limit (default)
 
 

@@ -29,7 +29,8 @@ DEMO = str(Path(PYTHON).parent / 'agv-demo')
 def run_demo(out: Path, *extra: str, timeout: float = 900) -> subprocess.CompletedProcess:
     """agv-demo as a user runs it; past `timeout` it gets SIGINT, so that it stops its graph
     (a SIGKILLed demo would leave nine nodes running on the session's domain, and every
-    later graph test would cross-talk with them)."""
+    later graph test would cross-talk with them).
+    """
     proc = subprocess.Popen([DEMO, '--out', str(out), *extra], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:
@@ -48,7 +49,8 @@ def run_demo(out: Path, *extra: str, timeout: float = 900) -> subprocess.Complet
 
 def node_warnings(out: Path, limit: int = 25) -> str:
     """The world's start line and the nodes' warnings and errors from a demo's logs: a failed
-    run's CI output then says what each node saw, not only what agv-demo heard."""
+    run's CI output then says what each node saw, not only what agv-demo heard.
+    """
     lines = []
     for log in sorted((out / 'logs').glob('*.log')):
         for line in log.read_text(errors='replace').splitlines():
@@ -96,7 +98,7 @@ def test_bag_is_rosbag2_v9_mcap_with_qos(quick):
 
 
 def test_bag_read_two_ways_agrees(quick):
-    """rosbags and mcap + mcap-ros2-support see the same messages, types and record bytes."""
+    """Rosbags and mcap + mcap-ros2-support see the same messages, types and record bytes."""
     from rosbags.highlevel import AnyReader
 
     bag = quick / 'bag'
@@ -178,7 +180,8 @@ def test_full_demonstration_programme_over_dds(tmp_path):
 
 def test_traction_board_example_replays_the_recorded_drive(quick):
     """examples/traction_pwm_board.py offline on the quick run's bag: every traction_drive
-    decodes, and the main contactor closes once traction's watchdog count runs."""
+    decodes, and the main contactor closes once traction's watchdog count runs.
+    """
     res = subprocess.run([PYTHON, str(REPO / 'examples' / 'traction_pwm_board.py'), '--bag',
                           str(quick / 'bag')], capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
@@ -190,7 +193,8 @@ def test_traction_board_example_replays_the_recorded_drive(quick):
 def test_marker_board_example_drives_a_real_position_sensor(quick):
     """Swap the world for the marker-sensor board (world:=none): the example replays the quick
     run's ADC snapshots around the first location marker into a position_sensor node of its own
-    (wall time), which reads L0 from them as it did in the run."""
+    (wall time), which reads L0 from them as it did in the run.
+    """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rosbags.highlevel import AnyReader

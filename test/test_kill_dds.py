@@ -28,7 +28,7 @@ import pytest
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
-DRIVE_OFF_WITHIN = 0.200  # simulated s from the kill to the drive no longer pushing (issue 9)
+DRIVE_OFF_WITHIN = 0.200  # simulated s from the kill to the drive no longer pushing
 # Traction itself silent: the world's trip relay drops 200 ms after the last retrigger it
 # received (thesis B.2.1's monostable), seen at the next 340 Hz sample. A retrigger traction
 # sent just before the kill can reach the world after it: the paced world runs at most
@@ -114,7 +114,8 @@ def _alive(pid: int) -> bool:
 
 def test_a_sigkilled_launcher_takes_its_nodes_with_it():
     """No graph is left running on the domain when agv-launch itself is killed (it then runs
-    no clean-up): each node was started through agv_nodes.graph.child (PR_SET_PDEATHSIG)."""
+    no clean-up): each node was started through agv_nodes.graph.child (PR_SET_PDEATHSIG).
+    """
     import os
     import subprocess
     import sys

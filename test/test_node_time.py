@@ -1,5 +1,6 @@
 """A node's time and distance: ClockTimers (FIFO /clock under the EventsExecutor) and the
-wheel encoders' odometer. No DDS: the /clock reader is fed directly."""
+wheel encoders' odometer. No DDS: the /clock reader is fed directly.
+"""
 
 from __future__ import annotations
 

@@ -108,7 +108,8 @@ def test_invalid_band_gives_no_code():
 
 def test_hold_band_extends_a_streak_but_needs_one_decided_snapshot():
     """invalid_band = hold: a detector in its band keeps its last decision; held codes alone
-    never make a recognition, one fully decided snapshot completes the streak."""
+    never make a recognition, one fully decided snapshot completes the streak.
+    """
     hold, thesis = (snapshot_core(run_length=1, invalid_band=band)
                     for band in ('hold', 'invalid'))
     blurred, dark = snapshot_for(0x1E)  # location 3, detector 1 (BLACK in it) in its band
@@ -145,7 +146,8 @@ def test_as_listed_variant_never_matches_views_6_and_7():
 
 def test_as_listed_black_test_compares_high_bytes_only():
     """Detector 6 (THROFF 262, THRON 456): a TOTAL of 300 is invalid as intended, black as
-    listed (its band disappears, spec 2.4)."""
+    listed (its band disappears, Baker 1983, App. B.1).
+    """
     lit, dark = snapshot_for(0x78)
     lit[5] = 75 + 10  # 4 x 75 = 300
     intended = snapshot_core(min_consecutive_matches=1)
@@ -160,7 +162,8 @@ def passing_card(code: int, element: float = 7.0, before: int = 10, reverse: boo
                  stretch_at: int | None = None) -> list[list[float]]:
     """Band-unit snapshots (white 2.0, black -0.6) of a card with `code` crossing the image
     from C1 to C4 (C4's element first in time), `element` snapshots per element; `stretch_at`
-    holds the card still for 40 snapshots from that snapshot on (a truck stopping on it)."""
+    holds the card still for 40 snapshots from that snapshot on (a truck stopping on it).
+    """
     frames, t, k = [], 0.0, 0
     end = before + 8 * element + 20
     while t < end:
@@ -196,7 +199,8 @@ def test_sequence_decoder_reads_nothing_in_reverse_or_when_the_card_stops(code):
 def test_a_window_out_of_step_with_the_column_delays_is_not_read():
     """One column's read alone (agree 1) of a card the truck stopped on once all four columns
     had it in view: every window is stretched alike, so only their length against the
-    columns' delays gives the stop away (without that check L0 reads as L3)."""
+    columns' delays gives the stop away (without that check L0 reads as L3).
+    """
     frames = passing_card(0x78, stretch_at=32)
     checked, unchecked = (SequenceDecoder(dict(LOCATION_TABLE), agree=1, stretch=s)
                           for s in (1.5, 99.0))
@@ -213,7 +217,8 @@ def test_sequence_decoder_does_not_read_a_card_in_view_at_reset():
 
 def test_sequence_decoder_reads_fast_off_focus_passes_the_snapshot_rule_misses():
     """The belt rig at 2.5 m/s with +-3 mm detector skew: the default (sequence) reads all
-    five cards, the white control as nothing; the thesis rule alone reads none of them."""
+    five cards, the white control as nothing; the thesis rule alone reads none of them.
+    """
     import random
 
     from agv_nodes.world.core import WorldCore
@@ -241,7 +246,8 @@ def test_sequence_decoder_reads_fast_off_focus_passes_the_snapshot_rule_misses()
 
 def test_one_report_per_card_when_both_rules_read_it():
     """At 0.5 m/s the thesis rule reads the card first; the sequence decoder's read of the
-    same card and passage is not reported again."""
+    same card and passage is not reported again.
+    """
     core = PositionSensorCore()
     assert core.p.decoder == 'sequence'
     levels = {1: WHITE, 0: BLACK}
@@ -304,7 +310,7 @@ class Nav:
     """Drives a NavigationCore with records; keeps every status and link it sends."""
 
     def __init__(self, **params) -> None:
-        # PC6/1's record sequences (spec 4) are those of the 1983 friction stop
+        # PC6/1's record sequences (Baker 1983, App. B.1) are those of the 1983 friction stop
         params.setdefault('stopping', 'friction_1983')
         self.core = NavigationCore(NavigationParams(**params))
         self.t = 0.0
@@ -353,7 +359,7 @@ class Nav:
 
 
 def test_spec_4_status_sequence_stop_at_2_first_marker_as_listed():
-    """The step table of spec 4, exactly (as_listed keeps LOCN = 00H at the first OPLOP)."""
+    """PC6/1's step table (Baker 1983, App. B.1); as_listed keeps LOCN = 00H at the 1st OPLOP."""
     n = Nav(variant='as_listed')
     n.run(0.1)
     n.sensor(recognised=False)
@@ -470,7 +476,8 @@ def test_sensor_silence_reports_lost_and_requests_speed_0():
 
 def test_a_task_with_no_sensor_ever_heard_ends_lost_after_the_timeout():
     """The first sensor status may still be on its way when a task comes (graph start-up);
-    none within sensor_timeout of the task is a lost sensor all the same."""
+    none within sensor_timeout of the task is a lost sensor all the same.
+    """
     n = Nav(stopping='controlled')
     n.command(1, 0)
     for _ in range(round(n.core.p.sensor_timeout / 0.005)):  # quiet, not yet for the timeout
@@ -499,7 +506,8 @@ def test_via_executive_puts_the_request_in_the_status_record():
 
 def test_a_view_met_backing_up_puts_the_centre_nearer_not_further():
     """Controlled stop (F5): a stop view is first matched centre_lead mm *before* it is aligned
-    in the direction of travel; backing up after an overshoot, that is past its alignment."""
+    in the direction of travel; backing up after an overshoot, that is past its alignment.
+    """
     from agv_nodes.markers import STOP_VIEWS
 
     nav = NavigationCore(NavigationParams(stopping='controlled', centre_lead=5.0))
@@ -527,7 +535,8 @@ def test_a_view_met_backing_up_puts_the_centre_nearer_not_further():
 
 def test_controlled_stop_of_a_loaded_truck_from_1_m_s_ends_on_the_centre():
     """Lock-step harness: 1000 kg at 80 % overshoots the centre, backs up and stops on it
-    (the ground truth from the world; with the forward lead it rested 12 mm past)."""
+    (the ground truth from the world; with the forward lead it rested 12 mm past).
+    """
     from agv_nodes.harness import submit, truck
 
     h = truck('straight_track', seed=3,
@@ -543,5 +552,5 @@ def test_controlled_stop_of_a_loaded_truck_from_1_m_s_ends_on_the_centre():
         reversed_ |= bool(h.cores['navigation'].link.get('reverse'))
     stops = [e for e in h.events if e['event'] == 'stopped' and e['marker'] == 'S1.1']
     assert reversed_ and h.cores['executive'].mode == 'idle'
-    # issue 4's goal band; bench/stop_bench.py: -5..0 mm over 30 seeds for this case
+    # the controlled stop's goal band; bench/stop_bench.py: -5..0 mm over 30 seeds for this case
     assert abs(stops[-1]['error']) <= 5, stops

@@ -1,4 +1,4 @@
-"""Record codec: every thesis value of spec 1.7-1.9 encodes and decodes to the documented bytes."""
+"""Record codec: every thesis value of Baker 1983, 6.2.3-6.3.1 encodes and decodes to its bytes."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ def test_crc8_sae_j1850_check_value():
     assert crc8_sae_j1850(b'') == 0x00  # init FF, xorout FF, no data
 
 
-# -- navigation_status: fig 6.2, the values PC6/1 writes (spec 1.7 table) -------------------
+# -- navigation_status: fig 6.2, the values PC6/1 writes (Baker 1983, App. B.1) -------------------
 @pytest.mark.parametrize('byte1, fields', [
     (0x0A, dict(at_location=0, slow=1, reverse=0, lost=1)),  # power-up
     (0x00, dict(at_location=0, slow=0, reverse=0, lost=0)),  # OPLOP: navigating
@@ -45,7 +45,7 @@ def test_navigation_status_power_up_is_0A_FF():
 
 
 def test_navigation_status_step_table_of_spec_4():
-    """The task 'stop at location 2, first stop marker' record sequence (spec 4 table)."""
+    """The task 'stop at location 2, first stop marker' record sequence (Baker 1983, App. B.1)."""
     steps = [
         (dict(), 0x0A, 0xFF),
         (dict(slow=0, lost=0, last_marker=0), 0x00, 0x00),
@@ -58,12 +58,12 @@ def test_navigation_status_step_table_of_spec_4():
         assert (raw[0], raw[1]) == (b1, b2)
 
 
-# -- traction_link: spec 1.9 ----------------------------------------------------------------
+# -- traction_link: Baker 1983, 6.3.1 -----------------------------------------------------------
 @pytest.mark.parametrize('value, fields', [
     (0x40, dict(executive_priority=1, reverse=0, speed=0)),  # OPLOP
     (0x14, dict(executive_priority=0, reverse=0, speed=20)),  # SLOW1
     (0x00, dict(executive_priority=0, reverse=0, speed=0)),  # SETPT / centre view
-    (0x34, dict(executive_priority=0, reverse=1, speed=20)),  # F5 reverse creep (spec 8)
+    (0x34, dict(executive_priority=0, reverse=1, speed=20)),  # F5 reverse creep (Baker 1983, 8.5)
 ])
 def test_traction_link_values(value, fields):
     raw = plain('traction_link', **fields)
@@ -77,7 +77,7 @@ def test_traction_link_bit7_is_spare():
     assert info.value.byte == 1 and 'spare' in str(info.value)
 
 
-# -- traction_command: spec 1.8 -------------------------------------------------------------
+# -- traction_command: Baker 1983, App. B.2.2  ----------------------------------------------------
 def test_traction_command_byte2_zero_is_emergency_stop():
     raw = bytes(16)
     fields = C.decode('traction_command', raw, integrity='none')
@@ -108,7 +108,7 @@ def test_traction_command_demand_beyond_80_rejected():
     assert (info.value.byte, info.value.field, info.value.value) == (2, 'demand', 81)
 
 
-# -- navigation_command: spec 1.7 -----------------------------------------------------------
+# -- navigation_command: Baker 1983, App. B.1  ----------------------------------------------------
 def test_navigation_command_location_and_edge():
     assert plain('navigation_command', task_location=2, stop_marker=0)[:2] == b'\x02\x00'
     assert plain('navigation_command', task_location=2, stop_marker=1)[:2] == b'\x02\x01'
@@ -296,7 +296,8 @@ def test_inputs_report_puts_the_nodes_own_verdict_first():
 def test_carriers_read_and_written_straight_as_cdr():
     """The nodes' and agv-report's serialized carriers (agv_nodes.records.carrier) give exactly
     what rosbags' (de)serializer gives, and decline (None: the general path) any message they
-    do not fully understand."""
+    do not fully understand.
+    """
     import numpy as np
     from rosbags.typesys import Stores, get_typestore
 
@@ -346,7 +347,8 @@ def test_carriers_read_and_written_straight_as_cdr():
 def test_a_record_in_any_layout_is_read_from_its_cdr():
     """The nodes' readers take records serialized: the shape they send is read straight from
     the CDR, any other layout (a driver's dims, a data_offset) through rclpy's deserializer,
-    and both give the 16 bytes."""
+    and both give the 16 bytes.
+    """
     from rclpy.serialization import serialize_message
     from std_msgs.msg import MultiArrayDimension, MultiArrayLayout, UInt8MultiArray
 
@@ -366,7 +368,8 @@ def test_a_record_in_any_layout_is_read_from_its_cdr():
 
 def _random_value(f, rng):
     """A value for field `f`: mostly valid, sometimes a bool, a special's name, an enum code,
-    out of range or of the wrong type."""
+    out of range or of the wrong type.
+    """
     roll = rng.random()
     if f.encoding == 'enum':
         names = list(f.values)
@@ -384,9 +387,10 @@ def _random_value(f, rng):
 
 
 def test_compiled_fast_paths_agree_with_the_field_by_field_codec():
-    """encode / decode try generated straight-line code first (fast_path.compile_fast_paths) and
+    """Encode / decode try generated straight-line code first (fast_path.compile_fast_paths) and
     fall back to the general loop on None: whatever the fast path returns must be exactly what
-    the general path makes of the same input, and the fast path must take the common cases."""
+    the general path makes of the same input, and the fast path must take the common cases.
+    """
     import random
 
     rng = random.Random(11)

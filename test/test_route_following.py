@@ -322,7 +322,8 @@ def test_a_branch_the_sign_does_not_offer_stops_the_vehicle(tmp_path):
 
 def test_a_turn_whose_odometry_stops_ends_at_rest():
     """Safety: the spin ends by wheel odometry; if that falls silent mid-turn the vehicle must
-    not spin on for ever (turn_timeout, then motors off as for a lost tape)."""
+    not spin on for ever (turn_timeout, then motors off as for a lost tape).
+    """
     from agv_nodes.harness import Link
 
     lay = load_layout(layout_path('junction_1991'))

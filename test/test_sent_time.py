@@ -51,7 +51,8 @@ def test_pause_and_out_of_order_samples():
 
 def cruising(sent: bool, stale_confirm: int = 8) -> tuple[ExecutiveCore, SentTimeline]:
     """An executive on a task, fed 1 s of healthy records (navigation every 50 ms, the others
-    every 10 ms), every one taken as soon as it is sent."""
+    every 10 ms), every one taken as soon as it is sent.
+    """
     ex = ExecutiveCore(ExecutiveParams(status_timeout=0.15, stale_confirm=stale_confirm))
     t = SentTimeline()
     ex.on_record('comms_status', parse_task('stop at 2 first').record() | {'task_id': 1}, 0.0)

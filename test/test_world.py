@@ -64,7 +64,7 @@ def drive_codec():
 
 
 def threshold(lit, dark, unit='sensor1'):
-    """Test oracle: the intended THRESH of spec 2.4 on a steady snapshot (sum of 4 equal)."""
+    """Test oracle: Baker 1983, 5.2.3's THRESH on a steady snapshot (sum of 4 equal)."""
     t = THRESHOLDS[unit]
     code = 0
     for d in range(8):
@@ -161,7 +161,7 @@ def run_truck(duty: float, seconds: float, payload: float = 0.0) -> Electruk:
 
 
 def test_80_percent_duty_gives_about_1_m_per_s_unloaded():
-    assert 0.95 <= run_truck(0.80, 10).state.speed <= 1.05  # spec 6.1 anchor
+    assert 0.95 <= run_truck(0.80, 10).state.speed <= 1.05  # Baker 1983, 6.3.2: 80 % ~ 1 m/s
     assert 0.17 <= run_truck(0.20, 10).state.speed <= 0.23  # 20 % ~ 0.2 m/s
     assert run_truck(0.05, 10).state.speed == 0.0  # nothing moves below ~5 %
 
@@ -220,7 +220,8 @@ def test_world_drives_past_markers_and_reports_ground_truth(drive_codec):
 
 def test_a_slow_creep_after_a_rest_ends_in_a_rest_of_its_own():
     """The last creep of a controlled stop back onto the centre peaks under 10 mm/s: its
-    rest is the stop (the benches once took the rest before it as the stop)."""
+    rest is the stop (the benches once took the rest before it as the stop).
+    """
     world = WorldCore(layout('straight_track'), WorldParams(seed=5))
     for speed in (0.30, 0.10, 0.0, 0.0, 0.006, 0.003, 0.0, 0.0):
         world.vehicle.state.speed = speed

@@ -1,5 +1,6 @@
 """Communications settings: every parameter of the communications node, its default and
-meaning."""
+meaning.
+"""
 
 from __future__ import annotations
 

@@ -112,7 +112,7 @@ class ExecutiveCore(SubsystemCore):
         if self.mode in ('running', 'cruising'):
             # Supervise on every arrival too, not only at the 50 ms tick: a silent sub-system
             # is then noticed within ~10 ms of its status_timeout (the other sub-systems'
-            # records keep arriving), and the e-stop goes out at once (issue 9: drive off
+            # records keep arriving), and the e-stop goes out at once (the fault budget: drive off
             # within 200 ms of a fault).
             self._supervise(now)
             if self.mode == 'failed':
@@ -121,7 +121,8 @@ class ExecutiveCore(SubsystemCore):
 
     def sent_later(self, record: str, sent: float) -> None:
         """A status taken before the executive knew the sim time it was sent at (its clock
-        queue was behind) turns out to have been sent at `sent` (agv_nodes.sent_time)."""
+        queue was behind) turns out to have been sent at `sent` (agv_nodes.sent_time).
+        """
         sub = SUBSYSTEM_OF.get(record)
         if sub in self.status_time:
             self.status_time[sub] = max(self.status_time[sub], sent)

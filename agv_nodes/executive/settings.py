@@ -11,7 +11,8 @@ from agv_nodes.settings import setting
 
 def parse_srm_map(entries: Iterable[str]) -> dict[int, int]:
     """('1:15', '3:15') -> {1: 15, 3: 15} (location: SRM angle in degrees, + = left);
-    ValueError naming the first entry that is not location:angle, 0-31 and -45..45."""
+    ValueError naming the first entry that is not location:angle, 0-31 and -45..45.
+    """
     out = {}
     for entry in entries:
         location, _, angle = entry.partition(':')

@@ -50,7 +50,8 @@ class Options:
 def record_readers(graph: Graph, world: bool, recording: bool) -> dict[str, int]:
     """Each record whose writer and at least one reader run -> its number of readers: the
     schema's readers that run (the world among them only where the schema lists it), plus the
-    recorder when recording."""
+    recorder when recording.
+    """
     running = {n.name for n in graph.nodes if n.role == 'node' or (n.role == 'world' and world)}
     out = {}
     for s in codec():
@@ -64,7 +65,8 @@ def record_readers(graph: Graph, world: bool, recording: bool) -> dict[str, int]
 
 def paced_nodes(graph: Graph, options: Options) -> list[str]:
     """The nodes the world paces on (its `pace_nodes`): every sub-system node of the graph when
-    the graph runs on sim time, none on wall time (there is no clock to hold back)."""
+    the graph runs on sim time, none on wall time (there is no clock to hold back).
+    """
     if not options.use_sim_time:
         return []
     return sorted(n.name for n in graph.nodes if n.role == 'node')
@@ -131,7 +133,8 @@ def layout_name(graph: Graph, options: Options) -> str:
 
 def from_layout(graph: Graph, options: Options) -> dict[str, dict[str, object]]:
     """What the layout sets in the nodes (the executive's route map, route following's
-    vehicle): agv_nodes.world.layout.layout_parameters, as the lock-step harness applies it."""
+    vehicle): agv_nodes.world.layout.layout_parameters, as the lock-step harness applies it.
+    """
     name = layout_name(graph, options)
     try:
         return layout_parameters(load_layout(layout_path(name)))

@@ -151,7 +151,8 @@ class Launch:
 
     def child_command(self, spec: NodeSpec) -> list[str]:
         """command() through the child wrapper: the node gets SIGTERM if this launcher dies
-        (even by SIGKILL), and takes its real-time priority (if any) before it execs."""
+        (even by SIGKILL), and takes its real-time priority (if any) before it execs.
+        """
         command = [sys.executable, '-m', CHILD, str(os.getpid())]
         priority = realtime_priority(spec, self.o)
         if priority:

@@ -1,4 +1,4 @@
-"""Navigation: PC6/1's navigating and positioning loops (Baker 6.2, App. B.1; spec 1.7, 1.9, 4).
+"""Navigation: PC6/1's navigating and positioning loops (Baker 6.2, App. B.1).
 
 Records in: navigation_command (the executive's INFO), position_sensor_status (recognitions),
 wheel_odometry (controlled stopping only). Records out: navigation_status (OUTFO), traction_link
@@ -17,13 +17,16 @@ wheel_odometry (controlled stopping only). Records out: navigation_status (OUTFO
   OUTFO = 0BH and the loop ends (the truck coasts to rest on friction).
 
 `variant = as_listed` keeps PC6/1's quirks: LOCN starts at 00H (the first OPLOP reports marker
-00H, spec 1.7), and a centre view still in sight when positioning starts is accepted at once
-(the second-stop-marker hazard of spec 4). `intended` (default) starts LOCN at FFH and, on
+00H, Baker 1983, App. B.1), and a centre view still in sight when positioning starts is accepted
+at once
+(the second-stop-marker hazard of Baker 1983, App. B.1). `intended` (default) starts LOCN at FFH
+and, on
 entering CLOP, ignores the centre view until another stop view has been seen.
 
 `stopping = controlled` (thesis 8.5 F4/F5; the default, since it beats `friction_1983` in
 bench/stop_bench.py: within +-3 mm against +34..+55 mm): every stop view gives the
-distance still to go (+60 ... -60 mm, spec 3.3); wheel odometry carries it between views and the
+distance still to go (+60 ... -60 mm, Baker 1983, 4.3, fig 4.4); wheel odometry carries it between
+views and the
 link asks closed-loop traction to stop in that distance (traction_link.stop_in); an overshoot
 reverses slowly back onto the centre.
 
@@ -261,8 +264,7 @@ class NavigationCore(SubsystemCore):
             # At rest (AT_REST) the way the truck is about to go is the way the link asks: the
             # F5 reverse. Taking the measured speed there (0, so forward) sent a truck that had
             # come to rest 6 mm past the centre and was about to back up 5 mm further on
-            # instead, to +11 mm (2 demos in 15 on 2026-11-24, stop 8; the view turned valid at
-            # the turn-round).
+            # instead, to +11 mm (the view turned valid at the turn-round).
             moving = abs(self._speed) >= AT_REST
             backing = self._speed < 0 if moving else self.link['reverse'] == 1
             lead = -self.p.centre_lead if backing else self.p.centre_lead

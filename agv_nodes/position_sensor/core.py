@@ -1,13 +1,13 @@
 """The position sensor: PC6/1's SAMPLE, THRESH and DECODE on ADC snapshots (Baker ch 5, App B.1).
 
-Per snapshot (spec 2.2-2.7):
+Per snapshot (Baker 1983, 5.2-5.3, 7.1.4):
 1. d.c. removal: x = lit - dark, clamped at 0 (SUBT);
 2. running-sum filter of run length 4 per detector, TOTAL = x_k + ... + x_(k-3) (no division;
    thresholds are in x4 units), cleared on every table change (SAMIC/EDGIC), so the first three
    snapshots after a change read dark;
 3. THRESH per detector: WHITE if TOTAL > THRON, BLACK if TOTAL <= THROFF, otherwise the
    snapshot is INVALID (all eight are still processed);
-4. CODE: each valid decision shifts a bit in, detector 1 ending in bit 7 (spec 2.5);
+4. CODE: each valid decision shifts a bit in, detector 1 ending in bit 7 (Baker 1983, 5.3.5.2);
 5. TARGET: a valid CODE is looked up in the active table (navigating: UCTAB, the four location
    markers and the stop-marker centre; positioning: EDGE, the seven stop views);
 6. a recognition is reported only after `min_consecutive_matches` equal matches in successive
@@ -26,7 +26,8 @@ the positioning table (stop views at creep speed, each view's timing drives the 
 uses the snapshot rule. The snapshot CODE and `invalid` are still worked out for the status
 record either way.
 
-`variant = as_listed` keeps the listing's defects (spec 2.4, 2.6, register items 1 and 14): the
+`variant = as_listed` keeps the listing's defects (Baker 1983, 5.2.3, App. B.1, register items 1
+and 14): the
 black test compares only the high bytes of TOTAL and THROFF, and the EDGE search covers LEN = 5
 entries, so stop views 6 and 7 never match. The default `intended` is the design as described.
 """
@@ -88,7 +89,8 @@ class PositionSensorCore(SubsystemCore):
         """CODE -> identity (navigating) or view number (positioning), as TARGET searches."""
         if self.table == 'navigating':
             return {code: identity for code, identity in LOCATION_TABLE}
-        views = 5 if self.p.variant == 'as_listed' else 7  # LEN = 5 over EDGE (spec 2.6)
+        # the listing's LEN = 5 over EDGE (Baker 1983, App. B.1)
+        views = 5 if self.p.variant == 'as_listed' else 7
         return {code: view for view, (code, _speed, _mm) in enumerate(STOP_VIEWS[:views], 1)}
 
     def _reset_filter(self) -> None:
@@ -200,7 +202,8 @@ class PositionSensorCore(SubsystemCore):
 
     def _sequence_levels(self, x: list[int]) -> list[float]:
         """The sequence decoder's running sum of this snapshot's d.c.-removed `x` (as SUBT
-        made it for THRESH), in band units (0 = THROFF, 1 = THRON)."""
+        made it for THRESH), in band units (0 = THROFF, 1 = THRON).
+        """
         row, total = self._seq_oldest[self._seq_row], self._seq_total
         self._seq_row = (self._seq_row + 1) % self.p.sequence_run_length
         z = []

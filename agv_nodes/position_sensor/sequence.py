@@ -1,13 +1,14 @@
 """Sequence decoding of the navigating table: each detector column reads a passing card in time.
 
 The thesis decides a card from one snapshot in which all eight detectors are outside their
-invalid band at once (5.2.3, spec 2.4-2.7). Off focus (blur), with the detectors' along-track
+invalid band at once (Baker 1983, 5.2.3). Off focus (blur), with the detectors' along-track
 skew (thesis 7.1.3: +-1 sample) and at speed (a 20 mm element lasts 6.8 snapshots at 1 m/s,
 3.4 at 2 m/s), such a snapshot is rare or absent: across 280-320 mm standoff and +-10 mm
 height the thesis rule missed 974 of 10,020 passes at 1 m/s (bench/recognition_bench.py).
 
 Yet every column sees every element of its row go by. Each card of the navigating table, the
-four location markers (spec 3.2) and the stop marker's centre view (3.3), is four elements
+four location markers (Baker 1983, 4.3, fig 4.6) and the stop marker's centre view (3.3), is four
+elements
 long with white, in one row or the other, in its first and last element. So each column sees
 one white-bounded window four elements long; read at the middle of each quarter of that
 window, the column's two detectors give the card's whole CODE by themselves, at their own time
@@ -28,7 +29,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-ELEMENTS = 4  # elements of a navigating-table card along the track (spec 3.2, 3.3)
+ELEMENTS = 4  # elements of a navigating-table card along the track (Baker 1983, 4.3)
 LEVEL = 0.5  # the middle of the invalid band, in band units (0 = THROFF, 1 = THRON)
 # Adjacent columns' windows open one element apart; with +-3 mm detector skew the three delays
 # of a clean pass differ by up to 1.9x (2,400 passes at 1 and 2 m/s); a stop between two
@@ -81,7 +82,8 @@ class SequenceDecoder:
     def sample(self, z: list[float]) -> int | None:
         """One snapshot: z[d] = (TOTAL - THROFF) / (THRON - THROFF) per detector 1-8.
 
-        Returns a CODE of the table when this snapshot completes a recognition."""
+        Returns a CODE of the table when this snapshot completes a recognition.
+        """
         self._sample += 1
         before, self._before = self._before, z
         if self._open == 0 and max(z) <= LEVEL:  # nothing white in view: the usual case
@@ -146,7 +148,8 @@ class SequenceDecoder:
 
     def _read(self, col: _Column) -> int | None:
         """The CODE one column read (C1 in bit 3 of each nibble), or None if any element is
-        inside `margin` of the band's middle."""
+        inside `margin` of the band's middle.
+        """
         length = col.fall - col.rise
         if length < 2.0:
             return None

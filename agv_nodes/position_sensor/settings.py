@@ -1,5 +1,6 @@
 """Position sensor settings: every parameter of the position_sensor node, its default and its
-meaning."""
+meaning.
+"""
 
 from __future__ import annotations
 
@@ -75,7 +76,8 @@ class SensorProcessing:
 
     def problems(self) -> list[tuple[str, Any, str]]:
         """Checks `build` makes beyond each field's own: each black threshold below its
-        white one."""
+        white one.
+        """
         white, black = self.thresholds()
         low = [d for d, (w, b) in enumerate(zip(white, black, strict=True), 1) if b >= w]
         if not low:

@@ -23,7 +23,8 @@ _CLOCK = struct.Struct('<iI')  # builtin_interfaces/Time: int32 sec, uint32 nano
 
 def uint8_array_data(raw: bytes | memoryview) -> bytes | None:
     """The `data` of a serialized std_msgs/UInt8MultiArray with an empty layout, read straight
-    from its CDR; None for any other shape."""
+    from its CDR; None for any other shape.
+    """
     if len(raw) < 16 or bytes(raw[:12]) != _EMPTY_LAYOUT_LE:
         return None
     n = int.from_bytes(raw[12:16], 'little')
@@ -32,7 +33,8 @@ def uint8_array_data(raw: bytes | memoryview) -> bytes | None:
 
 def uint8_array_cdr(data: bytes) -> bytes:
     """`data` as a serialized std_msgs/UInt8MultiArray with an empty layout (what rclpy's
-    serializer writes for UInt8MultiArray(data=data))."""
+    serializer writes for UInt8MultiArray(data=data)).
+    """
     return _EMPTY_LAYOUT_LE + len(data).to_bytes(4, 'little') + data
 
 

@@ -1,7 +1,8 @@
 """Binary-camera guidance of Rajagopalan (1991): image analysis and steering laws, ROS-free.
 
 Frames are 64 x 128 binary images of the floor (1 = dark tape), row 0 the leading edge and
-column 0 the left edge (digest 1.1-1.2). Signs follow the digest's section 0: eps_d > 0 when
+column 0 the left edge (Rajagopalan 1991, 4.1-4.2). Signs follow Rajagopalan 1991, 5.2: eps_d > 0
+when
 the tape lies to the left of the window centre, eps_theta > 0 when it is turned CCW, and the
 caster angle theta_s > 0 turns the vehicle left.
 """
@@ -18,7 +19,7 @@ from agv_nodes.route_following.settings import ImageParams, SteeringParams
 
 
 class Validity(enum.Enum):
-    """imageok_flag as an explicit enum (digest 1.5)."""
+    """imageok_flag as an explicit enum (Rajagopalan 1991, 4.3)."""
 
     NORMAL = 'normal'
     WIDE = 'wide'  # track grew by about 2 bytes: a road sign (thesis 4.3)
@@ -40,7 +41,7 @@ class Measurement:
 
 
 SIGNS = {(1, 0, 0): 'P11', (0, 1, 0): 'P12', (1, 0, 1): 'P21', (0, 1, 1): 'P22',
-         (1, 1, 0): 'R1', (1, 1, 1): 'R2'}  # (left, right, straight): digest 1.6 table
+         (1, 1, 0): 'R1', (1, 1, 1): 'R2'}  # (left, right, straight): Rajagopalan 1991, fig 4.3
 
 
 def sign_name(left: int, right: int, straight: int) -> str | None:
@@ -66,9 +67,10 @@ class ImageAnalyser:
         self._prev_centre: float | None = None
 
     def branch_edge(self, frame: np.ndarray, side: str) -> float | None:
-        """m ahead of the window centre of the near edge of a branch crossing the window's
+        """M ahead of the window centre of the near edge of a branch crossing the window's
         left or right edge column (None: no branch there, or its near edge is behind the
-        window). The longest dark run down the column is the branch; specks are shorter."""
+        window). The longest dark run down the column is the branch; specks are shorter.
+        """
         column = frame[:, 0 if side == 'left' else -1]
         runs = [(a, n) for a, n in runs_of(column) if n >= self.p.sign_rows]
         if not runs:
@@ -98,7 +100,7 @@ class ImageAnalyser:
             if not kept:
                 continue
             # One run per row (Table 4.2). The thesis kept the first; nearest to the previous
-            # centre is the digest's recommendation, falling back to the widest.
+            # centre tracks the same tape through specks and signs, falling back to the widest.
             if self._prev_centre is not None:
                 a, n = min(kept, key=lambda k: abs(k[0] + k[1] / 2 - self._prev_centre))
             else:
@@ -109,7 +111,8 @@ class ImageAnalyser:
         if len(ys) < 2:
             self._prev_centre = None
             return Measurement(0.0, 0.0, Validity.ABSENT, 0.0, len(ys), left, right)
-        # Well-conditioned fit (digest 1.4): column on row, in metres from the window centre.
+        # Well-conditioned fit (Rajagopalan 1991, 4.2.2): column on row, in metres from the window
+        # centre.
         y = (31.5 - np.array(ys, dtype=float)) * self.mm_row  # + ahead
         x = (63.5 - np.array(xs, dtype=float)) * self.mm_col  # + left
         ybar, xbar = y.mean(), x.mean()
@@ -136,7 +139,8 @@ class CameraSteering:
 
     def update(self, m: Measurement, dt: float, speed: float = 0.0) -> float | None:
         """New caster angle theta_s, or None when the vehicle must stop (track absent);
-        `speed` is the cruise asked for (only the gain schedule uses it)."""
+        `speed` is the cruise asked for (only the gain schedule uses it).
+        """
         p = self.p
         gain_d = p.gain_d
         if p.schedule_speed > 0 and speed > p.schedule_speed:

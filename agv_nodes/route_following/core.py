@@ -309,7 +309,7 @@ class RouteCore(SubsystemCore):
         return (left + right) / 2.0, (right - left) / self.p.steering.wheel_span
 
     def _to_crossing(self) -> float:
-        """m the axle centre still has to go to be over the crossing (< 0: past it)."""
+        """M the axle centre still has to go to be over the crossing (< 0: past it)."""
         return self._crossing - self._turned()[0]
 
     def _profile(self, distance: float, top: float) -> float:

@@ -1,6 +1,7 @@
 """Route following settings: every parameter of the route_following node, its default and its
 meaning. The nested groups give dotted names: `wire.kp`, `image.min_run`, `steering.law`,
-`turning.approach_speed`."""
+`turning.approach_speed`.
+"""
 
 from __future__ import annotations
 
@@ -68,7 +69,7 @@ class ImageParams:
 
 @dataclass
 class SteeringParams:
-    """Camera steering laws and the CONCIC-II geometry (Rajagopalan 5.2; digest 2.5, 3.2)."""
+    """Camera steering laws and the CONCIC-II geometry (Rajagopalan 5.2; Table 6.1)."""
 
     law: str = setting('pi', 'camera steering law: p (thesis Eq 5.4) or pi (Eq 5.6)',
                        choices=('p', 'pi'))
@@ -79,7 +80,8 @@ class SteeringParams:
     gain_i: float = setting(0.07, 'integral gain (thesis I = 0.07; see integral_form)', lo=0.0,
                             hi=100.0)
     # Eq 5.8 as printed adds G3 eps_d(n) every frame, without the Delta-T of Eq 5.6: at ~20
-    # frames/s that is 1.4 rad per m s (digest 2.3). The default follows the printed velocity
+    # frames/s that is 1.4 rad per m s (Rajagopalan 1991, 5.2.3). The default follows the printed
+    # velocity
     # form the vehicle ran.
     integral_form: str = setting('per_frame', 'integral term: per frame as Eq 5.8 is printed, '
                                  'or x Delta-T as in Eq 5.6 (with_dt)',
@@ -109,7 +111,8 @@ class SteeringParams:
 @dataclass
 class TurningParams:
     """Taking a branch at a road sign (Rajagopalan App. F.6; the manoeuvre itself is not
-    described there: a spin in place, which the differential drive allows, is assumed)."""
+    described there: a spin in place, which the differential drive allows, is assumed).
+    """
 
     camera_ahead: float = setting(0.64, 'm, L_c: camera window centre ahead of the axle '
                                   'centre', lo=0.0, hi=2.0)

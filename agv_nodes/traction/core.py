@@ -1,6 +1,6 @@
 """The Traction sub-processor: the 1983 speed-control program, its trips, and a closed loop.
 
-`open_loop_1983` is the listing of thesis App. B.2 (spec 5.1) as a state machine on the loop
+`open_loop_1983` is the listing of Baker 1983, App. B.2 as a state machine on the loop
 clock: START = MONO, GETREF, SENSOR, MONO, SUM, COMP, where the Z-80's blocking waits (the
 "runout" after a limited step, the two FLIP waits, the field build-up after reset) become
 timed states during which MONO keeps retriggering the trip relay. Record for record:
@@ -12,23 +12,25 @@ timed states during which MONO keeps retriggering the trip relay. Record for rec
   (A := port & 3FH, NEG if bit 5).
 * SENSOR: SPEED := DCYCLE (open loop, SPDTAB is the identity).
 * SUM: ERROR := REF - SPEED limited to +-16 % (`arithmetic`: `saturating`, the intent, is the
-  default; `faithful_8bit` keeps the listing's mod-256 wrap, spec 5.2).
+  default; `faithful_8bit` keeps the listing's mod-256 wrap, Baker 1983, App. B.2.2).
 * COMP: DCYCLE := SPEED + ERROR clamped to +-80; a sign that disagrees with the field
   direction runs FLIP (armature and field off, wait, toggle, field on, wait); armature off when
   the demand is 0 (coast), else CTC1 := |DCYCLE| and armature on; a limited step waits
   `runout_wait`.
 
 Waits: the prose says 200 ms (runout) and 100 ms (FLIP halves, field build-up); B.2.2's delay
-formula gives 100 and 50 ms (spec 9 item 7). Both are parameters; the prose is the default.
+formula gives 100 and 50 ms (Baker 1983, 6.3 against App. B.2.2). Both are parameters; the prose
+is the default.
 
-Trip relay (modern, issue 5): traction opens the contactor (drive and field off) and latches
+Trip relay (modern): traction opens the contactor (drive and field off) and latches
 when its loop stalls, when the executive's command is older than `command_timeout`, when the
 Position link it is obeying is older than `link_timeout`, or when a corrupt command/link record
 arrives; it also starts tripped. The latch clears only on a fresh valid command with byte 2 =
 00H followed by one with byte 2 non-zero.
 
 `closed_loop` (beyond 1983, thesis B.2's skeleton with a speed sensor): REF is read as a speed
-demand through the open-loop map v = (|REF| - 5) / 75 m/s (spec 6.1), shaped by acceleration
+demand through the open-loop map v = (|REF| - 5) / 75 m/s (Baker 1983, 6.3.2), shaped by
+acceleration
 and jerk limits, and a PI loop on wheel odometry sets the armature duty. It is the default:
 the controlled stop of navigation (thesis 8.5 F4/F5, also the default) needs it, and it holds
 the asked speed under load (bench/traction_bench.py: 0.200 m/s at 20 % loaded or not, where the
@@ -227,7 +229,8 @@ class TractionCore(SubsystemCore):
         """The field's timed waits, the same in both controls: BEGIN/INIT (field on, WAIT1
         build-up; the listing's INIT leaves the field reversed, the closed loop starts it
         forward) and the second half of FLIP (toggle, field on, wait). True when this pass was
-        one of them."""
+        one of them.
+        """
         if self.state == 'start':
             self.field_off = False
             self.armature_off = True

@@ -1,7 +1,8 @@
 """Binary camera (Rajagopalan 1991 ch 4, 6.3.4): a 64 x 128 window of the floor, 50 mm along
 travel by 250 mm across, thresholded by the optic-RAM itself (dark tape = 1, floor = 0).
 
-Row 0 is the leading edge of the window, column 0 its left edge (digest 1.2). A pixel is dark
+Row 0 is the leading edge of the window, column 0 its left edge (Rajagopalan 1991, 4.2). A pixel
+is dark
 when its floor point lies within half the tape width of a tape centreline; random specks (short
 dark runs below the noise-filter length) model dirt and pixel differences. The rear camera is the
 same window at -L_c, mounted facing backwards (its image is rotated 180 degrees).
@@ -63,7 +64,9 @@ class BinaryCamera:
         return frame
 
     def truth(self, cx: float, cy: float, heading: float) -> tuple[float, float] | None:
-        """(eps_d, eps_theta) of the nearest tape at the window centre, digest 0 signs."""
+        """(eps_d, eps_theta) of the nearest tape at the window centre (Rajagopalan 1991, 5.2
+        signs).
+        """
         best = None
         for tape in self.tapes:
             s, lateral, tangent = tape.project(cx, cy)

@@ -192,7 +192,7 @@ class Layout:
 
 _TOP_KEYS = {'layout', 'description', 'vehicle', 'kind', 'wires', 'tapes', 'markers',
              'stations', 'start', 'sensor', 'rig', 'route_limit', 'step', 'signs', 'srm_map'}
-# Road-sign primitives (Rajagopalan 4.3, digest 1.6): which branches a junction offers.
+# Road-sign primitives (Rajagopalan 4.3, Rajagopalan 1991, 4.3): which branches a junction offers.
 SIGN_BRANCHES = {'P11': ('left',), 'P12': ('right',), 'P21': ('left', 'straight'),
                  'P22': ('right', 'straight'), 'R1': ('left', 'right'),
                  'R2': ('left', 'right', 'straight')}
@@ -330,7 +330,8 @@ def _add_sign(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
               step: float) -> dict[str, Any]:
     """A road sign on a tape: a wider patch before the junction, and a tape for each turning
     branch, at right angles (the camera sees the width jump, then the branch at column 0 or
-    127): `branch` m long, a 0.35 m stub by default."""
+    127): `branch` m long, a 0.35 m stub by default.
+    """
     key = f'signs[{i}]'
     if not isinstance(spec, dict):
         raise LayoutError(f'{file}: key {key}: {spec!r} must be a mapping')
@@ -389,7 +390,8 @@ def _check_rig(layout: Layout, file: Path) -> None:
 
 def layout_parameters(layout: Layout) -> dict[str, dict[str, Any]]:
     """What a layout sets in the nodes of a truck on it: the executive's route map and the
-    kind of steering route following drives (agv-launch and the lock-step harness both)."""
+    kind of steering route following drives (agv-launch and the lock-step harness both).
+    """
     return {'executive': {'srm_map': list(layout.srm_map)},
             'route_following': {'vehicle': layout.vehicle}}
 

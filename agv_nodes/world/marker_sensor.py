@@ -1,7 +1,7 @@
 """The pulsed-IR marker sensor: 2 x 4 photodiodes looking sideways at marker cards (Baker ch 5).
 
 Each detector images a 20 x 40 mm patch of the marker plane at 300 mm (magnification 1/3, f =
-75 mm; thesis 5.1, spec 2.1). Its output is the integral of card reflectance over its aperture,
+75 mm; Baker 1983, 5.1). Its output is the integral of card reflectance over its aperture,
 i.e. the convolution of the element box-car with the aperture of thesis fig 5.5, blurred by
 defocus away from 300 mm, times an illumination fall-off with range and incidence, times a
 per-detector gain, plus an offset. Ambient light adds to the lit and the dark conversion alike
@@ -251,7 +251,7 @@ def _belt_runs(params_key: tuple) -> tuple:
 def calibrate(params: SensorParams) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """Per-detector gains and black levels that reproduce Table 7.1.
 
-    With threshold = trough + {0.2, 0.8} x amplitude (spec 2.4/2.9), Table 7.1 implies each
+    With threshold = trough + {0.2, 0.8} x amplitude (Baker 1983, 7.1.3), Table 7.1 implies each
     detector's worst-case mean trough and peak of the x4 running sum (the lowest mean peak and
     highest mean trough over 28 +- 2 cm, thesis 7.1.3). The model is linear in A = gain x black
     and B = gain, so the simulated threshold experiment fixes both. A is kept >= 0 (a detector

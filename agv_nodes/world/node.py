@@ -175,7 +175,8 @@ class WorldNode(Node):
 
     def publish_clock_now(self) -> None:
         """/clock at the world's time, serialized here (the world's busiest publisher: 116 Hz
-        to every node; a Python Clock message per sample cost more than the bytes)."""
+        to every node; a Python Clock message per sample cost more than the bytes).
+        """
         self.clock_pub.publish(clock_cdr(round(self.core.time * 1e9)))
 
     def publish_step(self, out: dict) -> None:

@@ -46,7 +46,8 @@ class GraphPacer:
     def start(self, now: float) -> None:
         """The world starts moving at sim time `now`: a node not heard from yet is taken as
         heard at `now`, so the world waits for its first word as for any other (one starved
-        at start-up would otherwise fall behind unwaited)."""
+        at start-up would otherwise fall behind unwaited).
+        """
         for node, heard in self._heard.items():
             if heard is None:
                 self._heard[node] = now

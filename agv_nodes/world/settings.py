@@ -3,7 +3,8 @@
 WorldParams is the simulated hardware (WorldCore); its nested groups give dotted names
 (`electruk.payload`, `sensor.ambient`, `pickup.noise`, ...). WorldNodeSettings is what the
 world node has besides: the layout, its clock, and how it waits for and paces the graph.
-Values marked [A] are assumptions, [T] the thesis's, [D] the digest's.
+Values marked [A] are assumptions, [T] the thesis's, [D] derived from the thesis's figures
+and tables (docs/references.md).
 """
 
 from __future__ import annotations
@@ -18,7 +19,8 @@ from agv_nodes.settings import ProcessSettings, setting
 @dataclass
 class ElectrukParams:
     """The A.W.D. Electruk tug (Baker 1983). [A] unless noted: chosen so that 80 % duty gives
-    about 1 m/s unloaded, 20 % about 0.2 m/s and nothing moves below about 5 %."""
+    about 1 m/s unloaded, 20 % about 0.2 m/s and nothing moves below about 5 %.
+    """
 
     wheelbase: float = setting(1.20, 'm between the axles', lo=0.1, hi=5.0)
     track: float = setting(0.80, 'm between the rear wheels', lo=0.1, hi=3.0)
@@ -64,7 +66,7 @@ class Concic2Params:
     acceleration: float = setting(0.30, "m/s^2 of the LM628 trapezoid (both wheels' shared "
                                   'rate, fixed during motion)', lo=0.01, hi=5.0)
     lag: float = setting(0.05, 's, time constant of the wheel speed loops', lo=0.001, hi=1.0)
-    # 5 mm from 0.16 m/s (digest 4.6).
+    # 5 mm from 0.16 m/s (Rajagopalan 1991, 7.3.4).
     coast_deceleration: float = setting(2.6, 'm/s^2 of a motor-off coast', lo=0.1, hi=20.0)
     max_wheel_speed: float = setting(1.14, 'm/s of a wheel (145 rpm)', lo=0.1, hi=5.0)
 
@@ -129,7 +131,7 @@ class PickupParams:
 
 @dataclass
 class CameraParams:
-    """Binary camera window and noise ([T] Table 6.1, [D] digest 4.4)."""
+    """Binary camera window and noise ([T] Table 6.1, Rajagopalan 1991, Table 6.3)."""
 
     depth: float = setting(0.050, 'm of the window along travel (64 rows)', lo=0.01, hi=0.5)
     width: float = setting(0.250, 'm of the window across (128 columns)', lo=0.05, hi=1.0)
@@ -181,7 +183,8 @@ class WorldParams:
 @dataclass
 class WorldNodeSettings(ProcessSettings):
     """The world node's own parameters (besides WorldParams): the layout, /clock, and how it
-    waits for the graph and paces itself on it."""
+    waits for the graph and paces itself on it.
+    """
 
     layout: str = setting('demo_1983', 'layout name (config/layouts) or file path')
     remove_markers: tuple[str, ...] = setting((), 'marker cards taken off their stands (fault '

@@ -1,6 +1,7 @@
 """Vehicle dynamics: the A.W.D. Electruk tug (Baker 1983) and CONCIC-II (Rajagopalan 1991).
 
-Electruk (spec 6.1): rear drive by two 0.4 kW separately excited d.c. motors in parallel from
+Electruk (Baker 1983, 6.3.2): rear drive by two 0.4 kW separately excited d.c. motors in parallel
+from
 24 V through a one-quadrant PWM chopper (armature duty 0-80 %), a PWM field supply whose
 direction the traction board flips, reduction gearing and chains to the rear wheels, Ackermann
 front steering by an actuator with rate and angle limits. Per motor:
@@ -12,7 +13,7 @@ so reversing the field while the truck still rolls forward makes the back-EMF ad
 and the torque oppose the motion: plug braking (thesis 6.3, 8.5), limited by the controller's
 current limit. With the armature off only friction acts (the "friction only" braking of the
 1983 stop). Parameters marked [A] are assumptions chosen so that 80 % duty gives about 1 m/s
-unloaded, 20 % about 0.2 m/s and nothing moves below about 5 % (spec 6.1).
+unloaded, 20 % about 0.2 m/s and nothing moves below about 5 % (Baker 1983, 6.3.2).
 
 CONCIC-II (Rajagopalan 3.1-3.3, 4.1, 4.6): differential drive, wheel radius 0.075 m, casters;
 each wheel's commanded speed is approached at a fixed acceleration (the LM628 trapezoid) and
@@ -108,7 +109,8 @@ class Electruk:
 
     def _constants(self, dt: float) -> tuple[float, ...]:
         """What step() needs that only dt and the parameters set, worked out again when dt,
-        the parameters object or the load changes (the world steps at one dt)."""
+        the parameters object or the load changes (the world steps at one dt).
+        """
         p = self.p
         key = (dt, id(p), p.mass, p.payload)
         if self._step_key != key:

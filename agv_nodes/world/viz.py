@@ -64,7 +64,8 @@ def _card(k: int, m) -> list[Marker]:
 
 def layout_messages(layout: Layout) -> tuple[Path, MarkerArray]:
     """world/route (every wire and tape as one path) and world/markers (wires, tapes, cards
-    and their labels), drawn once and latched."""
+    and their labels), drawn once and latched.
+    """
     path = Path()
     path.header.frame_id = 'map'
     markers = MarkerArray()
