@@ -174,6 +174,11 @@ def run(args: argparse.Namespace) -> int:
                 raise RuntimeError(f'programme not finished after {limit:.0f} simulated s')
         sim_elapsed = state['sim'] - sim0
         wall_elapsed = time.monotonic() - moving_wall
+        # A second for the recorder to take what was sent last (the final report): a fresh-clone
+        # run once stopped the graph before the recorder had taken it, and its bag lacked it.
+        settle = time.monotonic() + 1.0
+        while time.monotonic() < settle:
+            executor.spin_once(timeout_sec=0.1)
     except (RuntimeError, KeyboardInterrupt) as exc:
         print(f'agv-demo: {exc}', file=sys.stderr)
         code = 1
