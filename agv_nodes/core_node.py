@@ -59,8 +59,10 @@ class SimProgress:
 
 
 class CoreNode(Node):
-    """A node around one core (see the module docstring); subclasses add what a node has
-    besides its records (camera frames, text topics, /diagnostics).
+    """A node around one core (see the module docstring).
+
+    Subclasses add what a node has besides its records (camera frames, text topics,
+    /diagnostics).
     """
 
     sent_stamps = False  # (msg, info) readers: see RecordSubscription
@@ -84,8 +86,9 @@ class CoreNode(Node):
         self._attach(progress)
 
     def extend(self) -> None:
-        """Declare what a subclass needs besides the core's settings (before the check for
-        parameters nobody declared).
+        """Declare what a subclass needs besides the core's settings.
+
+        Called before the check for parameters nobody declared.
         """
 
     def _attach(self, progress: SimProgress | None) -> None:
@@ -123,8 +126,10 @@ class CoreNode(Node):
                                                   health=getattr(self.core, 'health', None))
 
     def periodic(self, period: float, callback: Callable[[], None]) -> None:
-        """Call `callback` every `period` s of ROS time, as a rclpy timer would (under sim
-        time with the EventsExecutor: from the node's own /clock reader, see ClockTimers).
+        """Call `callback` every `period` s of ROS time, as a rclpy timer would.
+
+        Under sim time with the EventsExecutor the time comes from the node's own /clock
+        reader (see ClockTimers).
         """
         if self._clock_timers is not None:
             self._clock_timers.add(period, callback)
@@ -132,15 +137,17 @@ class CoreNode(Node):
             self.create_timer(period, callback)
 
     def ros_now_s(self) -> float:
-        """ROS time in seconds (sim time when use_sim_time is set): under the EventsExecutor
-        the latest /clock taken in arrival order (ClockTimers), else the ROS clock.
+        """Return the ROS time in seconds (sim time when use_sim_time is set).
+
+        Under the EventsExecutor it is the latest /clock taken in arrival order (ClockTimers),
+        else the ROS clock.
         """
         if self._clock_timers is not None and self._clock_timers.now_ns is not None:
             return self._clock_timers.now_ns * 1e-9
         return self.get_clock().now().nanoseconds * 1e-9
 
     def now_s(self) -> float:
-        """The time the core is told (ros_now_s; the executive may age records otherwise)."""
+        """Return the core's time: ros_now_s (the executive may age records otherwise)."""
         return self.ros_now_s()
 
     def _on_record(self, name: str) -> Callable[[dict[str, Any]], None]:
@@ -194,13 +201,13 @@ class CoreNode(Node):
 
 
 class ClockTimers:
-    """A node's sim time and periodic callbacks under the EventsExecutor, from its own FIFO
-    /clock reader.
+    """A node's sim time and periodic callbacks under the EventsExecutor.
 
-    The EventsExecutor takes every input in the order it arrived. The ROS clock's own /clock
-    reader keeps only the newest sample, so in a process that has fallen behind it runs ahead
-    of the records still queued, and a record taken late looks late (a false "sensor lost" in
-    a full-programme run at 2.4x real time). Read FIFO, /clock is one more input in the queue:
+    They come from the node's own FIFO /clock reader. The EventsExecutor takes every input in
+    the order it arrived. The ROS clock's own /clock reader keeps only the newest sample, so in
+    a process that has fallen behind it runs ahead of the records still queued, and a record
+    taken late looks late (a false "sensor lost" when the graph runs faster than the machine
+    keeps up with). Read FIFO, /clock is one more input in the queue:
     each record is handled at the sim time it arrived, and a starved node blames nobody. The
     callbacks follow rclpy timer semantics under sim time: due every `period` s, at most once
     per /clock message, periods a jump passed over are skipped. After them, the node's

@@ -33,7 +33,7 @@ def comms_handshake(spin_once: Callable[[], None], send: Callable[[str], None],
     """Ask communications `status` until it answers on comms/report.
 
     A reliable writer that has matched a reader may still lose what it sends before the reader
-    has matched it back (a volatile reader drops it): one slow start-up lost the whole
+    has matched it back (a volatile reader drops it): a slow start-up can lose the whole
     programme that way. An answer proves both directions; `status` changes nothing, so asking
     again while waiting is harmless (docs/tasks.md).
     """
@@ -49,10 +49,11 @@ def comms_handshake(spin_once: Callable[[], None], send: Callable[[str], None],
 
 
 def silent_links(links: list[str], accepted: dict[str, dict[str, int]]) -> list[str]:
-    """The 'reader:record' links of `links` whose reader has accepted no record yet, from the
-    readers' `/diagnostics` inputs rows (`accepted`: node -> record -> count). A node's row
-    lists only the records it decodes (the world's pacing readers are not in it), and a node
-    not heard from yet has every link silent.
+    """Return the 'reader:record' links of `links` whose reader has accepted no record yet.
+
+    They come from the readers' `/diagnostics` inputs rows (`accepted`: node -> record ->
+    count). A node's row lists only the records it decodes (the world's pacing readers are not
+    in it), and a node not heard from yet has every link silent.
     """
     silent = []
     for link in links:
@@ -174,8 +175,8 @@ def run(args: argparse.Namespace) -> int:
                 raise RuntimeError(f'programme not finished after {limit:.0f} simulated s')
         sim_elapsed = state['sim'] - sim0
         wall_elapsed = time.monotonic() - moving_wall
-        # A second for the recorder to take what was sent last (the final report): a fresh-clone
-        # run once stopped the graph before the recorder had taken it, and its bag lacked it.
+        # A second for the recorder to take what was sent last (the final report): without it
+        # the graph can stop before the recorder has taken it, and the bag lacks it.
         settle = time.monotonic() + 1.0
         while time.monotonic() < settle:
             executor.spin_once(timeout_sec=0.1)
@@ -210,7 +211,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def print_summary(summary: dict, report: dict | None, out: Path) -> None:
-    """The closing table."""
+    """Print the closing table."""
     print('\n| task | result | sim time (s) |\n|---|---|---|')
     for t in summary['tasks']:
         when = f'{t["sim_time"]:.1f}' if t['sim_time'] is not None else '-'
@@ -235,10 +236,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog='agv-demo', description=__doc__.splitlines()[0])
     ap.add_argument('--quick', action='store_true', help='tasks 1-2 only (the CI variant)')
     # 0 = as fast as the machine holds. Safe because the world paces itself on the slowest
-    # node (world/pacing.py): before pacing, a fixed 1.25x saturated the 2-core reference
-    # machine, the position sensor fell behind the 340 Hz stream and markers were seen late
-    # (stops at +54/+70 mm) or missed. Paced, the programme runs at ~1.2x with stops as in
-    # lock step.
+    # node (world/pacing.py): unpaced, a fixed 1.25x saturates the 2-core reference machine,
+    # the position sensor falls behind the 340 Hz stream and markers are seen late (stops at
+    # +54/+70 mm) or missed. Paced, the programme runs at ~1.2x with stops as in lock step.
     ap.add_argument('--time-factor', type=float, default=0.0,
                     help='simulated seconds per real second the world aims for (default 0: as '
                     'fast as the slowest node keeps up)')

@@ -157,7 +157,7 @@ class Harness:
                 self._send(m.core.node, record, writer.pack(fields))
 
     def set_radio_stop(self, on: bool) -> None:
-        """The hw/radio_stop input: to the world and every core that reads it."""
+        """Set the hw/radio_stop input: to the world and every core that reads it."""
         self.world.set_radio_stop(on)
         for m in self.members:
             if hasattr(m.core, 'on_radio_stop'):
@@ -207,7 +207,7 @@ class Harness:
         return False
 
     def reader(self, node: str, record: str) -> RecordReader:
-        """A core's reader of `record` (for diagnostics and tests)."""
+        """Return a core's reader of `record` (for diagnostics and tests)."""
         for m in self.members:
             if m.core.node == node:
                 return m.readers[record]
@@ -230,10 +230,12 @@ DEMO_PROGRAMME = (  # thesis 7.2 tasks 1-7 and fig 3.1 on demo_1983, in an order
 def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
           overrides: Mapping[str, Mapping[str, Any]] | None = None,
           params_file: Path | str | None = None, integrity: str = 'e2e') -> Harness:
-    """World + all seven node cores in lock step, each with the settings a launched node of the
-    graph gets: the graph's parameter file (config/agv_demo.yaml), what the layout sets
-    (`layout_parameters`), then `overrides` ({node: {name: value}}, as agv-launch's
-    `-p NODE:NAME:=VALUE`). `seed` seeds the world and the harness.
+    """Build the world and all seven node cores in lock step.
+
+    Each core has the settings a launched node of the graph gets: the graph's parameter file
+    (config/agv_demo.yaml), what the layout sets (`layout_parameters`), then `overrides`
+    ({node: {name: value}}, as agv-launch's `-p NODE:NAME:=VALUE`). `seed` seeds the world and
+    the harness.
     """
     from agv_nodes.communications.core import CommunicationsCore
     from agv_nodes.executive.core import ExecutiveCore

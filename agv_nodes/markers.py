@@ -1,11 +1,10 @@
 """The marker facts of Baker (1983): patterns, templates and the detector threshold tables.
 
 Shared by the world (which draws the cards and calibrates its photodiode model) and the
-position sensor (which thresholds and matches). Everything is in CODE space (Baker 1983, 5.3.5.2):
-the
-high nibble is image row R1, the low nibble row R2, and bit 3 of a nibble is column C1, the
-column that sees a feature first during forward travel; detector d = 1..8 (ADC address d-1) is
-row R1 column C_d for d <= 4 and row R2 column C_(d-4) otherwise.
+position sensor (which thresholds and matches). Everything is in CODE space (Baker 1983,
+5.3.5.2): the high nibble is image row R1, the low nibble row R2, and bit 3 of a nibble is
+column C1, the column that sees a feature first during forward travel; detector d = 1..8 (ADC
+address d-1) is row R1 column C_d for d <= 4 and row R2 column C_(d-4) otherwise.
 """
 
 from __future__ import annotations
@@ -22,9 +21,8 @@ LOCATION_PATTERNS: dict[int, tuple[str, str]] = {
     2: ('BWBW', 'WBWB'),  # 5AH
     3: ('BBBW', 'WWWB'),  # 1EH
 }
-# The 200 x 80 mm stop strip S1..S10 reconstructed from the EDGE table (Baker 1983, 4.3, fig 4.4):
-# view k is
-# columns S(8-k)..S(11-k); the centre view 4 is S4..S7.
+# The 200 x 80 mm stop strip S1..S10 reconstructed from the EDGE table (Baker 1983, 4.3,
+# fig 4.4): view k is columns S(8-k)..S(11-k); the centre view 4 is S4..S7.
 STOP_STRIP: tuple[str, str] = ('BBBWBWBBBB', 'BBBBBWWBBB')
 WHITE_CARD: tuple[str, str] = ('WWWW', 'WWWW')  # all-white control of the belt tests (7.1.2)
 ELEMENT_WIDTH = 0.020  # m, one element (thesis 4.3)
@@ -36,9 +34,9 @@ SLOW1 = 0x14  # 20 % duty: positioning creep speed (PC6/1 constant at 0022H)
 # UCTAB (PC6/1 0031H): template -> identity, in listing order (Baker 1983, App. B.1).
 LOCATION_TABLE: tuple[tuple[int, int], ...] = (
     (0x78, 0), (0x5A, 2), (0x3C, 1), (0x1E, 3), (0xA3, EDIM))
-# EDGE (PC6/1 0023H): views 1-7, template and speed byte (Baker 1983, App. B.1), and the distance
-# still to
-# travel to the stop point when the view is aligned (Baker 1983, 4.3, fig 4.4b), mm.
+# EDGE (PC6/1 0023H): views 1-7, template and speed byte (Baker 1983, App. B.1), and the
+# distance still to travel to the stop point when the view is aligned (Baker 1983, 4.3,
+# fig 4.4b), mm.
 STOP_VIEWS: tuple[tuple[int, int, int], ...] = (
     (0x08, SLOW1, 60), (0x8C, SLOW1, 40), (0x46, SLOW1, 20), (0xA3, 0x00, 0),
     (0x51, SLOW1, -20), (0x20, SLOW1, -40), (0x10, SLOW1, -60))
@@ -54,7 +52,7 @@ THRESHOLDS: dict[str, dict[str, tuple[int, ...]]] = {
 
 
 def code_of(rows: tuple[str, str], first_column: int = 0) -> int:
-    """The CODE byte of four columns of a card starting at `first_column` (C1 first)."""
+    """Return the CODE byte of four columns of a card starting at `first_column` (C1 first)."""
     code = 0
     for row in rows:
         for ch in row[first_column:first_column + 4]:

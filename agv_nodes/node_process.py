@@ -28,18 +28,17 @@ from agv_nodes.settings import ParameterFileError, read_parameter_file
 
 
 def make_executor(kind: str = 'single') -> Any:
-    """Return the executor for one node process (never MultiThreadedExecutor: it drops
-    messages at these rates).
+    """Return the executor for one node process.
 
-    `events` is rclpy's EventsExecutor (rclpy.experimental in Jazzy): measured on the demo
-    graph it halves each node's CPU (bench/graph_bench.py), which is what lets the full
-    programme run faster than real time on two cores. It also takes every input in the order
-    it arrived, /clock included, so a record is handled at the sim time it came in even when
-    the process falls behind (the SingleThreadedExecutor takes one sample per ready topic per
-    turn, and its keep-last-1 clock runs ahead of the records still queued). Two limits of the
-    PyPI rclpy 7.1.6 shape the nodes: (msg, info) callbacks raise SystemError (so only a
-    SingleThreadedExecutor reader asks for source timestamps) and spin() misses the shutdown
-    (spin_main loops on spin_once).
+    Never MultiThreadedExecutor: it drops messages at these rates. `events` is rclpy's
+    EventsExecutor (rclpy.experimental in Jazzy): measured on the demo graph it halves each node's
+    CPU (bench/graph_bench.py), which is what lets the full programme run faster than real time on
+    two cores. It also takes every input in the order it arrived, /clock included, so a record is
+    handled at the sim time it came in even when the process falls behind (the
+    SingleThreadedExecutor takes one sample per ready topic per turn, and its keep-last-1 clock
+    runs ahead of the records still queued). Two limits of the PyPI rclpy 7.1.6 shape the nodes:
+    (msg, info) callbacks raise SystemError (so only a SingleThreadedExecutor reader asks for
+    source timestamps) and spin() misses the shutdown (spin_main loops on spin_once).
     """
     if kind == 'events':
         try:
@@ -82,17 +81,20 @@ _stop = _StopRequest()
 
 
 def running() -> bool:
-    """True while the node process should keep spinning: the context is up and no SIGINT or
-    SIGTERM has come (spin_main's handlers).
+    """Return True while the node process should keep spinning.
+
+    That is while the context is up and no SIGINT or SIGTERM has come (spin_main's handlers).
     """
     return not _stop.requested and rclpy.ok()
 
 
 def _shutting_down(wait: float = 0.5) -> bool:
-    """True when SIGINT is shutting the context down (rclpy's signal thread does it a moment
-    after the signal). Meanwhile rclpy 7.1 can raise from inside the executor - RCLError
-    'context is not valid' between two waits, RuntimeError from take_message - instead of
-    ExternalShutdownException; both are a clean exit, any other error is not.
+    """Return True when SIGINT is shutting the context down.
+
+    rclpy's signal thread does it a moment after the signal. Meanwhile rclpy 7.1 can raise from
+    inside the executor - RCLError 'context is not valid' between two waits, RuntimeError from
+    take_message - instead of ExternalShutdownException; both are a clean exit, any other error is
+    not.
     """
     deadline = time.monotonic() + wait
     while rclpy.ok():
@@ -106,16 +108,16 @@ TEARDOWN_LIMIT = 2.0  # s: a node's DDS teardown normally takes well under 0.5 s
 
 
 def _teardown(node: Node | None, spinner: Any, code: int, limit: float = TEARDOWN_LIMIT) -> None:
-    """Let go of the node: its own last words (`finish()`: the recorder closes its bag), then
-    the executor, the node's entities and the context, the last three bounded by `limit`.
+    """Let go of the node, the DDS part bounded by `limit`.
 
-    The executor goes first: destroying entities while the EventsExecutor still took their DDS
-    callbacks hung 2 of 6 wall-clock shutdowns. Even so about one in twenty wall-clock
-    shutdowns (test_wall_clock_dds, 2 in 44 runs) left a node in Fast DDS's entity deletion
-    (seen in `delete_datareader`, py-spy), deaf to SIGINT and SIGTERM until the launcher's
-    SIGKILL: a Fast DDS teardown deadlock (a known class of Fast DDS entity-deletion deadlock).
-    Everything the node owes is done by then, so past `limit` it says so, with every thread's
-    stack, and exits with its status rather than wait for a SIGKILL.
+    First the node's own last words (`finish()`: the recorder closes its bag), then the
+    executor, the node's entities and the context, the last three bounded by `limit`. The
+    executor goes first: destroying entities while the EventsExecutor still takes their DDS
+    callbacks can hang the shutdown. Even so a wall-clock shutdown can leave a node in Fast
+    DDS's entity deletion (seen in `delete_datareader`, py-spy), deaf to SIGINT and SIGTERM
+    until the launcher's SIGKILL: a Fast DDS entity-deletion deadlock. Everything the node owes
+    is done by then, so past `limit` it says so, with every thread's stack, and exits with its
+    status rather than wait for a SIGKILL.
     """
     if node is not None and hasattr(node, 'finish'):
         node.finish()
@@ -144,7 +146,7 @@ def _teardown(node: Node | None, spinner: Any, code: int, limit: float = TEARDOW
 def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
               executor: Callable[[], Any] | None = None,
               run: Callable[[Any, Any], int] | None = None) -> int:
-    """The rclpy main() idiom for one node: init, spin, clean shutdown, exit status.
+    """Run the rclpy main() idiom for one node: init, spin, clean shutdown, exit status.
 
     A ParameterError (bad value or parameter file) ends start-up with its one-line message
     and exit status 2; SIGINT and SIGTERM end the spin cleanly, between two callbacks

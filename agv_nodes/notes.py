@@ -34,11 +34,11 @@ class Notes:
         self.recent.append(note)
 
     def take(self) -> list[Note]:
-        """The notes added since the last take, oldest first."""
+        """Return the notes added since the last take, oldest first."""
         out = list(self._new)
         self._new.clear()
         return out
 
     def texts(self) -> list[str]:
-        """The recent notes' texts, oldest first."""
+        """Return the recent notes' texts, oldest first."""
         return [n.text for n in self.recent]

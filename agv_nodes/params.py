@@ -50,13 +50,13 @@ _SCALARS = {bool: ParameterType.PARAMETER_BOOL, int: ParameterType.PARAMETER_INT
 
 
 def params_files(argv: Sequence[str] | None = None) -> list[str]:
-    """The --params-file arguments of this process (for error messages)."""
+    """Return the --params-file arguments of this process (for error messages)."""
     argv = list(sys.argv if argv is None else argv)
     return [argv[i + 1] for i, a in enumerate(argv[:-1]) if a == '--params-file']
 
 
 def descriptor(p: Parameter) -> ParameterDescriptor:
-    """The ROS parameter descriptor of one setting."""
+    """Return the ROS parameter descriptor of one setting."""
     desc = ParameterDescriptor(name=p.name, description=p.spec.text(),
                                read_only=p.spec.read_only)
     if p.kind is tuple and not p.default:
@@ -82,8 +82,9 @@ def descriptor(p: Parameter) -> ParameterDescriptor:
 
 
 def parameter_error(node: Node, name: str, value: Any, reason: str) -> ParameterError:
-    """The one-line error that stops a node's start-up: node, parameter, value, reason and
-    the parameter files it was given.
+    """Return the one-line error that stops a node's start-up.
+
+    It names the node, parameter, value, reason and the parameter files it was given.
     """
     return ParameterError(f'{node.get_name()}: parameter {name!r} = {value!r}: {reason}'
                           f'{_where()}')
@@ -120,8 +121,10 @@ def declare(node: Node, cls: type) -> Any:
 
 
 def refuse_unknown(node: Node) -> None:
-    """Stop start-up on a parameter the node does not have: in a parameter file section that
-    names this node, or given on the command line (-p); an unreadable file stops it too.
+    """Stop start-up on a parameter the node does not have.
+
+    That is one in a parameter file section that names this node, or given on the command
+    line (-p); an unreadable file stops it too.
     """
     declared = set(node.get_parameters_by_prefix(''))
     shared: set[str] = set()

@@ -23,7 +23,7 @@ TESTED = ('7.1',)  # rclpy major.minor these are written for
 
 @functools.cache
 def rclpy_version() -> str:
-    """The installed rclpy's version ('' when it cannot be told)."""
+    """Return the installed rclpy's version ('' when it cannot be told)."""
     for dist in ('ros-jazzy-rclpy', 'rclpy'):
         try:
             return metadata.version(dist)
@@ -42,7 +42,7 @@ def rclpy_version() -> str:
 
 @functools.cache
 def check_version() -> bool:
-    """True when the installed rclpy is one these were written for; else says so once."""
+    """Return True when the installed rclpy is one these were written for; else say so once."""
     version = rclpy_version()
     ok = '.'.join(version.split('.')[:2]) in TESTED
     if not ok:
@@ -53,8 +53,9 @@ def check_version() -> bool:
 
 
 def drop_clock_reader(node: Any) -> Any | None:
-    """Destroy the /clock subscription of `node`'s TimeSource and return the TimeSource (so
-    the caller can feed it), or None when this rclpy does not have one where expected.
+    """Destroy the /clock subscription of `node`'s TimeSource and return the TimeSource.
+
+    The caller can then feed it. None when this rclpy does not have one where expected.
     """
     check_version()
     time_source = getattr(node, '_time_source', None)
@@ -67,8 +68,9 @@ def drop_clock_reader(node: Any) -> Any | None:
 
 
 def parameter_overrides(node: Any) -> Mapping[str, Any]:
-    """The values `node` was given for its parameters (files and -p), by name; empty when
-    this rclpy keeps them elsewhere.
+    """Return the values `node` was given for its parameters (files and -p), by name.
+
+    Empty when this rclpy keeps them elsewhere.
     """
     check_version()
     overrides = getattr(node, '_parameter_overrides', None)
@@ -76,8 +78,9 @@ def parameter_overrides(node: Any) -> Mapping[str, Any]:
 
 
 def take_all(subscription: Any, limit: int) -> Iterator[tuple[bytes, dict[str, Any]]]:
-    """(serialized message, message info) of each message queued on a raw subscription,
-    oldest first, at most `limit`.
+    """Take (serialized message, message info) of each message queued on a raw subscription.
+
+    Oldest first, at most `limit`.
     """
     check_version()
     handle = subscription.handle

@@ -83,7 +83,7 @@ def _time(duration: Any) -> QosTime:
 
 
 def to_bag_qos(profile: QoSProfile) -> Qos:
-    """An rclpy QoS profile as rosbags metadata."""
+    """Return an rclpy QoS profile as rosbags metadata."""
     return Qos(history=QosHistory(int(profile.history)), depth=int(profile.depth),
                reliability=QosReliability(int(profile.reliability)),
                durability=QosDurability(int(profile.durability)),
@@ -203,15 +203,15 @@ class Recorder(Node):
                 self._take_over_clock()
 
     def _take_over_clock(self) -> None:
-        """Set the node's ROS time from the /clock samples polled for the bag, and drop
-        rclpy's own /clock reader (as core_node.ClockTimers does).
+        """Set the node's ROS time from the polled /clock samples; drop rclpy's own reader.
 
-        That reader is the only subscription the executor waits on: it woke the recorder at
-        every /clock sample (116 Hz of sim time) for one wait-set turn over every entity, and
-        half the recorder's CPU went to such turns in a profile of the demo (py-spy), against
-        50 turns a second for the polls. Without it the recorder took 14.4 % of a core at real
-        time instead of 21.2 (bench/graph_bench.py). Without the attributes (another rclpy),
-        both stay.
+        As core_node.ClockTimers does, the /clock samples polled for the bag set the time, and
+        rclpy's own /clock reader goes. That reader is the only subscription the executor waits
+        on: it woke the recorder at every /clock sample (116 Hz of sim time) for one wait-set
+        turn over every entity, and half the recorder's CPU went to such turns in a profile of
+        the demo (py-spy), against 50 turns a second for the polls. Without it the recorder
+        took 14.4 % of a core at real time instead of 21.2 (bench/graph_bench.py). Without the
+        attributes (another rclpy), both stay.
         """
         if self.get_parameter('use_sim_time').value:
             self._time_source_fed = drop_clock_reader(self)
@@ -234,14 +234,14 @@ class Recorder(Node):
         return write
 
     def poll(self) -> None:
-        """Take and write everything queued: /clock first, so that every message can be
-        placed on sim time by its send.
+        """Take and write everything queued.
 
-        A message sent after the latest /clock sample taken waits (at most `hold` s of wall
-        time) for the samples that place it: a /clock packet lost on the shared-memory
-        transport holds back every later sample until reliability repairs it, and a message
-        stamped meanwhile with the last sim time known left 0.3-0.6 s gaps in the bag (all the
-        ADC snapshots of that stretch on one stamp).
+        /clock first, so that every message can be placed on sim time by its send. A message
+        sent after the latest /clock sample taken waits (at most `hold` s of wall time) for the
+        samples that place it: a /clock packet lost on the shared-memory transport holds back
+        every later sample until reliability repairs it, and a message stamped meanwhile with
+        the last sim time known would leave 0.3-0.6 s gaps in the bag (all the ADC snapshots of
+        that stretch on one stamp).
         """
         sim_time = self.get_parameter('use_sim_time').value
         ordered = sorted(self.subs, key=lambda topic: topic != '/clock')
@@ -267,8 +267,10 @@ class Recorder(Node):
         self._release(final=False)
 
     def _release(self, final: bool) -> None:
-        """Write the held messages that the clock samples taken place (all of them when
-        `final`, and any held longer than `hold`: a world that stopped publishing /clock).
+        """Write the held messages that the clock samples taken place.
+
+        All of them when `final`, and any held longer than `hold` (a world that stopped
+        publishing /clock).
         """
         if not self._held:
             return
@@ -314,7 +316,7 @@ class Recorder(Node):
                   f'{", ".join(map(str, self.paths))}', flush=True)
 
     def finish(self) -> None:
-        """The spin has ended (spin_main): close the bag while the node is whole."""
+        """Close the bag while the node is whole (the spin has ended, spin_main)."""
         self.close()
 
     def destroy_node(self) -> None:

@@ -26,7 +26,7 @@ SUBSYSTEM_OF = {'navigation': 'navigation', 'position_sensor': 'position sensor'
 
 
 def _record_for(topic: str, by_topic: dict[str, Any]) -> Any:
-    """The schema of a record topic, whatever namespace it was recorded under."""
+    """Return the schema of a record topic, whatever namespace it was recorded under."""
     for name, schema in by_topic.items():
         if topic == '/' + name or topic.endswith('/' + name):
             return schema
@@ -96,7 +96,7 @@ def record_integrity(raw: bytes) -> str:
 def final_stops(events: list[dict[str, Any]], merge_s: float = 5.0) -> list[dict[str, Any]]:
     """One entry per stop from the world's `stopped` events: where the truck finally rested.
 
-    A controlled stop (thesis 8.5 F5) that overshoots comes to rest, backs up and rests again
+    A controlled stop (thesis 8.5) that overshoots comes to rest, backs up and rests again
     on the centre: rests at the same marker less than `merge_s` apart, with no load moved
     between, are one stop. `speed_mm_s` is the speed of the approach, `rests` how many rests
     it took.
@@ -121,7 +121,7 @@ def final_stops(events: list[dict[str, Any]], merge_s: float = 5.0) -> list[dict
 
 
 def analyse(data: dict[str, Any]) -> dict[str, Any]:
-    """The numbers of the report."""
+    """Work out the numbers of the report."""
     events = [f | {'time': t} for t, f in data['records'].get('world_event', [])]
     stops = final_stops(events)
     markers = [{'time': e['time'], 'marker': _marker_name(e), 'speed_mm_s': e['speed'],

@@ -51,8 +51,10 @@ class RecordPublisher(RecordWriter):
 
 
 def node_time(node: Node) -> Callable[[], int]:
-    """The node's time in ns: a CoreNode's ros_now_s (its FIFO /clock under the
-    EventsExecutor, see core_node.ClockTimers), else the ROS clock.
+    """Return the node's time in ns.
+
+    A CoreNode's ros_now_s (its FIFO /clock under the EventsExecutor, see
+    core_node.ClockTimers), else the ROS clock.
     """
     ros_now_s = getattr(node, 'ros_now_s', None)
     if ros_now_s is not None:
@@ -61,8 +63,10 @@ def node_time(node: Node) -> Callable[[], int]:
 
 
 def record_bytes(raw: bytes) -> bytes:
-    """The record in a serialized UInt8MultiArray: read straight from the CDR when it has the
-    shape this package sends, else through rclpy's deserializer (a foreign writer's layout).
+    """Return the record in a serialized UInt8MultiArray.
+
+    It is read straight from the CDR when it has the shape this package sends, else through
+    rclpy's deserializer (a foreign writer's layout).
     """
     data = uint8_array_data(raw)
     if data is None:
@@ -71,8 +75,10 @@ def record_bytes(raw: bytes) -> bytes:
 
 
 def clock_time_ns(raw: bytes) -> int:
-    """The time in a serialized rosgraph_msgs/Clock, ns: read straight from the CDR when it
-    has the shape the world sends, else through rclpy's deserializer.
+    """Return the time in a serialized rosgraph_msgs/Clock, ns.
+
+    It is read straight from the CDR when it has the shape the world sends, else through
+    rclpy's deserializer.
     """
     ns = clock_ns(raw)
     if ns is None:
@@ -178,16 +184,16 @@ class LinkAnnouncer:
     Discovery is two-sided: a writer may match a reader (and the world may count it) before
     the reader has matched the writer, and a volatile reader drops what comes in meanwhile; a
     reader may match a writer before the writer has matched it, and the writer sends it
-    nothing meanwhile. Runs that started then lost their first records (navigation saw a task
-    before any sensor status and called the sensor lost). So each node polls its own readers
+    nothing meanwhile. A run that starts then loses its first records (navigation sees a task
+    before any sensor status and calls the sensor lost). So each node polls its own readers
     and writers on a steady timer (sim time stands still until the world moves) and publishes
     `"<node> rec1 rec2 ... out1>N1 out2>N2 ..."` (latched) each time it changes: the inputs that
     have matched a writer, and how many readers each output has matched. The world waits for
     the links the launcher names (`wait_for_links`) before it moves. Once every input has
     matched and the node's clock runs, polling slows to `settled_period`: under sim time the
     clock runs only once the world has moved, but on the wall clock (use_sim_time false, the
-    hardware configuration) it runs from the start, and stopping there left the world waiting
-    for readers of this node's outputs that matched later (the world's pacing reader).
+    hardware configuration) it runs from the start, and stopping there would leave the world
+    waiting for readers of this node's outputs that match later (the world's pacing reader).
     """
 
     def __init__(self, node: Node, readers: Mapping[str, RecordSubscription],
@@ -221,8 +227,10 @@ class LinkAnnouncer:
 
 
 def parse_links(text: str) -> tuple[str, set[str], dict[str, int]]:
-    """`"<node> rec1 rec2 ... out1>N1 ..."` (LinkAnnouncer) -> (node, {inputs matched},
-    {output: readers matched}).
+    """Parse a LinkAnnouncer line.
+
+    `"<node> rec1 rec2 ... out1>N1 ..."` -> (node, {inputs matched}, {output: readers
+    matched}).
     """
     words = text.split()
     inputs, outputs = set(), {}

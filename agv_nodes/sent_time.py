@@ -44,7 +44,7 @@ class SentTimeline:
         return bool(self._wall)
 
     def clock(self, sent_ns: int, sim: float) -> list[tuple[str, float]]:
-        """A /clock sample (its source timestamp, ns; its value, s) taken from the FIFO.
+        """Take a /clock sample (its source timestamp, ns; its value, s) from the FIFO.
 
         Returns (record, sim) for each record taken earlier whose send time this sample
         raises to `sim` (see `record`).

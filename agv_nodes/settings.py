@@ -37,7 +37,7 @@ class Spec:
     read_only: bool = True  # False: may be set while the node runs
 
     def text(self) -> str:
-        """The description with its constraints, as the parameter descriptor shows it."""
+        """Return the description with its constraints, as the parameter descriptor shows it."""
         words = [self.description]
         if self.choices:
             words.append(f'(one of {", ".join(self.choices)})')
@@ -49,7 +49,7 @@ class Spec:
 def setting(default: Any, description: str, *, lo: float | None = None, hi: float | None = None,
             choices: tuple[str, ...] = (), length: int | None = None,
             read_only: bool = True) -> Any:
-    """A dataclass field that is a node parameter (lists are stored as tuples)."""
+    """Declare a dataclass field that is a node parameter (lists are stored as tuples)."""
     if isinstance(default, list):
         default = tuple(default)
     return field(default=default, metadata={SPEC: Spec(description, lo, hi, tuple(choices),
@@ -135,8 +135,9 @@ def convert(p: Parameter, value: Any) -> Any:
 
 
 def build(cls: type, values: Mapping[str, Any]) -> Any:
-    """An instance of the settings dataclass `cls` from parameter values by dotted name
-    (missing ones take their defaults); SettingError for an unknown name or a bad value.
+    """Build an instance of the settings dataclass `cls` from parameter values by dotted name.
+
+    Missing ones take their defaults; SettingError for an unknown name or a bad value.
     """
     known = {p.name: p for p in parameters(cls)}
     for name in values:
@@ -165,7 +166,7 @@ def _assemble(cls: type, values: Mapping[str, Any], prefix: str) -> Any:
 
 
 def values_of(obj: Any) -> dict[str, Any]:
-    """The parameter values an instance holds, by dotted name (lists as lists)."""
+    """Return the parameter values an instance holds, by dotted name (lists as lists)."""
     out = {}
     for p in parameters(type(obj)):
         value: Any = obj
@@ -177,8 +178,10 @@ def values_of(obj: Any) -> dict[str, Any]:
 
 # -- ROS 2 parameter files ---------------------------------------------------------------------
 def _pattern(key: str) -> re.Pattern[str]:
-    """A parameter file's node key (`/**`, `/**/traction`, `traction`, `/agv2/traction`) as a
-    regular expression over a node's full name (`/traction`, `/agv2/traction`).
+    """Turn a parameter file's node key into a regular expression over a node's full name.
+
+    Keys such as `/**`, `/**/traction`, `traction`, `/agv2/traction`; full names such as
+    `/traction`, `/agv2/traction`.
     """
     parts = []
     for token in str(key).strip('/').split('/'):
@@ -200,8 +203,10 @@ class ParameterFileError(ValueError):
 
 
 def read_parameter_file(path: Path | str) -> dict[str, Any]:
-    """A ROS 2 parameter file's top-level mapping; ParameterFileError naming the file (and
-    the line, when YAML says which) if it cannot be read.
+    """Read a ROS 2 parameter file's top-level mapping.
+
+    ParameterFileError names the file (and the line, when YAML says which) if it cannot be
+    read.
     """
     path = Path(path)
     try:
@@ -245,10 +250,11 @@ def parameter_file_values(path: Path | str, node: str,
 def settings_from_file(cls: type, path: Path | str, node: str,
                        overrides: Mapping[str, Any] | None = None,
                        also_known: frozenset[str] = frozenset()) -> Any:
-    """`cls` as the node `node` gets it from a parameter file plus `overrides` (by dotted
-    name, as `-p NAME:=VALUE` would give them): what the lock-step harness runs with.
-    ParameterFileError names the file, node and key of a name the node does not have
-    (`also_known`: the node's parameters besides `cls` and every node's own).
+    """Build `cls` as the node `node` gets it from a parameter file plus `overrides`.
+
+    `overrides` are by dotted name, as `-p NAME:=VALUE` would give them: this is what the lock-step
+    harness runs with. ParameterFileError names the file, node and key of a name the node does not
+    have (`also_known`: the node's parameters besides `cls` and every node's own).
     """
     known = {p.name for p in parameters(cls)}
     shared, own = parameter_file_values(path, node)

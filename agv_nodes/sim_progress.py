@@ -16,5 +16,5 @@ LINK = 'progress'  # the progress writer's name in graph/links announcements and
 
 
 def topic(node: str) -> str:
-    """The relative topic a node's progress goes on."""
+    """Return the relative topic a node's progress goes on."""
     return f'sim/progress/{node}'

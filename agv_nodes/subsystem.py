@@ -25,9 +25,9 @@ class SubsystemCore:
         self.notes = Notes()  # what it says in words (its node logs them)
 
     def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
-        """An accepted input record; returns records to send (or None)."""
+        """Take an accepted input record; return records to send (or None)."""
         raise NotImplementedError
 
     def tick(self, now: float) -> dict | None:
-        """The timer, every `period` s; returns records to send (or None)."""
+        """Run the timer, every `period` s; return records to send (or None)."""
         raise NotImplementedError

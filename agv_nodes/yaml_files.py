@@ -11,8 +11,10 @@ import yaml
 
 def read_mapping(path: Path, error: type[Exception],
                  keys: Collection[str] | None = None) -> dict[str, Any]:
-    """The top-level mapping of a YAML file; `error` (naming the file and the offending key)
-    when the file cannot be read, is not a mapping, or has a key not in `keys`.
+    """Read the top-level mapping of a YAML file.
+
+    Raise `error` (naming the file and the offending key) when the file cannot be read, is not
+    a mapping, or has a key not in `keys`.
     """
     try:
         doc = yaml.safe_load(path.read_text())

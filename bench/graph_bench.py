@@ -121,9 +121,11 @@ def lockstep() -> None:
 
 
 def where_the_time_goes(seconds: float = 60.0) -> None:
-    """Wall time per simulated second by part, over the programme's first minute (timers
-    around the world's step and each core's calls; the rest is the harness's delivery and the
-    codec): what a real-time factor of 100 (10 ms a simulated second) would have to fit in.
+    """Print the wall time per simulated second by part, over the programme's first minute.
+
+    Timers go around the world's step and each core's calls; the rest is the harness's delivery
+    and the codec. That is what a real-time factor of 100 (10 ms a simulated second) would have
+    to fit in.
     """
     h = truck('demo_1983', seed=1)
     for text in DEMO_PROGRAMME:

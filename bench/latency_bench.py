@@ -49,8 +49,9 @@ TOPICS = {'/hw/position_sensor/adc': 'adc_snapshot',
 
 
 def read(bag: Path) -> dict[str, list]:
-    """Sent times (s) of every ADC snapshot and traction_drive; (time, fields) of the statuses
-    and links.
+    """Read a run's bag: sent times (s) of every ADC snapshot and traction_drive.
+
+    Also (time, fields) of the statuses and links.
     """
     from rosbags.highlevel import AnyReader
 
@@ -119,14 +120,14 @@ def table(name: str, result: dict[str, list[float]]) -> str:
 
 
 def align(run: dict[str, list]) -> dict[str, list]:
-    """Put a gap (NaN) where the probe missed snapshots the position sensor counted, so that
-    status count n is snapshot n again.
+    """Put a gap (NaN) where the probe missed snapshots the position sensor counted.
 
-    The probe's reader may match the world late or lose samples when it is starved (its queue
-    is 100 deep, as every stream reader's). Up to each status the sensor has counted no more
-    snapshots than were sent before that status went out; when it has counted more, the probe
-    missed the difference, and they are put in the widest gap between the snapshots it did see
-    since the previous status (at the start when it matched late).
+    Status count n is then snapshot n again. The probe's reader may match the world late or
+    lose samples when it is starved (its queue is 100 deep, as every stream reader's). Up to
+    each status the sensor has counted no more snapshots than were sent before that status went
+    out; when it has counted more, the probe missed the difference, and they are put in the
+    widest gap between the snapshots it did see since the previous status (at the start when it
+    matched late).
     """
     adc, statuses = run['adc_snapshot'], run['position_sensor_status']
     fixed: list[float] = []
@@ -171,7 +172,7 @@ def backlog_table(backlog: list[int]) -> str:
 
 
 def why(launch, lines: list[str]) -> str:
-    """What a failed live run leaves to go on: dead nodes, reports, the graph's last lines."""
+    """Say what a failed live run leaves to go on: dead nodes, reports, the graph's last lines."""
     tail = '\n  '.join(launch.lines[-25:])
     return (f'\nnodes exited: {launch.exits or "none"}\nreports: {lines[-5:]}\n'
             f'last graph output:\n  {tail}')
@@ -179,8 +180,9 @@ def why(launch, lines: list[str]) -> str:
 
 def live(time_factor: float, extra: dict[str, list[str]], tasks: int = 2,
          realtime: int = 0) -> dict[str, list]:
-    """Run the first `tasks` tasks of the demonstration programme on a launched graph; every
-    message's send time (wall s).
+    """Run the first `tasks` tasks of the demonstration programme on a launched graph.
+
+    Return every message's send time (wall s).
     """
     from agv_nodes.demo import comms_handshake
     from agv_nodes.harness import DEMO_PROGRAMME

@@ -40,7 +40,7 @@ def run_belt(speed: float, standoff: float = 0.300, height: float = 0.0, angle: 
              noise: float = 1.0, run_length: int = 4, band: str = 'invalid',
              misses: list[str] | None = None,
              decoder: str = 'snapshot') -> dict[str, dict[str, float]]:
-    """Passes of the six patterns; per pattern: recognised fraction, matches, misreads.
+    """Run passes of the six patterns; per pattern: recognised fraction, matches, misreads.
 
     With `misses`, each missed pass is appended to it with one character per snapshot while
     the card is in front of the lens: '.' invalid, '-' a code of no template, else the template
@@ -98,7 +98,7 @@ def _mark(sensor: PositionSensorCore) -> str:
 
 
 def study_geometry(groups: int):
-    """The misread study's random geometry: (group, standoff, height) per 10 passes."""
+    """Draw the misread study's random geometry: (group, standoff, height) per 10 passes."""
     rng = random.Random(7)
     for k in range(groups):
         yield k, rng.uniform(0.28, 0.32), rng.uniform(-0.01, 0.01)
@@ -132,8 +132,10 @@ MOTIONS = {
 
 
 def lens_track(kind: str, rng: random.Random, centre: float, dt: float = 1 / 340):
-    """Lens positions along the belt, one per snapshot, for a truck moving as MOTIONS[kind]
-    says past a card at `centre` from 0.4 m before it to 0.4 m after (cruise 0.3-1.2 m/s).
+    """Return lens positions along the belt, one per snapshot, for a truck moving past a card.
+
+    The truck moves as MOTIONS[kind] says past a card at `centre` from 0.4 m before it to 0.4 m
+    after (cruise 0.3-1.2 m/s).
     """
     v0, acc, s = rng.uniform(0.3, 1.2), rng.uniform(0.3, 2.0), centre - 0.4
     if kind == 'stop':
@@ -173,9 +175,10 @@ def lens_track(kind: str, rng: random.Random, centre: float, dt: float = 1 / 340
 
 
 def motion_study(trials: int, decoders: tuple[str, ...] = ('snapshot', 'sequence')) -> None:
-    """Cards met while the truck stops, reverses or changes speed over them: each trial draws
-    a standoff (280-320 mm), height (+-10 mm), detector skew (+-3 mm) and one track per card;
-    every decoder sees the same snapshots.
+    """Study cards met while the truck stops, reverses or changes speed over them.
+
+    Each trial draws a standoff (280-320 mm), height (+-10 mm), detector skew (+-3 mm) and one
+    track per card; every decoder sees the same snapshots.
     """
     print(f'\nCards met at changing speed ({trials} trials x 6 patterns per motion; noise 2 '
           'counts)\n')
@@ -220,7 +223,7 @@ def _rig_layout(speed: float, standoff: float, height: float, angle: float):
 
 
 def _nearest(world: WorldCore, lay) -> str | None:
-    """The card in front of the lens (within half a card), by name."""
+    """Return the card in front of the lens (within half a card), by name."""
     (lx, _ly), _h = world.lens_pose()
     for m in lay.markers:
         if abs(m.centre[0] - lx) < 0.12:
@@ -299,7 +302,7 @@ def main() -> int:
 
 
 def misreads(passes: int, configs: list[tuple[int, float, int, str, str]]) -> None:
-    """The misread study: passes of each pattern per configuration."""
+    """Run the misread study: passes of each pattern per configuration."""
     names = list(EXPECTED)
     print(f'\nMisreads in {passes} passes of each pattern (random standoff '
           '280-320 mm and height +-10 mm per pass, detector skew +-3 mm, noise 2 counts)\n')

@@ -5,12 +5,13 @@ Run: .venv/bin/python bench/route_bench.py [wire] [srm] [circle] [step] [recover
 
 
 - Guide wire: lateral error of the sensor point along the demo route (straights and the
-  R = 2.5 m arc) at 0.7 and 1.0 m/s (thesis: +-1 cm).
+  R = 2.5 m arc) at 0.7 and 1.0 m/s (goal: +-1 cm; the thesis text states no tolerance).
 - SRM: landing offset on wire B 10 s after leaving wire A at L1, by angle and speed.
 - Camera (Rajagopalan 1991, CONCIC-II on tape): steady error on the R = 2.95 m circle, and a
   0.065 m lateral step of a straight tape at 0.31-0.79 m/s: overshoot, 5 mm settling time,
   steady error (thesis: ~10 % overshoot, back within 5 mm in ~3 s at 0.63 m/s, 5 mm steady).
-- Junction: turning onto a branch of junction_1991's cross (App. F.6) by cruise speed.
+- Junction: turning onto a branch of junction_1991's cross (Rajagopalan 1991, App. F.6) by
+  cruise speed.
 
 """
 
@@ -96,8 +97,10 @@ def camera_point(world: WorldCore) -> tuple[float, float]:
 
 def camera_truck(world: WorldCore, speed: float, law: str = 'p', gain_i: float = 0.0,
                  gain_theta: float = 0.0, schedule: float = 0.0) -> tuple[Harness, RouteCore]:
-    """The CONCIC-II on `world`, route following in camera mode with the given law ('pi_b':
-    PI whose integral gathers only within 10 mm of the tape, the integral_band option).
+    """Put the CONCIC-II on `world`, route following in camera mode with the given law.
+
+    'pi_b' is PI whose integral gathers only within 10 mm of the tape (the integral_band
+    option).
     """
     route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed,
                                   steering=SteeringParams(law=law[:2], gain_i=gain_i,
@@ -119,8 +122,9 @@ def camera_trace(h: Harness, world: WorldCore, until: float) -> list[tuple[float
 
 
 def tape(*strips: tuple[str, list[float], float]):
-    """tape_1991 with its tape replaced by straight strips (name, [x, y, heading], length),
-    no road signs; the vehicle starts 1 m along the first.
+    """Return tape_1991 with its tape replaced by straight strips and no road signs.
+
+    Each strip is (name, [x, y, heading], length); the vehicle starts 1 m along the first.
     """
     lay = load_layout(layout_path('tape_1991'))
     width = lay.paths['circle'].width
@@ -145,7 +149,7 @@ def camera_circle(law: str, gain_i: float, speed: float, gain_theta: float = 0.0
 
 def camera_step(law: str, gain_i: float, speed: float, gain_theta: float = 0.0,
                 schedule: float = 0.0) -> tuple[float, float, float]:
-    """A straight tape that jumps 0.065 m sideways: overshoot %, 5 mm settle (s), steady mm."""
+    """Follow a tape that jumps 0.065 m sideways: overshoot %, 5 mm settle (s), steady mm."""
     step_at = 6.0
     world = WorldCore(tape(('a', [-1.0, 0.0, 0.0], step_at + 2.0),
                            ('b', [step_at + 1.0, 0.065, 0.0], 30.0)), WorldParams(seed=2))
@@ -162,9 +166,10 @@ def camera_step(law: str, gain_i: float, speed: float, gain_theta: float = 0.0,
 
 def camera_recovery(law: str, gain_i: float, gain_theta: float, speed: float, offset: float,
                     angle_deg: float, schedule: float = 0.0) -> tuple[float, float, float]:
-    """Start `offset` m beside the tape (at the camera) and `angle_deg` off its heading (thesis
-    S5: -0.08 m and 40 deg at 0.471 m/s): worst |error| (mm), time to stay within 5 mm (s),
-    steady error (mm); nan when the tape is lost.
+    """Start `offset` m beside the tape (at the camera) and `angle_deg` off its heading.
+
+    thesis S5 starts at -0.08 m and 40 deg at 0.471 m/s. Return the worst
+    |error| (mm), time to stay within 5 mm (s), steady error (mm); nan when the tape is lost.
     """
     world = WorldCore(tape(('a', [-1.0, 0.0, 0.0], 30.0)), WorldParams(seed=2))
     s = world.vehicle.state
@@ -182,9 +187,10 @@ def camera_recovery(law: str, gain_i: float, gain_theta: float, speed: float, of
 
 
 def camera_stop(speed: float) -> tuple[float, float]:
-    """The tape ends: four absent frames turn the motors off (thesis 7.3.4). Returns the
-    distance coasted after motor-off (mm) and the distance from the tape's end to rest (mm),
-    both at the camera.
+    """Run to the tape's end: four absent frames turn the motors off (Rajagopalan 1991, 7.3.4).
+
+    Return the distance coasted after motor-off (mm) and the distance from the tape's end to
+    rest (mm), both at the camera.
     """
     world = WorldCore(tape(('a', [-1.0, 0.0, 0.0], 4.0)), WorldParams(seed=2))
     h, route = camera_truck(world, speed)
@@ -200,8 +206,10 @@ def camera_stop(speed: float) -> tuple[float, float]:
 
 
 def camera_junction(junction: str, speed: float) -> dict[str, float | str]:
-    """Take a branch of junction_1991's R2 crossing (App. F.6): where the spin began, the
-    heading it ended on, the camera's offset on the branch then and over the next 3 s.
+    """Take a branch of junction_1991's R2 crossing (Rajagopalan 1991, App. F.6).
+
+    Return where the spin began, the heading it ended on, the camera's offset on the branch
+    then and over the next 3 s.
     """
     lay = load_layout(layout_path('junction_1991'))
     world = WorldCore(lay, WorldParams(seed=3))
@@ -247,7 +255,7 @@ LAWS = (('p', 0.0, 0.0, 0.0), ('pi', 0.07, 0.0, 0.0), ('p', 0.0, 0.3, 0.0),
 
 
 def law_cells(law: str, gain_theta: float, schedule: float) -> str:
-    """The first three cells of a camera-law row: law, G_theta, schedule speed."""
+    """Return the first three cells of a camera-law row: law, G_theta, schedule speed."""
     return f'| {law} | {gain_theta} | {schedule or "-"} |'
 
 

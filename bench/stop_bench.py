@@ -24,8 +24,9 @@ SPEEDS = {0.7: 55, 1.0: 80}  # m/s -> cruise demand (% duty)
 
 def one_stop(seed: int, demand: int, payload: float, mode: str,
              trace: list[str] | None = None, link_reaction: str = 'at_once') -> dict:
-    """One run; returns the stop error (mm) and the speed at the location marker. With
-    `trace`, every change of navigation's view or link while positioning is appended to it
+    """Run one stop; return the stop error (mm) and the speed at the location marker.
+
+    With `trace`, every change of navigation's view or link while positioning is appended to it
     with the ground truth (sensor axis past the centre, mm) and the truck's speed.
     """
     controlled = mode == 'controlled'

@@ -1,7 +1,7 @@
 """World benchmark: core steps per second per layout, and the world node's CPU at real time.
 
 Run: .venv/bin/python bench/world_bench.py [--node-seconds 10]
-Prints a Markdown table (the numbers quoted in closing notes come from here).
+Prints a Markdown table (bench/results/world_bench.md).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ WHEELS = dict(mode='wheel_speeds', enable=1, angle=0, left_speed=400, right_spee
 
 
 def core_rate(name: str, seconds: float = 20.0) -> tuple[float, float]:
-    """(steps per wall second, real-time factor) for the world core alone."""
+    """Measure (steps per wall second, real-time factor) for the world core alone."""
     world = WorldCore(load_layout(layout_path(name)), WorldParams(seed=1))
     steps = int(seconds * world.p.sample_rate)
     t0 = time.perf_counter()

@@ -61,7 +61,7 @@ WIDE = {'executive': 5.6, 'world': 10.0}
 
 
 def load_graph(path: Path) -> list[dict]:
-    """The nodes of config/graph.yaml."""
+    """Load the nodes of config/graph.yaml."""
     return yaml.safe_load(path.read_text())['nodes']
 
 
@@ -111,8 +111,10 @@ def exit_point(name: str, pos: dict, start: tuple[float, float],
 
 
 def anchor(name: str, pos: dict, other: str) -> tuple[float, float]:
-    """The point a box aims from: a wide box aims from the part of it above or below the
-    other node (its own centre for a node beside it).
+    """Return the point a box aims from.
+
+    A wide box aims from the part of it above or below the other node (its own centre for a
+    node beside it).
     """
     x, y = pos[name]
     if name in WIDE and abs(pos[other][1] - y) > BOX_H:
@@ -123,7 +125,7 @@ def anchor(name: str, pos: dict, other: str) -> tuple[float, float]:
 
 def bezier(p0: tuple[float, float], p2: tuple[float, float], rad: float,
            t: float) -> tuple[float, float]:
-    """A point of matplotlib's arc3 curve from p0 to p2 (a quadratic Bezier)."""
+    """Return a point of matplotlib's arc3 curve from p0 to p2 (a quadratic Bezier)."""
     (x0, y0), (x2, y2) = p0, p2
     cx = (x0 + x2) / 2 + rad * (y2 - y0)
     cy = (y0 + y2) / 2 - rad * (x2 - x0)
@@ -132,7 +134,7 @@ def bezier(p0: tuple[float, float], p2: tuple[float, float], rad: float,
 
 
 def label(record: dict) -> str:
-    """A topic and its rate (Hz when faster than 50 Hz, else its period)."""
+    """Return a topic and its rate (Hz when faster than 50 Hz, else its period)."""
     period = record['period_ms']
     rate = f'{1000 / period:.0f} Hz' if period < 20 else f'{period:g} ms'
     return f'{record["topic"]}  ({rate})'

@@ -70,7 +70,7 @@ def _nodes(context):
 
 
 def generate_launch_description():
-    """The launch description: arguments, then the nodes of config/graph.yaml."""
+    """Return the launch description: arguments, then the nodes of config/graph.yaml."""
     return LaunchDescription(
         [DeclareLaunchArgument(name, default_value=default, description=text)
          for name, (default, text) in ARGUMENTS.items()]

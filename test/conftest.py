@@ -93,5 +93,5 @@ def pytest_sessionfinish(session, exitstatus) -> None:
 
 @pytest.fixture
 def fault_table() -> FaultTable:
-    """The session's fault table (test/fault_table.py makes docs/faults.md of it)."""
+    """Return the session's fault table (test/fault_table.py makes docs/faults.md of it)."""
     return _fault_table

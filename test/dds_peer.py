@@ -1,5 +1,7 @@
-"""A small rclpy peer for DDS tests: `pub RECORD k=v ...` publishes a record steadily;
-`echo RECORD N` prints the first N records accepted on its topic as JSON lines, then exits.
+"""A small rclpy peer for DDS tests.
+
+`pub RECORD k=v ...` publishes a record steadily; `echo RECORD N` prints the first N records
+accepted on its topic as JSON lines, then exits.
 """
 
 from __future__ import annotations

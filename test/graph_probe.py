@@ -19,13 +19,13 @@ CRUISE = 0.6  # m/s the truck must exceed before a fault (1983 cruise: 0.7)
 
 
 def event_time(time_ms: int, reference: float) -> float:
-    """Unwrap a world_event's 16-bit ms stamp to the sim time nearest `reference` (within
-    32.8 s either way).
+    """Unwrap a world_event's 16-bit ms stamp to the sim time nearest `reference`.
 
-    The reference is the probe's last pose, and the probe's single-threaded executor takes one
-    pose per turn: after a busy start-up its poses ran over 1 s behind a fresh event, and the
-    old window (at most 1 s ahead of the pose) put W2.1's passage 65.5 s in the past, so the
-    route-limit test measured the whole run (13.8 m) instead of the 4 m past W2.1.
+    The result is within 32.8 s of `reference` either way. The reference is the probe's last
+    pose, and the probe's single-threaded executor takes one pose per turn: after a busy
+    start-up its poses can run over 1 s behind a fresh event. A window of at most 1 s ahead of
+    the pose would then put W2.1's passage 65.5 s in the past, and the route-limit test would
+    measure the whole run instead of the 4 m past W2.1.
     """
     ref_ms = round(reference * 1000)
     return (ref_ms + (time_ms - ref_ms + 32768) % 65536 - 32768) / 1000
@@ -178,7 +178,7 @@ class GraphProbe:
         assert all(r.successful for r in future.result().results), future.result()
 
     def radio_stop(self, on: bool) -> None:
-        """The radio-control stop input."""
+        """Set the radio-control stop input."""
         from std_msgs.msg import Bool
 
         self.radio_pub.publish(Bool(data=on))

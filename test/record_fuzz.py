@@ -54,7 +54,7 @@ def bad_values(schema: RecordSchema) -> list[tuple[int, int, int]]:
 
 
 def recipes(schema: RecordSchema) -> st.SearchStrategy[Recipe]:
-    """The defects that apply to `schema`'s records."""
+    """Return the defects that apply to `schema`'s records."""
     options = [
         st.builds(Recipe, kind=st.just('wrong_length'),
                   length=st.integers(0, 40).filter(lambda n: n != 16)),
@@ -83,7 +83,7 @@ def _seal(schema: RecordSchema, data: bytearray) -> bytes:
 
 
 def apply(schema: RecordSchema, recipe: Recipe, genuine: bytes | None) -> bytes:
-    """The malformed bytes for `recipe`, starting from the latest genuine record."""
+    """Return the malformed bytes for `recipe`, starting from the latest genuine record."""
     base = bytearray(genuine if genuine and len(genuine) == 16 else schema.encode())
     if recipe.kind == 'wrong_length':
         return bytes((base * 3)[:recipe.length])
@@ -112,7 +112,7 @@ def apply(schema: RecordSchema, recipe: Recipe, genuine: bytes | None) -> bytes:
 
 
 def rejected(schema: RecordSchema, data: bytes, integrity: str = 'e2e') -> bool:
-    """True when the codec alone refuses `data` (sequence defects need the reader's state)."""
+    """Return True when the codec alone refuses `data` (sequence defects need reader state)."""
     try:
         schema.decode(data, integrity=integrity if schema.protected else 'none')
     except RecordError:

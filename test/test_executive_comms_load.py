@@ -257,8 +257,9 @@ def run_programme(tasks, limit: float = 900.0, **kw):
 
 @pytest.mark.slow
 def test_demonstration_programme_completes_in_lock_step():
-    """Thesis 7.2 tasks 1-7 and fig 3.1 on demo_1983: every task, stop and load, with the
-    1983 traction and friction stops.
+    """Thesis 7.2 tasks 1-7 and fig 3.1 on demo_1983, with the 1983 traction and friction stops.
+
+    Every task, stop and load.
     """
     h = run_programme(DEMO_PROGRAMME, overrides={'traction': {'control': 'open_loop_1983'},
                                                  'navigation': {'stopping': 'friction_1983'}})
@@ -282,9 +283,10 @@ def test_demonstration_programme_completes_in_lock_step():
 
 @pytest.mark.slow
 def test_demonstration_programme_with_controlled_stops_ends_on_every_centre():
-    """The defaults (closed-loop traction, controlled stops, thesis 8.5 F4/F5): the same
-    programme, and the truck comes to its final rest on every stop marker's centre. A
-    controlled stop may rest more than once (an overshoot is backed out): the last counts.
+    """The defaults (closed-loop traction, controlled stops, thesis 8.5): the same programme.
+
+    The truck comes to its final rest on every stop marker's centre. A controlled stop may rest
+    more than once (an overshoot is backed out): the last counts.
     """
     h = run_programme(DEMO_PROGRAMME)
     assert [r[1] for r in h.cores['communications'].results] == ['completed'] * 8
@@ -307,7 +309,7 @@ def test_missing_stop_marker_stops_at_the_positioning_limit():
 
 
 def healthy_display() -> list:
-    """The executive's display after 'stop at 0 first' and one more second at rest."""
+    """Return the executive's display after 'stop at 0 first' and one more second at rest."""
     h = run_programme(['stop at 0 first'], limit=60)
     ex = h.cores['executive']
     member = next(m for m in h.members if m.core is ex)
@@ -329,9 +331,10 @@ def test_diagnostics_rows_for_a_healthy_truck():
 
 
 def test_traction_start_up_trip_is_a_warning_and_a_fault_trip_an_error():
-    """Before the first task traction's relay is open by design (power-on, awaiting 00H then
-    non-zero): WARN, as in traction's own row, so agv-report lists no fault for a healthy
-    start-up. A trip from a fault stays ERROR.
+    """Before the first task traction's open relay is a WARN, a trip from a fault an ERROR.
+
+    The relay is open by design then (power-on, awaiting 00H then non-zero): WARN, as in
+    traction's own row, so agv-report lists no fault for a healthy start-up.
     """
     h = truck('demo_1983', seed=1)
     ex = h.cores['executive']

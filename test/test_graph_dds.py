@@ -27,9 +27,10 @@ DEMO = str(Path(PYTHON).parent / 'agv-demo')
 
 
 def run_demo(out: Path, *extra: str, timeout: float = 900) -> subprocess.CompletedProcess:
-    """agv-demo as a user runs it; past `timeout` it gets SIGINT, so that it stops its graph
-    (a SIGKILLed demo would leave nine nodes running on the session's domain, and every
-    later graph test would cross-talk with them).
+    """Run agv-demo as a user runs it; past `timeout` it gets SIGINT, so it stops its graph.
+
+    A SIGKILLed demo would leave nine nodes running on the session's domain, and every later
+    graph test would cross-talk with them.
     """
     proc = subprocess.Popen([DEMO, '--out', str(out), *extra], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
@@ -48,8 +49,9 @@ def run_demo(out: Path, *extra: str, timeout: float = 900) -> subprocess.Complet
 
 
 def node_warnings(out: Path, limit: int = 25) -> str:
-    """The world's start line and the nodes' warnings and errors from a demo's logs: a failed
-    run's CI output then says what each node saw, not only what agv-demo heard.
+    """Return the world's start line and the nodes' warnings and errors from a demo's logs.
+
+    A failed run's CI output then says what each node saw, not only what agv-demo heard.
     """
     lines = []
     for log in sorted((out / 'logs').glob('*.log')):
@@ -148,17 +150,16 @@ def test_bag_rates_match_what_was_published(quick):
 
 
 def test_full_demonstration_programme_over_dds(tmp_path):
-    """Issue 7's end-to-end test: thesis 7.2 tasks 1-7 and 'load A at 1 and take to 3'.
+    """The end-to-end test: thesis 7.2 tasks 1-7 and 'load A at 1 and take to 3'.
 
     ~2.5 min at ~2.7x on the 2-core reference machine (EventsExecutor nodes; ~5 min at ~1.2x
-    with SingleThreadedExecutors). Before the world paced itself on the
-    slowest node (world/pacing.py) it failed 3 of 4 fresh-clone runs from CPU starvation (a
-    marker missed, late stops, a stale-command trip). Paced, it still failed about one run in
-    three with a false `stale status`: the executive, itself starved, saw statuses 0.141-0.247 s
-    old against the demo graph's 0.15 s timeout. Aged from when they were sent
-    (`status_age: sent`: the arrival order of the executive's FIFO /clock under the
-    EventsExecutor, agv_nodes/sent_time.py under a SingleThreadedExecutor) the oldest is
-    0.079-0.097 s, and the test is in the default run.
+    with SingleThreadedExecutors). It needs the world to pace itself on the slowest node
+    (world/pacing.py): CPU starvation otherwise misses markers, stops late and trips traction on
+    a stale command. It also needs statuses aged from when they were sent (`status_age: sent`:
+    the arrival order of the executive's FIFO /clock under the EventsExecutor,
+    agv_nodes/sent_time.py under a SingleThreadedExecutor): an executive that is itself starved
+    can see statuses 0.141-0.247 s old against the demo graph's 0.15 s timeout and report a
+    false `stale status`, where aged from their send the oldest is 0.079-0.097 s.
     """
     res = run_demo(tmp_path)
     assert res.returncode == 0, (res.stdout[-3000:] + res.stderr[-2000:]
@@ -179,8 +180,10 @@ def test_full_demonstration_programme_over_dds(tmp_path):
 
 
 def test_traction_board_example_replays_the_recorded_drive(quick):
-    """examples/traction_pwm_board.py offline on the quick run's bag: every traction_drive
-    decodes, and the main contactor closes once traction's watchdog count runs.
+    """Run examples/traction_pwm_board.py offline on the quick run's bag.
+
+    Every traction_drive decodes, and the main contactor closes once traction's watchdog count
+    runs.
     """
     res = subprocess.run([PYTHON, str(REPO / 'examples' / 'traction_pwm_board.py'), '--bag',
                           str(quick / 'bag')], capture_output=True, text=True, timeout=120)
@@ -191,9 +194,10 @@ def test_traction_board_example_replays_the_recorded_drive(quick):
 
 
 def test_marker_board_example_drives_a_real_position_sensor(quick):
-    """Swap the world for the marker-sensor board (world:=none): the example replays the quick
-    run's ADC snapshots around the first location marker into a position_sensor node of its own
-    (wall time), which reads L0 from them as it did in the run.
+    """Swap the world for the marker-sensor board (world:=none).
+
+    The example replays the quick run's ADC snapshots around the first location marker into a
+    position_sensor node of its own (wall time), which reads L0 from them as it did in the run.
     """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor

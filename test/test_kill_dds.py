@@ -33,7 +33,8 @@ DRIVE_OFF_WITHIN = 0.200  # simulated s from the kill to the drive no longer pus
 # received (thesis B.2.1's monostable), seen at the next 340 Hz sample. A retrigger traction
 # sent just before the kill can reach the world after it: the paced world runs at most
 # max_lag (10 ms, config/agv_demo.yaml) ahead of a node's records, so it is stamped at most
-# that late (a loaded rehearsal saw 0.206 s). world_event stamps are whole milliseconds.
+# that late (on a loaded machine a little over 0.2 s). world_event stamps are whole
+# milliseconds.
 MAX_LAG = 0.010
 RELAY_DROPS_WITHIN = 0.200 + MAX_LAG + 1 / 340 + 0.001
 
@@ -114,8 +115,10 @@ def _alive(pid: int) -> bool:
 
 
 def test_a_sigkilled_launcher_takes_its_nodes_with_it():
-    """No graph is left running on the domain when agv-launch itself is killed (it then runs
-    no clean-up): each node was started through agv_nodes.graph.child (PR_SET_PDEATHSIG).
+    """No graph is left running on the domain when agv-launch itself is killed.
+
+    agv-launch then runs no clean-up: each node was started through agv_nodes.graph.child
+    (PR_SET_PDEATHSIG).
     """
     import os
     import subprocess

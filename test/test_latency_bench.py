@@ -19,8 +19,10 @@ def status(count: int, recognised: int = 0) -> dict:
 
 
 def chain_run() -> dict[str, list]:
-    """100 snapshots; statuses 0.5 ms after snapshots 20, 50 (a recognition) and 100; the link
-    1 ms after the recognition, the drive 0.7 ms after that.
+    """Make a synthetic run of 100 snapshots.
+
+    Statuses come 0.5 ms after snapshots 20, 50 (a recognition) and 100; the link 1 ms after
+    the recognition, the drive 0.7 ms after that.
     """
     adc = [i * T for i in range(100)]
     statuses = [(adc[c - 1] + 0.0005, status(c, c == 50)) for c in (20, 50, 100)]

@@ -1,5 +1,6 @@
-"""launch/agv_demo.launch.py starts exactly what agv-launch starts (launch is not on PyPI, so
-the launch API is stubbed to record what the file asks for).
+"""launch/agv_demo.launch.py starts exactly what agv-launch starts.
+
+launch is not on PyPI, so the launch API is stubbed to record what the file asks for.
 """
 
 from __future__ import annotations
@@ -164,8 +165,9 @@ def test_bad_fault_option_names_the_problem(text, words):
 
 
 def test_fault_option_reaches_the_writer_only():
-    """A fault is injected at the record's writer; the world paces on each node's sim progress,
-    not on its records, so it is told nothing about the fault.
+    """A fault is injected at the record's writer; the world is told nothing about it.
+
+    The world paces on each node's sim progress, not on its records.
     """
     graph = load_graph()
     record, spec = parse_fault('traction_link:loss=0.1,delay=0.02', graph)
@@ -179,8 +181,10 @@ def test_fault_option_reaches_the_writer_only():
 
 
 def test_world_waits_for_every_link_whose_two_ends_are_launched():
-    """wait_for_links: each reader of each record once both ends run (LinkAnnouncer), each
-    writer's end with all its readers, and each paced node's progress writer.
+    """wait_for_links names every link the world waits for.
+
+    Each reader of each record once both ends run (LinkAnnouncer), each writer's end with all
+    its readers, and each paced node's progress writer.
     """
     from dataclasses import replace
 
@@ -216,8 +220,10 @@ def test_world_waits_for_every_link_whose_two_ends_are_launched():
 
 
 def test_world_paces_on_every_node_by_its_sim_progress():
-    """With a simulated world on sim time every node publishes its sim progress and the world
-    paces on all of them, once each progress writer has matched it; on wall time neither.
+    """With a simulated world on sim time the world paces on every node's sim progress.
+
+    Every node publishes its sim progress and the world paces on all of them, once each
+    progress writer has matched it; on wall time neither.
     """
     graph = load_graph()
     nodes = sorted(n.name for n in graph.nodes if n.role == 'node')
@@ -262,8 +268,10 @@ def test_launch_is_moving_once_the_world_writes_its_ready_file():
 
 
 def test_demo_waits_until_every_link_has_carried_a_record():
-    """agv-demo sends the programme only once each reader's /diagnostics inputs row shows a
-    record accepted on each of its links (writers' ends are not in a reader's row).
+    """agv-demo sends the programme only once every link has carried a record.
+
+    That is once each reader's /diagnostics inputs row shows a record accepted on each of its
+    links (writers' ends are not in a reader's row).
     """
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
@@ -326,8 +334,10 @@ def test_realtime_marks_the_sensor_to_traction_chain():
 
 
 def test_child_takes_the_priority_it_is_given():
-    """graph.child --sched-fifo N: the exec'd node runs SCHED_FIFO at N, or, where this user
-    may not, the child refuses with a message and status 2 (and agv-launch refuses first).
+    """graph.child --sched-fifo N: the exec'd node runs SCHED_FIFO at N, or is refused.
+
+    Where this user may not, the child refuses with a message and status 2 (and agv-launch
+    refuses first).
     """
     import os
     import subprocess

@@ -1,5 +1,7 @@
-"""A node process's start and end: a bad parameter value or file stops it at start-up with one
-line naming file, key, value; its teardown at the end is bounded.
+"""A node process's start and end.
+
+A bad parameter value or file stops it at start-up with one line naming file, key, value; its
+teardown at the end is bounded.
 """
 
 from __future__ import annotations
@@ -62,8 +64,10 @@ def test_an_unknown_parameter_on_the_command_line_stops_the_node():
 @pytest.mark.dds
 @pytest.mark.timeout(240)
 def test_the_harness_and_the_launched_graph_run_with_the_same_settings():
-    """The lock-step harness builds every core from the graph's parameter file and the layout
-    exactly as the launched nodes do: every setting, queried from each running node.
+    """The lock-step harness builds every core exactly as the launched nodes are built.
+
+    Both take the graph's parameter file and the layout: every setting is compared, queried
+    from each running node.
     """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -153,8 +157,10 @@ print('not reached')
 
 @pytest.mark.parametrize('code', [0, 2])
 def test_a_teardown_stuck_in_dds_ends_the_process_with_its_status(code):
-    """spin_main's teardown is bounded: the node's own finish() runs first and in full, then
-    past the limit the process says so, dumps its stacks and exits with the node's status.
+    """spin_main's teardown is bounded.
+
+    The node's own finish() runs first and in full, then past the limit the process says so,
+    dumps its stacks and exits with the node's status.
     """
     res = subprocess.run([PYTHON, '-c', _TEARDOWN, str(code)], capture_output=True, text=True,
                          timeout=60, cwd=REPO)

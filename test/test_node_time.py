@@ -1,5 +1,7 @@
-"""A node's time and distance: ClockTimers (FIFO /clock under the EventsExecutor) and the
-wheel encoders' odometer. No DDS: the /clock reader is fed directly.
+"""A node's time and distance.
+
+ClockTimers (FIFO /clock under the EventsExecutor) and the wheel encoders' odometer. No DDS:
+the /clock reader is fed directly.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ class _Node:
 
 
 def _clock(ns: int) -> bytes:
-    """A /clock sample as the reader takes it: serialized by rclpy's own serializer."""
+    """Return a /clock sample as the reader takes it: serialized by rclpy's own serializer."""
     msg = Clock()
     msg.clock.sec, msg.clock.nanosec = divmod(ns, 1_000_000_000)
     return serialize_message(msg)

@@ -25,7 +25,7 @@ BLACK = THRESHOLDS['sensor1']['black']
 
 
 def snapshot_for(code: int, margin: float = 1.3) -> tuple[list[int], list[int]]:
-    """A steady (lit, dark) pair whose x4 sums read `code` with some margin."""
+    """Return a steady (lit, dark) pair whose x4 sums read `code` with some margin."""
     lit, dark = [], []
     for d in range(8):
         bit = code >> (7 - d) & 1
@@ -47,7 +47,7 @@ def feed(core: PositionSensorCore, code: int, n: int, t0: float = 0.0) -> list[d
 
 # -- position sensor ---------------------------------------------------------------------------
 def snapshot_core(**settings) -> PositionSensorCore:
-    """A position sensor reading the navigating table by the thesis's snapshot rule alone."""
+    """Build a position sensor reading the navigating table by the thesis's snapshot rule alone."""
     return PositionSensorCore(SensorProcessing(decoder='snapshot', **settings))
 
 
@@ -107,8 +107,9 @@ def test_invalid_band_gives_no_code():
 
 
 def test_hold_band_extends_a_streak_but_needs_one_decided_snapshot():
-    """invalid_band = hold: a detector in its band keeps its last decision; held codes alone
-    never make a recognition, one fully decided snapshot completes the streak.
+    """invalid_band = hold: a detector in its band keeps its last decision.
+
+    Held codes alone never make a recognition; one fully decided snapshot completes the streak.
     """
     hold, thesis = (snapshot_core(run_length=1, invalid_band=band)
                     for band in ('hold', 'invalid'))
@@ -145,8 +146,9 @@ def test_as_listed_variant_never_matches_views_6_and_7():
 
 
 def test_as_listed_black_test_compares_high_bytes_only():
-    """Detector 6 (THROFF 262, THRON 456): a TOTAL of 300 is invalid as intended, black as
-    listed (its band disappears, Baker 1983, App. B.1).
+    """Detector 6 (THROFF 262, THRON 456): a TOTAL of 300 is invalid as intended, black as listed.
+
+    As listed its band disappears (Baker 1983, App. B.1).
     """
     lit, dark = snapshot_for(0x78)
     lit[5] = 75 + 10  # 4 x 75 = 300
@@ -160,9 +162,11 @@ def test_as_listed_black_test_compares_high_bytes_only():
 
 def passing_card(code: int, element: float = 7.0, before: int = 10, reverse: bool = False,
                  stretch_at: int | None = None) -> list[list[float]]:
-    """Band-unit snapshots (white 2.0, black -0.6) of a card with `code` crossing the image
-    from C1 to C4 (C4's element first in time), `element` snapshots per element; `stretch_at`
-    holds the card still for 40 snapshots from that snapshot on (a truck stopping on it).
+    """Return band-unit snapshots (white 2.0, black -0.6) of a card with `code` passing by.
+
+    The card crosses the image from C1 to C4 (C4's element first in time), `element` snapshots
+    per element; `stretch_at` holds the card still for 40 snapshots from that snapshot on (a
+    truck stopping on it).
     """
     frames, t, k = [], 0.0, 0
     end = before + 8 * element + 20
@@ -197,9 +201,11 @@ def test_sequence_decoder_reads_nothing_in_reverse_or_when_the_card_stops(code):
 
 
 def test_a_window_out_of_step_with_the_column_delays_is_not_read():
-    """One column's read alone (agree 1) of a card the truck stopped on once all four columns
-    had it in view: every window is stretched alike, so only their length against the
-    columns' delays gives the stop away (without that check L0 reads as L3).
+    """One column's read alone (agree 1) of a card the truck stopped on is not taken.
+
+    The truck stopped once all four columns had the card in view: every window is stretched
+    alike, so only their length against the columns' delays gives the stop away (without that
+    check L0 reads as L3).
     """
     frames = passing_card(0x78, stretch_at=32)
     checked, unchecked = (SequenceDecoder(dict(LOCATION_TABLE), agree=1, stretch=s)
@@ -216,8 +222,10 @@ def test_sequence_decoder_does_not_read_a_card_in_view_at_reset():
 
 
 def test_sequence_decoder_reads_fast_off_focus_passes_the_snapshot_rule_misses():
-    """The belt rig at 2.5 m/s with +-3 mm detector skew: the default (sequence) reads all
-    five cards, the white control as nothing; the thesis rule alone reads none of them.
+    """The belt rig at 2.5 m/s with +-3 mm detector skew.
+
+    The default (sequence) reads all five cards, the white control as nothing; the thesis rule
+    alone reads none of them.
     """
     import random
 
@@ -245,8 +253,9 @@ def test_sequence_decoder_reads_fast_off_focus_passes_the_snapshot_rule_misses()
 
 
 def test_one_report_per_card_when_both_rules_read_it():
-    """At 0.5 m/s the thesis rule reads the card first; the sequence decoder's read of the
-    same card and passage is not reported again.
+    """At 0.5 m/s the thesis rule reads the card first, and only its read is reported.
+
+    The sequence decoder's read of the same card and passage is not reported again.
     """
     core = PositionSensorCore()
     assert core.p.decoder == 'sequence'
@@ -475,8 +484,10 @@ def test_sensor_silence_reports_lost_and_requests_speed_0():
 
 
 def test_a_task_with_no_sensor_ever_heard_ends_lost_after_the_timeout():
-    """The first sensor status may still be on its way when a task comes (graph start-up);
-    none within sensor_timeout of the task is a lost sensor all the same.
+    """No sensor status within sensor_timeout of a task is a lost sensor.
+
+    The first sensor status may still be on its way when a task comes (graph start-up); none
+    within sensor_timeout of the task is a lost sensor all the same.
     """
     n = Nav(stopping='controlled')
     n.command(1, 0)
@@ -505,8 +516,10 @@ def test_via_executive_puts_the_request_in_the_status_record():
 
 
 def test_a_view_met_backing_up_puts_the_centre_nearer_not_further():
-    """Controlled stop (F5): a stop view is first matched centre_lead mm *before* it is aligned
-    in the direction of travel; backing up after an overshoot, that is past its alignment.
+    """Controlled stop (Baker 1983, 8.5): a view's lead is in the direction of travel.
+
+    A stop view is first matched centre_lead mm *before* it is aligned in the direction of
+    travel; backing up after an overshoot, that is past its alignment.
     """
     from agv_nodes.markers import STOP_VIEWS
 
@@ -534,8 +547,10 @@ def test_a_view_met_backing_up_puts_the_centre_nearer_not_further():
 
 
 def test_controlled_stop_of_a_loaded_truck_from_1_m_s_ends_on_the_centre():
-    """Lock-step harness: 1000 kg at 80 % overshoots the centre, backs up and stops on it
-    (the ground truth from the world; with the forward lead it rested 12 mm past).
+    """Lock-step harness: 1000 kg at 80 % overshoots the centre, backs up and stops on it.
+
+    The ground truth comes from the world; taking the forward lead while backing up would
+    leave it 12 mm past.
     """
     from agv_nodes.harness import submit, truck
 

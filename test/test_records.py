@@ -11,7 +11,7 @@ C = codec()
 
 
 def plain(record: str, **fields) -> bytes:
-    """A plain thesis record (integrity none): bytes 15-16 are 00H."""
+    """Pack a plain thesis record (integrity none): bytes 15-16 are 00H."""
     return C.encode(record, fields, integrity='none')
 
 
@@ -63,7 +63,7 @@ def test_navigation_status_step_table_of_spec_4():
     (0x40, dict(executive_priority=1, reverse=0, speed=0)),  # OPLOP
     (0x14, dict(executive_priority=0, reverse=0, speed=20)),  # SLOW1
     (0x00, dict(executive_priority=0, reverse=0, speed=0)),  # SETPT / centre view
-    (0x34, dict(executive_priority=0, reverse=1, speed=20)),  # F5 reverse creep (Baker 1983, 8.5)
+    (0x34, dict(executive_priority=0, reverse=1, speed=20)),  # overshoot reverse (Baker 1983, 8.5)
 ])
 def test_traction_link_values(value, fields):
     raw = plain('traction_link', **fields)
@@ -294,9 +294,10 @@ def test_inputs_report_puts_the_nodes_own_verdict_first():
 
 
 def test_carriers_read_and_written_straight_as_cdr():
-    """The nodes' and agv-report's serialized carriers (agv_nodes.records.carrier) give exactly
-    what rosbags' (de)serializer gives, and decline (None: the general path) any message they
-    do not fully understand.
+    """The serialized carriers (agv_nodes.records.carrier) agree with rosbags' (de)serializer.
+
+    The nodes' and agv-report's carriers give exactly what rosbags' (de)serializer gives, and
+    decline (None: the general path) any message they do not fully understand.
     """
     import numpy as np
     from rosbags.typesys import Stores, get_typestore
@@ -345,9 +346,10 @@ def test_carriers_read_and_written_straight_as_cdr():
 
 
 def test_a_record_in_any_layout_is_read_from_its_cdr():
-    """The nodes' readers take records serialized: the shape they send is read straight from
-    the CDR, any other layout (a driver's dims, a data_offset) through rclpy's deserializer,
-    and both give the 16 bytes.
+    """The nodes' readers take records serialized, in any layout.
+
+    The shape they send is read straight from the CDR, any other layout (a driver's dims, a
+    data_offset) through rclpy's deserializer, and both give the 16 bytes.
     """
     from rclpy.serialization import serialize_message
     from std_msgs.msg import MultiArrayDimension, MultiArrayLayout, UInt8MultiArray
@@ -367,8 +369,10 @@ def test_a_record_in_any_layout_is_read_from_its_cdr():
 
 
 def _random_value(f, rng):
-    """A value for field `f`: mostly valid, sometimes a bool, a special's name, an enum code,
-    out of range or of the wrong type.
+    """Draw a value for field `f`.
+
+    Mostly valid, sometimes a bool, a special's name, an enum code, out of range or of the
+    wrong type.
     """
     roll = rng.random()
     if f.encoding == 'enum':
@@ -387,7 +391,9 @@ def _random_value(f, rng):
 
 
 def test_compiled_fast_paths_agree_with_the_field_by_field_codec():
-    """Encode / decode try generated straight-line code first (fast_path.compile_fast_paths) and
+    """The generated fast paths agree with the general loop and take the common cases.
+
+    Encode / decode try generated straight-line code first (fast_path.compile_fast_paths) and
     fall back to the general loop on None: whatever the fast path returns must be exactly what
     the general path makes of the same input, and the fast path must take the common cases.
     """

@@ -67,7 +67,7 @@ def test_follows_the_demo_wire_within_1_cm_and_reports_lost_at_its_end():
         if h.now > 3 and world.sample % 17 == 0:
             sx, sy = world.vehicle.sensor_point
             worst = max(worst, abs(world.nearest_path_offset(sx, sy)))
-    assert worst < 0.010  # thesis 6.2: the wire held to +-1 cm (straights and the arc)
+    assert worst < 0.010  # the goal here: the wire held to +-1 cm (straights and the arc)
     assert route.state == 'lost' and ex.states[-1] == 'lost'  # wire A ends at x = 6
     sx, _sy = world.vehicle.sensor_point
     assert sx < 6.0
@@ -148,7 +148,7 @@ def test_lost_holds_while_the_truck_moves_and_while_the_wire_is_weak():
 # -- camera ---------------------------------------------------------------------------------
 def test_run_length_table():
     row = np.zeros(128, dtype=np.uint8)
-    row[20:25] = row[40:65] = row[84:109] = 1  # the example of thesis Table 4.1
+    row[20:25] = row[40:65] = row[84:109] = 1  # the example of Rajagopalan 1991, Table 4.1
     assert runs_of(row) == [(20, 5), (40, 25), (84, 25)]
 
 
@@ -239,7 +239,7 @@ class SignWatcher(CameraExec):
 
 @pytest.mark.parametrize('speed', [0.16, 0.47, 0.79])
 def test_road_signs_decoded_at_every_junction(speed):
-    """Thesis 4.3: the width jump flags a sign, edge columns give the branches (100 %)."""
+    """Rajagopalan 1991, 4.3: a width jump flags a sign, edge columns the branches (100 %)."""
     lay = load_layout(layout_path('tape_1991'))
     world = WorldCore(lay, WorldParams(seed=5))
     watcher = SignWatcher()
@@ -251,7 +251,10 @@ def test_road_signs_decoded_at_every_junction(speed):
 
 
 class JunctionExec(CameraExec):
-    """A scripted executive (App. F.7: one decision per junction) that logs route states."""
+    """A scripted executive (Rajagopalan 1991, App. F.7: one decision per junction).
+
+    It logs route states.
+    """
 
     def __init__(self, junction: str) -> None:
         self.junction = junction
@@ -284,7 +287,10 @@ def _junction_run(layout, junction: str, seconds: float, speed: float = 0.47):
 @pytest.mark.parametrize('junction, heading, branch', [('left', 90.0, 'sign0_left'),
                                                         ('right', -90.0, 'sign0_right')])
 def test_junction_choice_turns_onto_the_branch(junction, heading, branch):
-    """App. F.6: slow down at the sign, stop with the axle over the crossing, turn, follow."""
+    """Rajagopalan 1991, App. F.6: slow down at the sign, stop over the crossing, turn, follow.
+
+    The vehicle stops with its axle over the crossing.
+    """
     lay = load_layout(layout_path('junction_1991'))
     world, route, script, spin_at = _junction_run(lay, junction, 18.0)
     junction_xy = lay.paths['main'].pose_at(3.0)[:2]
@@ -308,7 +314,11 @@ def test_straight_on_at_the_junction_keeps_to_the_main_tape():
 
 
 def test_a_branch_the_sign_does_not_offer_stops_the_vehicle(tmp_path):
-    """App. F.7: "If a scripted option is not available on the floor, the vehicle stops"."""
+    """A scripted branch the sign does not offer stops the vehicle.
+
+    Rajagopalan 1991, App. F.7: "If a scripted option is not available on the floor, the vehicle
+    stops".
+    """
     text = layout_path('junction_1991').read_text().replace('type: R2', 'type: P22')
     (tmp_path / 'junction_1991.yaml').write_text(text)
     lay = load_layout(tmp_path / 'junction_1991.yaml')
@@ -321,8 +331,10 @@ def test_a_branch_the_sign_does_not_offer_stops_the_vehicle(tmp_path):
 
 
 def test_a_turn_whose_odometry_stops_ends_at_rest():
-    """Safety: the spin ends by wheel odometry; if that falls silent mid-turn the vehicle must
-    not spin on for ever (turn_timeout, then motors off as for a lost tape).
+    """Safety: a spin whose wheel odometry falls silent mid-turn does not go on for ever.
+
+    The spin ends by wheel odometry; if that falls silent the vehicle stops at turn_timeout
+    (motors off as for a lost tape).
     """
     from agv_nodes.harness import Link
 

@@ -50,8 +50,10 @@ def test_pause_and_out_of_order_samples():
 
 
 def cruising(sent: bool, stale_confirm: int = 8) -> tuple[ExecutiveCore, SentTimeline]:
-    """An executive on a task, fed 1 s of healthy records (navigation every 50 ms, the others
-    every 10 ms), every one taken as soon as it is sent.
+    """Build an executive on a task, fed 1 s of healthy records.
+
+    Navigation's come every 50 ms, the others every 10 ms, and every one is taken as soon as it
+    is sent.
     """
     ex = ExecutiveCore(ExecutiveParams(status_timeout=0.15, stale_confirm=stale_confirm))
     t = SentTimeline()
@@ -69,11 +71,12 @@ def cruising(sent: bool, stale_confirm: int = 8) -> tuple[ExecutiveCore, SentTim
 
 
 def starved(age: str) -> ExecutiveCore:
-    """The executive is starved from 1.0 s to 1.3 s of sim time while the world and the
-    sub-systems go on: 30 clock samples and 30 records of traction, route and load queue up,
-    and 6 of navigation's (every 50 ms). Waking, it takes one record per topic per turn
-    (rclpy's executor), the clock's first and navigation's last; its ROS clock (keep-last 1)
-    is at 1.3 s at once, the FIFO clock one sample per turn. Pure age (stale_confirm 0).
+    """Starve the executive from 1.0 s to 1.3 s of sim time while the sub-systems go on.
+
+    Meanwhile 30 clock samples and 30 records of traction, route and load queue up, and 6 of
+    navigation's (every 50 ms). Waking, it takes one record per topic per turn (rclpy's
+    executor), the clock's first and navigation's last; its ROS clock (keep-last 1) is at 1.3 s
+    at once, the FIFO clock one sample per turn. Pure age (stale_confirm 0).
 
     age: `arrival` (1983), `sent` (SentTimeline.record + sent_later), or `eager` (the send
     time as first placed, never raised: navigation's queue empties long before the clock's).

@@ -254,7 +254,7 @@ def test_source_switching_between_executive_and_link():
     b.link = link(speed=0)  # 00H at the centre view: REF 0, armature off, coast
     b.run(1.0)
     assert b.core.ref == 0 and b.log[-1][1]['armature_enable'] == 0
-    b.link = link(speed=20, reverse=1)  # 34H: bit 5 set -> NEG -> -20 (F5 reverse creep)
+    b.link = link(speed=20, reverse=1)  # 34H: bit 5 set -> NEG -> -20 (overshoot reverse creep)
     b.run(0.05)
     assert b.core.ref == -20
     b.command = cmd(60, priority=1)  # executive holds priority (via_executive)

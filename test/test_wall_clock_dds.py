@@ -1,15 +1,15 @@
 """The graph on the wall clock (use_sim_time false: how it runs against hardware) over DDS.
 
 No /clock: every node's timers run from start-up, the world steps at time_factor 1 on its own
-clock. Two faults were found here and are guarded by this test:
+clock. This test guards two requirements of that configuration:
 
-- the world never moved: each node stopped announcing its links once its inputs had matched
-  and its clock ran (true at once on the wall clock), so the world never saw the readers of
-  the nodes' outputs that matched later (ros_ports.LinkAnnouncer now slows down instead);
-- Ctrl-C printed FATAL callback errors and 'context is invalid' from nodes still publishing,
-  and some node processes hung in Fast DDS at exit until SIGKILL (core_node.spin_main now takes
-  SIGINT between callbacks, shuts its executor down before the node's entities go, and bounds
-  the teardown: test_node_parameters).
+- the world must move: a node that stopped announcing its links once its inputs had matched
+  and its clock ran (true at once on the wall clock) would hide from the world the readers of
+  its outputs that match later, so ros_ports.LinkAnnouncer slows down instead of stopping;
+- Ctrl-C must end every node cleanly, with no FATAL callback errors or 'context is invalid'
+  from nodes still publishing and no node process hung in Fast DDS at exit until SIGKILL:
+  node_process.spin_main takes SIGINT between callbacks, shuts its executor down before the
+  node's entities go, and bounds the teardown (test_node_parameters).
 """
 
 from __future__ import annotations
@@ -35,8 +35,8 @@ def test_wall_clock_graph_completes_a_task_and_stops_on_sigint(tmp_path):
         g.launch.exits, '\n'.join(g.launch.lines[-40:]))
     assert not g.launch.escalated, g.launch.escalated  # none needed SIGTERM or SIGKILL
     said = '\n'.join(g.launch.lines)
-    # A Fast DDS teardown deadlock (about 1 run in 20 before the bound) ends that node's process
-    # by itself after core_node.TEARDOWN_LIMIT, status 0: said, not failed on.
+    # A Fast DDS entity-deletion deadlock ends that node's process by itself after
+    # node_process.TEARDOWN_LIMIT, status 0: said, not failed on.
     print('\n'.join(line for line in g.launch.lines if 'teardown still blocked' in line))
     for bad in ('FATAL', 'Traceback', 'context is invalid'):
         assert bad not in said, said[-3000:]

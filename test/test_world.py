@@ -50,7 +50,7 @@ class ScriptedDrive:
 
 @pytest.fixture
 def drive_codec():
-    """The installed schemas plus a writer entry for the scripted test core."""
+    """Return the installed schemas plus a writer entry for the scripted test core."""
     from agv_nodes.records import codec
     from agv_nodes.records.codec import Codec
 
@@ -112,7 +112,7 @@ def test_between_alignments_the_snapshot_is_invalid():
 
 
 def test_calibration_reproduces_table_7_1():
-    """The simulated threshold experiment gives back Table 7.1's worst-case levels."""
+    """The simulated threshold experiment gives back Baker 1983, Table 7.1's worst-case levels."""
     params = SensorParams()
     gains, blacks = calibrate(params)
     assert all(g > 0 for g in gains) and all(0 <= b < 0.5 for b in blacks)
@@ -175,7 +175,7 @@ def test_cutting_drive_at_0_7_m_per_s_stops_in_a_friction_distance():
     while truck.state.speed > 0:
         truck.step(1 / 1360)
     coast = truck.state.distance - x0
-    assert 0.3 <= coast <= 1.0  # friction only; the thesis needed 1 m marker spacing at 0.7
+    assert 0.3 <= coast <= 1.0  # friction only; Baker 1983 needed 1 m marker spacing at 0.7
     assert truck.state.speed == 0.0
 
 
@@ -219,8 +219,9 @@ def test_world_drives_past_markers_and_reports_ground_truth(drive_codec):
 
 
 def test_a_slow_creep_after_a_rest_ends_in_a_rest_of_its_own():
-    """The last creep of a controlled stop back onto the centre peaks under 10 mm/s: its
-    rest is the stop (the benches once took the rest before it as the stop).
+    """The last creep of a controlled stop back onto the centre peaks under 10 mm/s.
+
+    Its rest is the stop, not the rest before it.
     """
     world = WorldCore(layout('straight_track'), WorldParams(seed=5))
     for speed in (0.30, 0.10, 0.0, 0.0, 0.006, 0.003, 0.0, 0.0):

@@ -85,9 +85,11 @@ def test_world_pause_step_resume_services():
 
 
 def test_world_waits_for_every_link_it_is_told_of():
-    """wait_for_links: no move (and a message naming the link) until the reader's node says
-    on graph/links that it has matched its writer, the writer's node that its writer has
-    matched all its readers, and the world's own writer has matched its readers.
+    """wait_for_links: no move (and a message naming the link) until every end has matched.
+
+    The reader's node says on graph/links that it has matched its writer, the writer's node
+    that its writer has matched all its readers, and the world's own writer has matched its
+    readers.
     """
     import rclpy
     from std_msgs.msg import String, UInt8MultiArray

@@ -1,5 +1,7 @@
-"""A test peer for the world node: drives the truck (traction_drive + steering_command at
-100 Hz) and counts what the world publishes until /clock passes `seconds`, then prints JSON.
+"""A test peer for the world node.
+
+It drives the truck (traction_drive + steering_command at 100 Hz) and counts what the world
+publishes until /clock passes `seconds`, then prints JSON.
 """
 
 from __future__ import annotations

@@ -52,7 +52,7 @@ class Task:
     task_id: int = 0
 
     def record(self) -> dict[str, Any]:
-        """The comms_status fields."""
+        """Return the comms_status fields."""
         return {'task_id': self.task_id, 'op': self.op, 'location': self.location,
                 'marker': self.marker, 'destination': self.destination, 'dwell': self.dwell,
                 'srm_angle': self.srm_angle, 'then': self.then, 'conveyor': self.conveyor}
@@ -181,7 +181,7 @@ class CommunicationsCore(SubsystemCore):
         self._last: tuple | None = None
 
     def on_task(self, text: str, now: float) -> dict | None:
-        """A task from comms/task."""
+        """Take a task from comms/task."""
         try:
             task = parse_task(text, self.p.locations)
         except TaskError as exc:
@@ -229,7 +229,7 @@ class CommunicationsCore(SubsystemCore):
         return None
 
     def tick(self, now: float) -> dict:
-        """The head of the queue (or no task) as comms_status."""
+        """Return the head of the queue (or no task) as comms_status."""
         if self.queue:
             return {'comms_status': self.queue[0].record()}
         return {'comms_status': Task('', 'none').record()}

@@ -1,6 +1,4 @@
-"""Communications settings: every parameter of the communications node, its default and
-meaning.
-"""
+"""Communications settings: every parameter of the node, its default and meaning."""
 
 from __future__ import annotations
 

@@ -93,7 +93,7 @@ class ExecutiveCore(SubsystemCore):
     # -- inputs -----------------------------------------------------------------------------
     def on_record(self, record: str, fields: dict[str, Any], now: float,
                   sent: float | None = None) -> dict | None:
-        """A status record from a sub-system (or a task from communications).
+        """Take a status record from a sub-system (or a task from communications).
 
         `sent` is the sim time the record was sent (status_age `sent`, agv_nodes.sent_time);
         without it the record's age runs from its arrival, `now`.
@@ -120,8 +120,9 @@ class ExecutiveCore(SubsystemCore):
         return None
 
     def sent_later(self, record: str, sent: float) -> None:
-        """A status taken before the executive knew the sim time it was sent at (its clock
-        queue was behind) turns out to have been sent at `sent` (agv_nodes.sent_time).
+        """Age an earlier status from `sent`, the sim time it was sent at (agv_nodes.sent_time).
+
+        The status was taken before the executive knew that time (its clock queue was behind).
         """
         sub = SUBSYSTEM_OF.get(record)
         if sub in self.status_time:
@@ -383,8 +384,8 @@ class ExecutiveCore(SubsystemCore):
         """Supervise, run the step, and send every command record (pigeon-holes)."""
         traction = self.status.get('traction') or {}
         # Over the time since the last pass, not one period: under sim time a pass can come
-        # late or be skipped (a starved process), and period x speed then lost distance (a
-        # missing stop marker was overrun by 13.8 m against the 4 m positioning limit).
+        # late or be skipped (a starved process), and period x speed then loses distance (a
+        # missing stop marker can be overrun by 13.8 m against the 4 m positioning limit).
         dt = self.p.period if self._last_tick is None else min(max(now - self._last_tick, 0.0),
                                                                  1.0)
         self._last_tick = now

@@ -28,7 +28,7 @@ def level_of(status) -> int:
 
 
 def label(status) -> str:
-    """A row's name: the status name without its 'agv/' prefix (e.g. traction/inputs)."""
+    """Return a row's name: the status name without its 'agv/' prefix (e.g. traction/inputs)."""
     name = status.name
     return name.split('/', 1)[1] if name.startswith('agv/') else status.hardware_id
 
@@ -51,7 +51,7 @@ class Merged:
 
 
 def render(msg: DiagnosticArray, detail: str | None = None, colour: bool = True) -> str:
-    """The table for one DiagnosticArray."""
+    """Return the table for one DiagnosticArray."""
     lines = [f'{"sub-system":20s} {"level":6s} {"rate Hz":>8s} {"age s":>7s} {"rejects":>8s}  '
              'reason']
     for st in msg.status:

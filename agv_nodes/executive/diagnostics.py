@@ -1,4 +1,4 @@
-"""The executive's maintenance display (thesis 8.2.2, spec F3), ROS-free.
+"""The executive's maintenance display (Baker 1983, 8.2.2, 7.2), ROS-free.
 
 One status per sub-system: the last 16 bytes in (its status record) and out (its command
 record) in hex and decoded, the record rate, the age of the last good record, the rejected
@@ -52,7 +52,7 @@ class HealthMonitor:
 
     def update(self, now: float, readers: dict[str, RecordReader],
                writers: dict[str, RecordWriter], executive: Any) -> list[SubsystemHealth]:
-        """The display now (call at a steady rate, e.g. 1-2 Hz)."""
+        """Return the display now (call at a steady rate, e.g. 1-2 Hz)."""
         rows = []
         fault = getattr(executive, 'fault', None)
         for name, (in_record, out_record) in SUBSYSTEMS.items():

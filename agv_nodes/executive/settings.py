@@ -10,8 +10,9 @@ from agv_nodes.settings import setting
 
 
 def parse_srm_map(entries: Iterable[str]) -> dict[int, int]:
-    """('1:15', '3:15') -> {1: 15, 3: 15} (location: SRM angle in degrees, + = left);
-    ValueError naming the first entry that is not location:angle, 0-31 and -45..45.
+    """('1:15', '3:15') -> {1: 15, 3: 15} (location: SRM angle in degrees, + = left).
+
+    ValueError names the first entry that is not location:angle, 0-31 and -45..45.
     """
     out = {}
     for entry in entries:
@@ -75,7 +76,7 @@ class ExecutiveParams:
                               'executive blames nobody)', choices=('arrival', 'sent'))
 
     def problems(self) -> list[tuple[str, Any, str]]:
-        """Checks `build` makes beyond each field's own: the route map's entries."""
+        """Make the checks `build` needs beyond each field's own: the route map's entries."""
         try:
             parse_srm_map(self.srm_map)
         except ValueError as exc:

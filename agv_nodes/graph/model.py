@@ -42,7 +42,7 @@ class Graph:
     file: Path
 
     def node(self, name: str) -> NodeSpec:
-        """The node called `name`."""
+        """Return the node called `name`."""
         return next(n for n in self.nodes if n.name == name)
 
 

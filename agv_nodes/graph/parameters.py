@@ -48,9 +48,10 @@ class Options:
 
 
 def record_readers(graph: Graph, world: bool, recording: bool) -> dict[str, int]:
-    """Each record whose writer and at least one reader run -> its number of readers: the
-    schema's readers that run (the world among them only where the schema lists it), plus the
-    recorder when recording.
+    """Each record whose writer and at least one reader run -> its number of readers.
+
+    The readers are the schema's readers that run (the world among them only where the schema
+    lists it), plus the recorder when recording.
     """
     running = {n.name for n in graph.nodes if n.role == 'node' or (n.role == 'world' and world)}
     out = {}
@@ -64,8 +65,10 @@ def record_readers(graph: Graph, world: bool, recording: bool) -> dict[str, int]
 
 
 def paced_nodes(graph: Graph, options: Options) -> list[str]:
-    """The nodes the world paces on (its `pace_nodes`): every sub-system node of the graph when
-    the graph runs on sim time, none on wall time (there is no clock to hold back).
+    """Return the nodes the world paces on (its `pace_nodes`).
+
+    Every sub-system node of the graph when the graph runs on sim time, none on wall time
+    (there is no clock to hold back).
     """
     if not options.use_sim_time:
         return []
@@ -73,7 +76,7 @@ def paced_nodes(graph: Graph, options: Options) -> list[str]:
 
 
 def wait_links(graph: Graph, recording: bool = False, paced: Iterable[str] = ()) -> list[str]:
-    """The world's `wait_for_links`: both ends of every link of the graph.
+    """Return the world's `wait_for_links`: both ends of every link of the graph.
 
     'reader:record' - the reader's node has matched the record's writer - for each reader of
     each record (both ends launched); 'writer>record:N' - the writer has matched all N readers
@@ -121,7 +124,7 @@ def parse_fault(text: str, graph: Graph) -> tuple[str, dict[str, float]]:
 
 
 def layout_name(graph: Graph, options: Options) -> str:
-    """The layout the world loads: --layout, else the parameter file's, else its default."""
+    """Return the layout the world loads: --layout, else the parameter file's, else its default."""
     if options.layout:
         return options.layout
     try:
@@ -132,8 +135,9 @@ def layout_name(graph: Graph, options: Options) -> str:
 
 
 def from_layout(graph: Graph, options: Options) -> dict[str, dict[str, object]]:
-    """What the layout sets in the nodes (the executive's route map, route following's
-    vehicle): agv_nodes.world.layout.layout_parameters, as the lock-step harness applies it.
+    """Return what the layout sets in the nodes (route map, route following's vehicle).
+
+    That is agv_nodes.world.layout.layout_parameters, as the lock-step harness applies it.
     """
     name = layout_name(graph, options)
     try:
@@ -144,7 +148,7 @@ def from_layout(graph: Graph, options: Options) -> dict[str, dict[str, object]]:
 
 def node_parameters(graph: Graph, spec: NodeSpec, options: Options,
                     ready_file: Path | None = None) -> dict[str, object]:
-    """The parameters the launch sets for one node on top of the parameter file.
+    """Return the parameters the launch sets for one node on top of the parameter file.
 
     The one source for both agv-launch and launch/agv_demo.launch.py (a test compares them).
     `ready_file` is the file the world writes when it starts moving: agv-launch watches for
@@ -190,7 +194,7 @@ def override_parameters(graph: Graph, spec: NodeSpec, options: Options,
 
 
 def realtime_priority(spec: NodeSpec, options: Options) -> int:
-    """The SCHED_FIFO priority one node runs at (0 = the normal scheduler).
+    """Return the SCHED_FIFO priority one node runs at (0 = the normal scheduler).
 
     With `--realtime N` (launch file: realtime:=N) the nodes marked `realtime` in the graph
     description - the sensor-to-traction chain and the world that feeds it - run at real-time

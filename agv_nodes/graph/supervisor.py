@@ -42,7 +42,7 @@ CHILD = 'agv_nodes.graph.child'
 
 
 def claim_domain(explicit: int | None = None) -> tuple[int, TextIO | None]:
-    """A ROS domain id for this graph: explicit, ROS_DOMAIN_ID, or a free one by lock file."""
+    """Claim a ROS domain id for this graph: explicit, ROS_DOMAIN_ID, or a free one by lock."""
     if explicit is None and os.environ.get('ROS_DOMAIN_ID'):
         explicit = int(os.environ['ROS_DOMAIN_ID'])
     if explicit is not None:
@@ -74,7 +74,7 @@ class ReadyFile:
         self._seen = False
 
     def is_set(self) -> bool:
-        """True once the world has written the file."""
+        """Return True once the world has written the file."""
         if not self._seen:
             self._seen = self.path.exists()
         return self._seen
@@ -127,7 +127,7 @@ class Launch:
         return out
 
     def command(self, spec: NodeSpec) -> list[str]:
-        """The command line of one node."""
+        """Return the command line of one node."""
         exe = Path(sys.executable).parent / spec.executable
         cmd = [str(exe)] if exe.exists() else [sys.executable, '-m', spec.module]
         cmd += ['--ros-args', '-r', f'__node:={spec.name}']
@@ -150,8 +150,10 @@ class Launch:
                 print(f'[{name:{width}s}] {line}', flush=True)
 
     def child_command(self, spec: NodeSpec) -> list[str]:
-        """command() through the child wrapper: the node gets SIGTERM if this launcher dies
-        (even by SIGKILL), and takes its real-time priority (if any) before it execs.
+        """Return command() through the child wrapper.
+
+        The node gets SIGTERM if this launcher dies (even by SIGKILL), and takes its real-time
+        priority (if any) before it execs.
         """
         command = [sys.executable, '-m', CHILD, str(os.getpid())]
         priority = realtime_priority(spec, self.o)
@@ -213,7 +215,7 @@ class Launch:
         self._start(spec)
 
     def world_done(self) -> bool:
-        """True once the world process has exited."""
+        """Return True once the world process has exited."""
         proc = self.procs.get('world')
         return proc is not None and proc.poll() is not None
 

@@ -1,4 +1,4 @@
-"""Load handling: the truck's two roller conveyors (Baker 3.5.3, 6.1; fig 3.1 steps c, d, g, h).
+"""Load handling: the truck's two roller conveyors (Baker 1983, 3.5.3, 6.3.2; fig 3.1 c, d, g, h).
 
 A new `job` in load_command starts a transfer on the given conveyor: wait (up to `align_wait`)
 until a workstation answers the ultrasonic link (the truck at rest and aligned), check there is a

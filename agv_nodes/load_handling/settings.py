@@ -9,7 +9,7 @@ from agv_nodes.settings import setting
 
 @dataclass
 class LoadParams:
-    """The conveyor transfers (thesis 3.5.3, 6.1)."""
+    """The conveyor transfers (Baker 1983, 3.5.3, 6.3.2)."""
 
     period: float = setting(0.050, 'seconds between load_status and conveyor_command records',
                             lo=0.01, hi=1.0)

@@ -17,20 +17,18 @@ wheel_odometry (controlled stopping only). Records out: navigation_status (OUTFO
   OUTFO = 0BH and the loop ends (the truck coasts to rest on friction).
 
 `variant = as_listed` keeps PC6/1's quirks: LOCN starts at 00H (the first OPLOP reports marker
-00H, Baker 1983, App. B.1), and a centre view still in sight when positioning starts is accepted
-at once
-(the second-stop-marker hazard of Baker 1983, App. B.1). `intended` (default) starts LOCN at FFH
-and, on
-entering CLOP, ignores the centre view until another stop view has been seen.
+00H, Baker 1983, App. B.1), and a centre view still in sight when positioning starts is
+accepted at once (the second-stop-marker hazard of Baker 1983, App. B.1). `intended` (default)
+starts LOCN at FFH and, on entering CLOP, ignores the centre view until another stop view has
+been seen.
 
-`stopping = controlled` (thesis 8.5 F4/F5; the default, since it beats `friction_1983` in
-bench/stop_bench.py: within +-3 mm against +34..+55 mm): every stop view gives the
-distance still to go (+60 ... -60 mm, Baker 1983, 4.3, fig 4.4); wheel odometry carries it between
-views and the
-link asks closed-loop traction to stop in that distance (traction_link.stop_in); an overshoot
-reverses slowly back onto the centre.
+`stopping = controlled` (Baker 1983, 8.5: controlled braking, reverse correction; the default,
+since it beats `friction_1983` in bench/stop_bench.py: within +-3 mm against +34..+55 mm):
+every stop view gives the distance still to go (+60 ... -60 mm, Baker 1983, 4.3, fig 4.4);
+wheel odometry carries it between views and the link asks closed-loop traction to stop in that
+distance (traction_link.stop_in); an overshoot reverses slowly back onto the centre.
 
-`speed_request_path = via_executive` (thesis 8.2.2, spec F2): no direct link is published; the
+`speed_request_path = via_executive` (Baker 1983, 8.2.2): no direct link is published; the
 request travels in navigation_status.speed_request and the executive forwards it.
 
 A sensor that goes quiet (no status for `sensor_timeout`, or it reports its ADC stale or
@@ -51,7 +49,7 @@ AT_REST = 0.005  # m/s: below this a controlled stop counts the truck at rest
 
 
 def link_byte(link: dict[str, int]) -> int:
-    """The 1983 port value of a link record (bit 6 priority, bit 5 reverse, bits 0-4)."""
+    """Return the 1983 port value of a link record (bit 6 priority, bit 5 reverse, bits 0-4)."""
     return link['executive_priority'] << 6 | link['reverse'] << 5 | link['speed']
 
 
@@ -201,7 +199,7 @@ class NavigationCore(SubsystemCore):
         return self._flush()
 
     def on_reject(self, record: str, reason: str, now: float) -> dict | None:
-        """A rejected command or sensor record is flagged in the next status."""
+        """Flag a rejected command or sensor record in the next status."""
         self.input_fault = True
         return None
 
@@ -229,7 +227,7 @@ class NavigationCore(SubsystemCore):
             self._view_seen(fields['stop_view'], now)
 
     def _location_seen(self, identity: int, now: float) -> None:
-        """ACTION (navigating table)."""
+        """Act on a recognised location (ACTION, navigating table)."""
         self.locn = identity
         if self.locn == self.locstp:
             if self.flag4 == 0:
@@ -258,13 +256,13 @@ class NavigationCore(SubsystemCore):
             _code, _speed, to_go = STOP_VIEWS[view - 1]
             # A view is first matched centre_lead mm before it is aligned (the snapshot turns
             # valid ~6 mm early), so the stop point is that much further on - in the direction
-            # of travel: a view met while backing up after an overshoot (F5) is matched
+            # of travel: a view met while backing up after an overshoot is matched
             # centre_lead mm *past* its alignment, so the centre is that much nearer. (Taking
-            # the forward lead there put every overshooting stop 2 x 5 mm past the centre.)
+            # the forward lead there would put every overshooting stop 2 x 5 mm past the centre.)
             # At rest (AT_REST) the way the truck is about to go is the way the link asks: the
-            # F5 reverse. Taking the measured speed there (0, so forward) sent a truck that had
-            # come to rest 6 mm past the centre and was about to back up 5 mm further on
-            # instead, to +11 mm (the view turned valid at the turn-round).
+            # overshoot reverse. Taking the measured speed there (0, so forward) would send a
+            # truck that came to rest 6 mm past the centre and is about to back up 5 mm further
+            # on instead, to +11 mm (the view turns valid at the turn-round).
             moving = abs(self._speed) >= AT_REST
             backing = self._speed < 0 if moving else self.link['reverse'] == 1
             lead = -self.p.centre_lead if backing else self.p.centre_lead
@@ -278,7 +276,7 @@ class NavigationCore(SubsystemCore):
             self._arrived()
 
     def _controlled(self, now: float) -> None:
-        """Controlled stop: ask traction to stop in the distance still to go."""
+        """Ask traction to stop in the distance still to go (controlled stop)."""
         if self._target is None:
             return
         remaining_mm = (self._target - self._odometer) * 1000.0
@@ -293,7 +291,7 @@ class NavigationCore(SubsystemCore):
         stop_in = int(min(250, max(1, round(abs(remaining_mm)))))
         if remaining_mm > 0:
             self._set_link(speed=SLOW1, stop_in=stop_in)
-        else:  # overshoot (F5): back up slowly onto the centre
+        else:  # overshoot (Baker 1983, 8.5): back up slowly onto the centre
             self._set_link(reverse=1, speed=self.p.reverse_speed, stop_in=stop_in)
 
     def _set_lost(self, lost: bool) -> None:

@@ -26,10 +26,10 @@ the positioning table (stop views at creep speed, each view's timing drives the 
 uses the snapshot rule. The snapshot CODE and `invalid` are still worked out for the status
 record either way.
 
-`variant = as_listed` keeps the listing's defects (Baker 1983, 5.2.3, App. B.1, register items 1
-and 14): the
-black test compares only the high bytes of TOTAL and THROFF, and the EDGE search covers LEN = 5
-entries, so stop views 6 and 7 never match. The default `intended` is the design as described.
+`variant = as_listed` keeps the listing's defects (Baker 1983, 5.2.3, App. B.1, register items
+1 and 14): the black test compares only the high bytes of TOTAL and THROFF, and the EDGE search
+covers LEN = 5 entries, so stop views 6 and 7 never match. The default `intended` is the design
+as described.
 """
 
 from __future__ import annotations
@@ -105,7 +105,7 @@ class PositionSensorCore(SubsystemCore):
         self._clear_sequence_sum()
 
     def _clear_sequence_sum(self) -> None:
-        """The sequence decoder's running sum, cleared with THRESH's (SAMIC / EDGIC)."""
+        """Clear the sequence decoder's running sum, with THRESH's (SAMIC / EDGIC)."""
         self._seq_oldest = [[0] * 8 for _ in range(self.p.sequence_run_length)]
         self._seq_total = [0] * 8
         self._seq_row = 0
@@ -201,8 +201,9 @@ class PositionSensorCore(SubsystemCore):
         return match
 
     def _sequence_levels(self, x: list[int]) -> list[float]:
-        """The sequence decoder's running sum of this snapshot's d.c.-removed `x` (as SUBT
-        made it for THRESH), in band units (0 = THROFF, 1 = THRON).
+        """Return the sequence decoder's running sum of this snapshot's d.c.-removed `x`.
+
+        `x` is as SUBT made it for THRESH; the sum is in band units (0 = THROFF, 1 = THRON).
         """
         row, total = self._seq_oldest[self._seq_row], self._seq_total
         self._seq_row = (self._seq_row + 1) % self.p.sequence_run_length
@@ -214,7 +215,7 @@ class PositionSensorCore(SubsystemCore):
         return z
 
     def _recognised(self, match: int, now: float) -> dict[str, Any]:
-        """A recognition: identity (navigating) or stop view (positioning) and its status."""
+        """Report a recognition: identity (navigating) or stop view (positioning) and status."""
         self.recognitions = (self.recognitions + 1) & 0xFF
         if self.table == 'navigating':
             self.identity, self.stop_view = match, 0
@@ -224,13 +225,13 @@ class PositionSensorCore(SubsystemCore):
 
     # -- outputs ----------------------------------------------------------------------------
     def status(self, recognised: bool = False, now: float = 0.0) -> dict[str, Any]:
-        """The position_sensor_status record (restarts the heartbeat period)."""
+        """Return the position_sensor_status record (restarts the heartbeat period)."""
         self._last_status = now
         if self._first_now is None:
             self._first_now = now
         # Stale: no snapshot for adc_timeout - counted from the first time this node kept
-        # time when none has come yet (a heartbeat due before the first snapshot of a run
-        # had called a healthy sensor stale, and navigation LOST, at every start-up).
+        # time when none has come yet (else a heartbeat due before the first snapshot of a
+        # run would call a healthy sensor stale, and navigation LOST, at every start-up).
         last = self._last_adc if self._last_adc is not None else self._first_now
         stale = now - last > self.p.adc_timeout
         return {
@@ -248,7 +249,7 @@ class PositionSensorCore(SubsystemCore):
         }
 
     def tick(self, now: float) -> dict | None:
-        """The timer heartbeat, when no status went out for a heartbeat period."""
+        """Send the timer heartbeat, when no status went out for a heartbeat period."""
         if self._last_status is not None and now - self._last_status < self.p.heartbeat:
             return None
         return {'position_sensor_status': self.status(recognised=False, now=now)}

@@ -7,17 +7,16 @@ skew (thesis 7.1.3: +-1 sample) and at speed (a 20 mm element lasts 6.8 snapshot
 height the thesis rule missed 974 of 10,020 passes at 1 m/s (bench/recognition_bench.py).
 
 Yet every column sees every element of its row go by. Each card of the navigating table, the
-four location markers (Baker 1983, 4.3, fig 4.6) and the stop marker's centre view (3.3), is four
-elements
-long with white, in one row or the other, in its first and last element. So each column sees
-one white-bounded window four elements long; read at the middle of each quarter of that
-window, the column's two detectors give the card's whole CODE by themselves, at their own time
-(skew cannot split them), and the four columns give four reads of the same card. A card is
-recognised when `agree` columns have read the same template of the table, no column that read
-the card cleanly read anything else, and every such window is as long as four elements at the
-speed the columns' start times give (a 20 mm column pitch apart): a truck that stops, reverses
-or changes speed over a card stretches its windows out of step with that, and misread L1 as L3
-(bench/recognition_bench.py --motion) before this check.
+four location markers (Baker 1983, 4.3, fig 4.6) and the stop marker's centre view (Baker 1983,
+4.3, fig 4.4), is four elements long with white, in one row or the other, in its first and last
+element. So each column sees one white-bounded window four elements long; read at the middle of
+each quarter of that window, the column's two detectors give the card's whole CODE by
+themselves, at their own time (skew cannot split them), and the four columns give four reads of
+the same card. A card is recognised when `agree` columns have read the same template of the
+table, no column that read the card cleanly read anything else, and every such window is as
+long as four elements at the speed the columns' start times give (a 20 mm column pitch apart):
+a truck that stops, reverses or changes speed over a card stretches its windows out of step
+with that, and without this check misreads L1 as L3 (bench/recognition_bench.py --motion).
 
 Time order: a card passing in forward travel crosses the image from C1 to C4 (world
 marker_sensor), so every column sees the card's C4 element first. In reverse the read is
@@ -65,7 +64,7 @@ class SequenceDecoder:
         self.reset()
 
     def reset(self) -> None:
-        """A new table or a filter reset: a card already in view is not read."""
+        """Start afresh on a new table or a filter reset: a card already in view is not read."""
         self._columns = [_Column() for _ in range(4)]
         self._sample = -1
         self._before: list[float] | None = None  # the previous snapshot
@@ -147,8 +146,9 @@ class SequenceDecoder:
         return ((col.fall if col.fall is not None else col.rise) - col.rise) / ELEMENTS
 
     def _read(self, col: _Column) -> int | None:
-        """The CODE one column read (C1 in bit 3 of each nibble), or None if any element is
-        inside `margin` of the band's middle.
+        """Return the CODE one column read (C1 in bit 3 of each nibble).
+
+        None if any element is inside `margin` of the band's middle.
         """
         length = col.fall - col.rise
         if length < 2.0:

@@ -1,6 +1,4 @@
-"""Position sensor settings: every parameter of the position_sensor node, its default and its
-meaning.
-"""
+"""Position sensor settings: every parameter of the node, its default and its meaning."""
 
 from __future__ import annotations
 
@@ -45,8 +43,8 @@ class SensorProcessing:
                            'the thesis rule) or snapshot (thesis 5.2.3 alone: one snapshot with '
                            'every detector decided, min_consecutive_matches times in a row)',
                            choices=('sequence', 'snapshot'))
-    # With 2, before the column-delay checks of sequence.py, a truck stopping or changing
-    # speed over a card misread it 3 times in 1,800 scripted passes (bench --motion); with
+    # Without the column-delay checks of sequence.py, 2 lets a truck stopping or changing
+    # speed over a card misread it (3 times in 1,800 scripted passes, bench --motion); with
     # those checks neither 2, 3 nor 4 misread in 2,700, and 4 missed 1 of 10,020 passes at
     # 2 m/s where 3 missed none.
     sequence_agree: int = setting(3, 'detector columns (of 4) that must read the same card, '
@@ -75,8 +73,9 @@ class SensorProcessing:
         return tuple(self.white) or table['white'], tuple(self.black) or table['black']
 
     def problems(self) -> list[tuple[str, Any, str]]:
-        """Checks `build` makes beyond each field's own: each black threshold below its
-        white one.
+        """Make the checks `build` needs beyond each field's own.
+
+        Each black threshold must be below its white one.
         """
         white, black = self.thresholds()
         low = [d for d, (w, b) in enumerate(zip(white, black, strict=True), 1) if b >= w]

@@ -22,8 +22,9 @@ _CLOCK = struct.Struct('<iI')  # builtin_interfaces/Time: int32 sec, uint32 nano
 
 
 def uint8_array_data(raw: bytes | memoryview) -> bytes | None:
-    """The `data` of a serialized std_msgs/UInt8MultiArray with an empty layout, read straight
-    from its CDR; None for any other shape.
+    """Return the `data` of a serialized std_msgs/UInt8MultiArray with an empty layout.
+
+    It is read straight from the CDR; None for any other shape.
     """
     if len(raw) < 16 or bytes(raw[:12]) != _EMPTY_LAYOUT_LE:
         return None
@@ -32,14 +33,15 @@ def uint8_array_data(raw: bytes | memoryview) -> bytes | None:
 
 
 def uint8_array_cdr(data: bytes) -> bytes:
-    """`data` as a serialized std_msgs/UInt8MultiArray with an empty layout (what rclpy's
-    serializer writes for UInt8MultiArray(data=data)).
+    """Serialize `data` as a std_msgs/UInt8MultiArray with an empty layout.
+
+    The bytes are what rclpy's serializer writes for UInt8MultiArray(data=data).
     """
     return _EMPTY_LAYOUT_LE + len(data).to_bytes(4, 'little') + data
 
 
 def clock_ns(raw: bytes | memoryview) -> int | None:
-    """The time of a serialized rosgraph_msgs/Clock in ns; None for any other shape."""
+    """Return the time of a serialized rosgraph_msgs/Clock in ns; None for any other shape."""
     if len(raw) < 12 or bytes(raw[:4]) != CDR_LE:
         return None
     sec, nanosec = _CLOCK.unpack_from(raw, 4)
@@ -47,6 +49,6 @@ def clock_ns(raw: bytes | memoryview) -> int | None:
 
 
 def clock_cdr(ns: int) -> bytes:
-    """A serialized rosgraph_msgs/Clock at `ns` (what rclpy's serializer writes)."""
+    """Serialize a rosgraph_msgs/Clock at `ns` (as rclpy's serializer writes it)."""
     sec, nanosec = divmod(ns, 1_000_000_000)
     return CDR_LE + _CLOCK.pack(sec, nanosec)

@@ -86,7 +86,7 @@ def _cmd_doc(codec: Codec, args: argparse.Namespace) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The agv-records argument parser."""
+    """Build the agv-records argument parser."""
     p = argparse.ArgumentParser(prog='agv-records', description=__doc__.splitlines()[0])
     p.add_argument('--schemas', help='schema directory (default: the installed msg_schemas/)')
     sub = p.add_subparsers(dest='command', required=True)

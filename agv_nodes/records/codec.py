@@ -62,7 +62,7 @@ class Codec:
         return self[record].decode(data, integrity=integrity)
 
     def for_node(self, node: str) -> tuple[list[RecordSchema], list[RecordSchema]]:
-        """The port declarations of `node`: (records it reads, records it writes)."""
+        """Return the port declarations of `node`: (records it reads, records it writes)."""
         reads = [s for s in self if node in s.readers]
         writes = [s for s in self if s.writer == node]
         return reads, writes
@@ -79,7 +79,7 @@ def load_codec(directory: Path | str) -> Codec:
 
 @functools.cache
 def codec() -> Codec:
-    """The installed package's codec (schemas loaded once per process)."""
+    """Return the installed package's codec (schemas loaded once per process)."""
     from agv_nodes.package_share import schema_dir
 
     return load_codec(schema_dir())

@@ -36,7 +36,7 @@ def crc8_sae_j1850(data: bytes | bytearray, init: int = INIT) -> int:
 
 
 def record_crc(data_id: int, first15: bytes | bytearray) -> int:
-    """The byte-16 CRC of a protected record: over data_id then bytes 1-15."""
+    """Return the byte-16 CRC of a protected record: over data_id then bytes 1-15."""
     crc = _TABLE[INIT ^ data_id]  # = crc8_sae_j1850(bytes((data_id,)) + first15)
     for byte in first15:
         crc = _TABLE[crc ^ byte]

@@ -69,7 +69,7 @@ class Field:
         return str(self.byte) if last == self.byte else f'{self.byte}-{last}'
 
     def valid(self, raw: int) -> bool:
-        """True when `raw` is a value this field may carry."""
+        """Return True when `raw` is a value this field may carry."""
         if self.encoding == 'enum':
             return raw in self.names
         return self.lo <= raw <= self.hi or raw in self.special
@@ -99,7 +99,7 @@ class RecordSchema:
         return self.kind == 'inter_processor'
 
     def field(self, name: str) -> Field:
-        """The field called `name` (RecordError if there is none)."""
+        """Return the field called `name` (RecordError if there is none)."""
         for f in self.fields:
             if f.name == name:
                 return f
@@ -110,7 +110,7 @@ class RecordSchema:
         return {f.name: f.default for f in self.fields}
 
     def describe(self, fields: Mapping[str, Any]) -> dict[str, str]:
-        """What each decoded value means, in words (for displays and `agv-records decode`)."""
+        """Say what each decoded value means, in words (for displays and `agv-records decode`)."""
         out = {}
         for f in self.fields:
             value = fields.get(f.name, f.default)
@@ -256,7 +256,7 @@ class RecordSchema:
         return out if out is not None else self._decode_fields(data)
 
     def _decode_fields(self, data: bytes) -> dict[str, Any]:
-        """The fields of checked bytes, one by one (the reference; raises for a bad value)."""
+        """Decode checked bytes field by field (the reference; raises for a bad value)."""
         out: dict[str, Any] = {}
         for f, name, index, two, lo_bit, mask, width, enc, lo, hi, special, names, _c \
                 in self._plan:
@@ -295,5 +295,5 @@ def _check_integrity(record: str, integrity: str) -> None:
 
 
 def e2e_counter(data: bytes | bytearray) -> int:
-    """The sequence counter (byte 15) of a protected record."""
+    """Return the sequence counter (byte 15) of a protected record."""
     return data[COUNTER_BYTE - 1]

@@ -81,7 +81,7 @@ def record_table(s: RecordSchema) -> str:
 
 
 def render_markdown(codec: Codec) -> str:
-    """The whole docs/records.md."""
+    """Return the whole docs/records.md."""
     parts = [HEADER, '| record | topic | writer | readers | data_id |', '|---|---|---|---|---|']
     for s in codec:
         parts.append(f'| [`{s.name}`](#{s.name}) | `{s.topic}` | {s.writer} | '

@@ -1,10 +1,9 @@
 """Binary-camera guidance of Rajagopalan (1991): image analysis and steering laws, ROS-free.
 
 Frames are 64 x 128 binary images of the floor (1 = dark tape), row 0 the leading edge and
-column 0 the left edge (Rajagopalan 1991, 4.1-4.2). Signs follow Rajagopalan 1991, 5.2: eps_d > 0
-when
-the tape lies to the left of the window centre, eps_theta > 0 when it is turned CCW, and the
-caster angle theta_s > 0 turns the vehicle left.
+column 0 the left edge (Rajagopalan 1991, 4.1-4.2). Signs follow Rajagopalan 1991, 5.2:
+eps_d > 0 when the tape lies to the left of the window centre, eps_theta > 0 when it is turned
+CCW, and the caster angle theta_s > 0 turns the vehicle left.
 """
 
 from __future__ import annotations
@@ -45,7 +44,7 @@ SIGNS = {(1, 0, 0): 'P11', (0, 1, 0): 'P12', (1, 0, 1): 'P21', (0, 1, 1): 'P22',
 
 
 def sign_name(left: int, right: int, straight: int) -> str | None:
-    """The road sign a set of branch flags decodes to (thesis fig 4.3), or None."""
+    """Return the road sign a set of branch flags decodes to (thesis fig 4.3), or None."""
     return SIGNS.get((int(left), int(right), int(straight)))
 
 
@@ -67,9 +66,11 @@ class ImageAnalyser:
         self._prev_centre: float | None = None
 
     def branch_edge(self, frame: np.ndarray, side: str) -> float | None:
-        """M ahead of the window centre of the near edge of a branch crossing the window's
-        left or right edge column (None: no branch there, or its near edge is behind the
-        window). The longest dark run down the column is the branch; specks are shorter.
+        """Return how far (m) ahead of the window centre a branch's near edge is.
+
+        The branch crosses the window's left or right edge column (None: no branch there, or
+        its near edge is behind the window). The longest dark run down the column is the
+        branch; specks are shorter.
         """
         column = frame[:, 0 if side == 'left' else -1]
         runs = [(a, n) for a, n in runs_of(column) if n >= self.p.sign_rows]
@@ -138,8 +139,10 @@ class CameraSteering:
         self.absent = 0
 
     def update(self, m: Measurement, dt: float, speed: float = 0.0) -> float | None:
-        """New caster angle theta_s, or None when the vehicle must stop (track absent);
-        `speed` is the cruise asked for (only the gain schedule uses it).
+        """Return the new caster angle theta_s, or None when the vehicle must stop.
+
+        None means the track is absent. `speed` is the cruise asked for (only the gain
+        schedule uses it).
         """
         p = self.p
         gain_d = p.gain_d

@@ -1,24 +1,24 @@
 """Route following: guide-wire steering, software-resident manoeuvres, binary-camera guidance.
 
-Guide wire (Baker 3.5.3, 6.2, 7.2): the two coil amplitudes give the wire's lateral offset from
-the sensor point (inverting the straight-line-current model of the pickup), and a PI law on it,
-with a derivative term on the offset for damping, steers the Ackermann front wheels. A signal
-below `lost_level` for `lost_samples` samples, or no pickup sample for that long, reports LOST
-at once; the executive stops the truck. LOST holds until the truck is at rest with the wire
-present again. An SRM (route_command mode = srm, a new `manoeuvre` value) leaves the wire at the
-pre-programmed steering angle until the signal has dropped and a wire is detected again, then
-wire following resumes (thesis 7.2 task 7).
+Guide wire (Baker 1983, 3.5.3, 6.2.1, 7.2): the two coil amplitudes give the wire's lateral
+offset from the sensor point (inverting the straight-line-current model of the pickup), and a
+PI law on it, with a derivative term on the offset for damping, steers the Ackermann front
+wheels. A signal below `lost_level` for `lost_samples` samples, or no pickup sample for that
+long, reports LOST at once; the executive stops the truck. LOST holds until the truck is at
+rest with the wire present again. An SRM (route_command mode = srm, a new `manoeuvre` value)
+leaves the wire at the pre-programmed steering angle until the signal has dropped and a wire is
+detected again, then wire following resumes (Baker 1983, 7.2 task 7).
 
 Camera (Rajagopalan 1991, mode = camera, the differential-drive CONCIC-II): each frame is
 analysed (run-length noise filter, least-squares line fit, validity, road-sign edges), the P or
 PI law gives the caster angle, and Eq 5.15/5.16 the wheel speeds. Four absent frames stop the
 vehicle (motor off); a saturated frame keeps the last command. At a road sign the branch flags
-are collected, and the junction choice of route_command is taken (App. F.6): once the chosen
-branch shows at the window's edge column the vehicle slows, stops with its axle centre over
-the crossing (judged by wheel odometry: the camera's distance ahead of the axle), spins in place
-a quarter turn toward the branch and follows it. A branch chosen that the sign does not offer
-stops the vehicle ("no_branch"; thesis: "the vehicle stops with a message"); a straight choice
-where the track ends stops it by the four absent frames.
+are collected, and the junction choice of route_command is taken (Rajagopalan 1991, App. F.6):
+once the chosen branch shows at the window's edge column the vehicle slows, stops with its axle
+centre over the crossing (judged by wheel odometry: the camera's distance ahead of the axle),
+spins in place a quarter turn toward the branch and follows it. A branch chosen that the sign
+does not offer stops the vehicle ("no_branch"; Rajagopalan 1991: "the vehicle stops with a
+message"); a straight choice where the track ends stops it by the four absent frames.
 """
 
 from __future__ import annotations
@@ -177,7 +177,7 @@ class RouteCore(SubsystemCore):
             elif self.state == 'lost':
                 self._rearm()
             elif self.speed < -0.01:
-                # Reversing (the slow overshoot correction of thesis 8.5 F5): the front-axle
+                # Reversing (the slow overshoot correction of Baker 1983, 8.5): the front-axle
                 # law would steer the wrong way with the front wheels trailing, so hold the
                 # wheels straight for these few centimetres.
                 self.steer = 0.0
@@ -190,13 +190,13 @@ class RouteCore(SubsystemCore):
     def _rearm(self) -> None:
         """Leave LOST once the truck is at rest on a wire that is there again.
 
-        A departure from the thesis (7.2 stops the truck on a lost wire and says no more): a
-        LOST latched for good also latched a pickup stream that merely stalled while the truck
-        stood before a task (a start-up stall of the graph), and failed the next task with the
-        wire under the truck. The executive has already acted on LOST (it supervises on every
-        status arrival), so it comes back only after that record went out, with the truck at
-        rest and the wire present for `lost_samples` samples: the steering law then starts
-        clean.
+        A departure from the thesis (Baker 1983, 7.2 stops the truck on a lost wire and says no
+        more): a LOST latched for good would also latch on a pickup stream that merely stalls
+        while the truck stands before a task (a start-up stall of the graph), and fail the next
+        task with the wire under the truck. The executive has already acted on LOST (it
+        supervises on every status arrival), so it comes back only after that record went out,
+        with the truck at rest and the wire present for `lost_samples` samples: the steering
+        law then starts clean.
         """
         at_rest = max(abs(v) for v in self._rim_speeds) < 0.005 and abs(self.speed) < 0.005
         if self._lost_reported and at_rest and self._strong >= self.p.wire.lost_samples:
@@ -247,7 +247,7 @@ class RouteCore(SubsystemCore):
 
     # -- camera -----------------------------------------------------------------------------
     def on_frame(self, frame: np.ndarray, now: float) -> dict | None:
-        """A binary camera frame (1 = dark tape)."""
+        """Take a binary camera frame (1 = dark tape)."""
         dt = 0.05 if self._frame_time is None else max(now - self._frame_time, 1e-3)
         self._frame_time = now
         m = self.analyser.analyse(frame)
@@ -287,7 +287,7 @@ class RouteCore(SubsystemCore):
                 # Setting off from rest (camera mode starting, or along a branch after a
                 # turn): our own ramp, gentler than the drive's trapezoid, which accelerates
                 # both wheels alike and so cannot steer while it ramps (from 40 deg off the
-                # tape the window lost it before the wheels reached cruise).
+                # tape the window loses it before the wheels reach cruise).
                 speed = min(speed, self.p.steering.set_off_acceleration
                             * (now - self._set_off_at))
                 if speed >= (self.speed_request or self.p.camera_speed):
@@ -295,7 +295,7 @@ class RouteCore(SubsystemCore):
             self.wheels = self.camera.wheel_speeds(speed, theta) if self.motor_on else (0, 0)
         return None
 
-    # -- junctions (App. F.6) ---------------------------------------------------------------
+    # -- junctions (Rajagopalan 1991, App. F.6) ---------------------------------------------
     def _start_turn(self, phase: str) -> None:
         self.turn_phase = phase
         self._turn_from = (self._wheels.left, self._wheels.right)
@@ -363,7 +363,7 @@ class RouteCore(SubsystemCore):
         self.state = 'following'
 
     def _road_sign(self, m) -> None:
-        """Branch flags while the track is wide (thesis 4.3)."""
+        """Branch flags while the track is wide (Rajagopalan 1991, 4.3)."""
         if m.validity is Validity.WIDE:
             if not self._in_sign:
                 self._in_sign = True
@@ -402,7 +402,7 @@ class RouteCore(SubsystemCore):
         return out
 
     def steering_command(self) -> dict[str, Any]:
-        """The steering_command record for the configured vehicle."""
+        """Return the steering_command record for the configured vehicle."""
         if self.p.vehicle == 'concic2':
             left, right = self.wheels
             return {'mode': 'wheel_speeds', 'enable': int(self.motor_on and self.mode == 'camera'),
@@ -414,7 +414,7 @@ class RouteCore(SubsystemCore):
                 'left_speed': 0, 'right_speed': 0}
 
     def status(self) -> dict[str, Any]:
-        """The route_status record."""
+        """Return the route_status record."""
         sign_state = self._in_sign and self.mode == 'camera' and not self.turn_phase
         return {
             'state': 'sign' if sign_state else self.state,

@@ -1,5 +1,6 @@
-"""Route following settings: every parameter of the route_following node, its default and its
-meaning. The nested groups give dotted names: `wire.kp`, `image.min_run`, `steering.law`,
+"""Route following settings: every parameter of the node, its default and its meaning.
+
+The nested groups give dotted names: `wire.kp`, `image.min_run`, `steering.law`,
 `turning.approach_speed`.
 """
 
@@ -13,7 +14,7 @@ from agv_nodes.settings import setting
 
 @dataclass
 class WireParams:
-    """Guide-wire steering (thesis 3.5.3, 6.2, 7.2; tuned in bench/route_bench.py)."""
+    """Guide-wire steering (Baker 1983, 3.5.3, 6.2.1, 7.2; tuned in bench/route_bench.py)."""
 
     coil_spacing: float = setting(0.20, 'm between the two pickup coils (as fitted on the '
                                   'truck)', lo=0.02, hi=1.0)
@@ -47,7 +48,7 @@ class WireParams:
 
 @dataclass
 class ImageParams:
-    """Camera window calibration and the noise filter (Rajagopalan 4.2, Table 6.1, App. F.2)."""
+    """Camera window calibration and noise filter (Rajagopalan 1991, 4.2, Table 6.1, App. F.2)."""
 
     depth: float = setting(0.050, 'm of the camera window along travel (64 rows)', lo=0.01,
                            hi=0.5)
@@ -69,7 +70,7 @@ class ImageParams:
 
 @dataclass
 class SteeringParams:
-    """Camera steering laws and the CONCIC-II geometry (Rajagopalan 5.2; Table 6.1)."""
+    """Camera steering laws and the CONCIC-II geometry (Rajagopalan 1991, 5.2; Table 6.1)."""
 
     law: str = setting('pi', 'camera steering law: p (thesis Eq 5.4) or pi (Eq 5.6)',
                        choices=('p', 'pi'))
@@ -80,9 +81,8 @@ class SteeringParams:
     gain_i: float = setting(0.07, 'integral gain (thesis I = 0.07; see integral_form)', lo=0.0,
                             hi=100.0)
     # Eq 5.8 as printed adds G3 eps_d(n) every frame, without the Delta-T of Eq 5.6: at ~20
-    # frames/s that is 1.4 rad per m s (Rajagopalan 1991, 5.2.3). The default follows the printed
-    # velocity
-    # form the vehicle ran.
+    # frames/s that is 1.4 rad per m s (Rajagopalan 1991, 5.2.3). The default follows the
+    # printed velocity form the vehicle ran.
     integral_form: str = setting('per_frame', 'integral term: per frame as Eq 5.8 is printed, '
                                  'or x Delta-T as in Eq 5.6 (with_dt)',
                                  choices=('per_frame', 'with_dt'))
@@ -103,15 +103,17 @@ class SteeringParams:
     absent_frames: int = setting(4, 'consecutive frames without track before the motor-off '
                                  'stop', lo=1, hi=100)
     # At 0 the drive's trapezoid ramps both wheels alike, without steering, until the slower
-    # one is at cruise: from 40 deg the window lost the tape before then (bench/route_bench.py).
+    # one is at cruise: from 40 deg the window loses the tape before then (bench/route_bench.py).
     set_off_acceleration: float = setting(0.2, 'speed ramp asked for when setting off from '
                                           'rest, m/s^2 (0: cruise at once)', lo=0.0, hi=2.0)
 
 
 @dataclass
 class TurningParams:
-    """Taking a branch at a road sign (Rajagopalan App. F.6; the manoeuvre itself is not
-    described there: a spin in place, which the differential drive allows, is assumed).
+    """Taking a branch at a road sign (Rajagopalan 1991, App. F.6).
+
+    The manoeuvre itself is not described there: a spin in place, which the differential drive
+    allows, is assumed.
     """
 
     camera_ahead: float = setting(0.64, 'm, L_c: camera window centre ahead of the axle '

@@ -30,11 +30,10 @@ arrives; it also starts tripped. The latch clears only on a fresh valid command 
 
 `closed_loop` (beyond 1983, thesis B.2's skeleton with a speed sensor): REF is read as a speed
 demand through the open-loop map v = (|REF| - 5) / 75 m/s (Baker 1983, 6.3.2), shaped by
-acceleration
-and jerk limits, and a PI loop on wheel odometry sets the armature duty. It is the default:
-the controlled stop of navigation (thesis 8.5 F4/F5, also the default) needs it, and it holds
-the asked speed under load (bench/traction_bench.py: 0.200 m/s at 20 % loaded or not, where the
-open loop gives 0.195 / 0.161). `open_loop_1983` remains one parameter away.
+acceleration and jerk limits, and a PI loop on wheel odometry sets the armature duty. It is the
+default: the controlled stop of navigation (thesis 8.5, also the default) needs it, and it
+holds the asked speed under load (bench/traction_bench.py: 0.200 m/s at 20 % loaded or not,
+where the open loop gives 0.195 / 0.161). `open_loop_1983` remains one parameter away.
 """
 
 from __future__ import annotations
@@ -97,7 +96,7 @@ class TractionCore(SubsystemCore):
 
     # -- inputs -----------------------------------------------------------------------------
     def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
-        """An accepted traction_command, traction_link or wheel_odometry record."""
+        """Take an accepted traction_command, traction_link or wheel_odometry record."""
         if record == 'traction_command':
             self.command, self.command_time = fields, now
             if self.tripped:
@@ -137,13 +136,13 @@ class TractionCore(SubsystemCore):
         return age > timeout and (since >= self.p.stale_confirm or age > 2 * timeout)
 
     def on_reject(self, record: str, reason: str, now: float) -> dict | None:
-        """A record the reader refused: corrupt command or link bytes trip the relay."""
+        """Take a record the reader refused: corrupt command or link bytes trip the relay."""
         if record in ('traction_command', 'traction_link') and reason in CORRUPT:
             self._trip('corrupt_record')
         return None
 
     def on_radio_stop(self, on: bool, now: float) -> None:
-        """The radio-control stop input (PIO1-A bit 4, high = stop)."""
+        """Set the radio-control stop input (PIO1-A bit 4, high = stop)."""
         self.radio = bool(on)
 
     def _advance_reset(self, fields: dict[str, Any]) -> None:
@@ -226,10 +225,11 @@ class TractionCore(SubsystemCore):
         return self.link is not None and not self.link['executive_priority']
 
     def _field_wait(self, now: float, forward_at_start: bool) -> bool:
-        """The field's timed waits, the same in both controls: BEGIN/INIT (field on, WAIT1
-        build-up; the listing's INIT leaves the field reversed, the closed loop starts it
-        forward) and the second half of FLIP (toggle, field on, wait). True when this pass was
-        one of them.
+        """Run the field's timed waits, the same in both controls; True when this pass was one.
+
+        They are BEGIN/INIT (field on, WAIT1 build-up; the listing's INIT leaves the field
+        reversed, the closed loop starts it forward) and the second half of FLIP (toggle, field
+        on, wait).
         """
         if self.state == 'start':
             self.field_off = False
@@ -341,7 +341,7 @@ class TractionCore(SubsystemCore):
             target = max(0.0, abs(self.ref) - p.dead_band) * p.v_per_percent
             target = target if self.ref >= 0 else -target
         if self.source == 'position' and self.stop_target is not None and target != 0.0:
-            # Controlled stop (thesis 8.5 F4): follow v = sqrt(2 a d) down to the stop point and
+            # Controlled stop (thesis 8.5): follow v = sqrt(2 a d) down to the stop point and
             # cut the drive once the coast-down distance covers what is left.
             way = 1.0 if target > 0 else -1.0
             remaining = way * (self.stop_target - self.odometer)
@@ -403,7 +403,7 @@ class TractionCore(SubsystemCore):
 
     # -- outputs ----------------------------------------------------------------------------
     def drive(self) -> dict[str, Any]:
-        """The traction_drive record (what the motor controller board is told)."""
+        """Return the traction_drive record (what the motor controller board is told)."""
         on = not self.tripped
         return {
             'armature_duty': self.dcdem if on and not self.armature_off else 0,
@@ -416,7 +416,7 @@ class TractionCore(SubsystemCore):
         }
 
     def status(self) -> dict[str, Any]:
-        """The traction_status record."""
+        """Return the traction_status record."""
         return {
             'ref': max(-128, min(127, self.ref)),
             'duty': self.dcycle,

@@ -1,11 +1,11 @@
-"""Binary camera (Rajagopalan 1991 ch 4, 6.3.4): a 64 x 128 window of the floor, 50 mm along
-travel by 250 mm across, thresholded by the optic-RAM itself (dark tape = 1, floor = 0).
+"""Binary camera (Rajagopalan 1991 ch 4, 6.3.4): a 64 x 128 window of the floor.
 
-Row 0 is the leading edge of the window, column 0 its left edge (Rajagopalan 1991, 4.2). A pixel
-is dark
-when its floor point lies within half the tape width of a tape centreline; random specks (short
-dark runs below the noise-filter length) model dirt and pixel differences. The rear camera is the
-same window at -L_c, mounted facing backwards (its image is rotated 180 degrees).
+The window is 50 mm along travel by 250 mm across, thresholded by the optic-RAM itself (dark
+tape = 1, floor = 0). Row 0 is the leading edge of the window, column 0 its left edge
+(Rajagopalan 1991, 4.2). A pixel is dark when its floor point lies within half the tape width
+of a tape centreline; random specks (short dark runs below the noise-filter length) model dirt
+and pixel differences. The rear camera is the same window at -L_c, mounted facing backwards
+(its image is rotated 180 degrees).
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ class BinaryCamera:
         self.lateral = (0.5 - (np.arange(COLS) + 0.5) / COLS) * params.width  # col 0 left
 
     def render(self, cx: float, cy: float, heading: float, noise: bool = True) -> np.ndarray:
-        """A (64, 128) uint8 frame (1 = dark) for a window centred at (cx, cy)."""
+        """Return a (64, 128) uint8 frame (1 = dark) for a window centred at (cx, cy)."""
         fx, fy = math.cos(heading), math.sin(heading)
         lx, ly = -fy, fx
         gx = cx + self.along[:, None] * fx + self.lateral[None, :] * lx
@@ -64,8 +64,9 @@ class BinaryCamera:
         return frame
 
     def truth(self, cx: float, cy: float, heading: float) -> tuple[float, float] | None:
-        """(eps_d, eps_theta) of the nearest tape at the window centre (Rajagopalan 1991, 5.2
-        signs).
+        """Return (eps_d, eps_theta) of the nearest tape at the window centre.
+
+        The signs are those of Rajagopalan 1991, 5.2.
         """
         best = None
         for tape in self.tapes:

@@ -1,6 +1,6 @@
 """The world core: truck, floor, wires or tape, markers, conveyors and sensors, ROS-free.
 
-Stepped once per marker-sensor sample (340 Hz by default, thesis 5.3.5.2). Inputs are the
+Stepped once per marker-sensor sample (340 Hz by default, Baker 1983, 5.3.5.2). Inputs are the
 hardware-side records (traction_drive, steering_command, conveyor_command) and the radio stop;
 outputs are the hardware-side records due at this step, camera frames, and ground-truth events.
 Everything is seeded: the same seed and inputs give the same samples.
@@ -130,7 +130,7 @@ class WorldCore:
             self.conveyor_command = dict(fields)
 
     def set_radio_stop(self, on: bool) -> None:
-        """The radio-control stop input (hw/radio_stop): no drive torque while set."""
+        """Set the radio-control stop input (hw/radio_stop): no drive torque while set."""
         self.radio_stop = bool(on)
 
     # -- stepping -------------------------------------------------------------------------
@@ -165,7 +165,7 @@ class WorldCore:
         v.radio_stop = self.radio_stop
         if isinstance(v, Electruk):
             # The trip relay's monostable: no watchdog change for 200 ms releases the relay and
-            # with it the main contactor; retriggering closes it again (B.2.1).
+            # with it the main contactor; retriggering closes it again (Baker 1983, B.2.1).
             v.relay_closed = self.time - self._watchdog_time <= self.p.drive_watchdog
             if self.time - self._steer_time > self.p.steering_timeout:
                 v.steer_enable = False
@@ -235,7 +235,7 @@ class WorldCore:
 
     # -- conveyors ------------------------------------------------------------------------
     def _aligned(self) -> tuple[Marker, int] | None:
-        """The stop marker (and truck conveyor index) the truck is aligned with, if any."""
+        """Return the stop marker (and truck conveyor index) the truck is aligned with, if any."""
         if abs(self.vehicle.state.speed) > 0.01:
             return None
         lens, heading = self.lens_pose()
@@ -290,7 +290,7 @@ class WorldCore:
 
     # -- ground truth -----------------------------------------------------------------------
     def _cards_near(self, lens: tuple[float, float]) -> None:
-        """The markers the lens may see (or pass) until it has moved NEAR_MOVE from here.
+        """Return the markers the lens may see (or pass) until it has moved NEAR_MOVE from here.
 
         The optics and the passage truth look no further than 0.6 m; a list of the cards within
         0.6 m + NEAR_MOVE, refreshed when the lens has moved NEAR_MOVE, holds every one of them
@@ -330,8 +330,8 @@ class WorldCore:
         v = abs(self.vehicle.state.speed)
         self._peak_speed = max(self._peak_speed, v)
         # Moving from 2 mm/s: a controlled stop's last creep back onto the centre peaks under
-        # 10 mm/s, and with the old 10 mm/s threshold its final rest went unreported (the
-        # benches took the rest before it, 3-4 mm short, as the stop).
+        # 10 mm/s, and a 10 mm/s threshold would leave its final rest unreported (the rest
+        # before it, 3-4 mm short, would count as the stop).
         if v > 0.002:
             self._moving = True
         elif self._moving and v < 1e-4:
@@ -393,7 +393,7 @@ class WorldCore:
                 best = lateral
         return 0.0 if best is None else best
 
-    # -- the belt rig (thesis 7.1.1) --------------------------------------------------------
+    # -- the belt rig (Baker 1983, 7.1.1) ---------------------------------------------------
     def _step_rig(self) -> dict[str, Any]:
         rig = self.layout.rig
         path = self.layout.paths[self.layout.start_path]
@@ -416,6 +416,6 @@ class WorldCore:
         return s.x, s.y, s.heading, s.speed
 
     def done_rig(self) -> bool:
-        """True when the rig's belt has run out."""
+        """Return True when the rig's belt has run out."""
         path = self.layout.paths[self.layout.start_path]
         return self.layout.kind == 'rig' and self._rig_s >= path.length

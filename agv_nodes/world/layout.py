@@ -3,7 +3,8 @@
 A path (guide wire or optical tape) is built from a start pose and a list of straight and arc
 segments, and sampled into a polyline every `step` metres for the field and image models.
 Markers are placed by (path, distance along it); their card faces the path from the vehicle's
-sensor side at the sensor's standoff (thesis 3.1: 300 mm from the lens, route held to +-1 cm).
+sensor side at the sensor's standoff (Baker 1983, 4.4 and 5.1: 300 mm from the lens; the route
+is held to +-1 cm, a goal of this reproduction: the thesis text states no tolerance).
 Every error names the file, the key and the value.
 """
 
@@ -157,7 +158,7 @@ class Marker:
 
 @dataclass
 class Station:
-    """A workstation with a fixed conveyor (thesis 6.3, fig 7.14)."""
+    """A workstation with a fixed conveyor (Baker 1983, 6.3.2, fig 7.14)."""
 
     id: str
     has_load: bool
@@ -192,7 +193,7 @@ class Layout:
 
 _TOP_KEYS = {'layout', 'description', 'vehicle', 'kind', 'wires', 'tapes', 'markers',
              'stations', 'start', 'sensor', 'rig', 'route_limit', 'step', 'signs', 'srm_map'}
-# Road-sign primitives (Rajagopalan 4.3, Rajagopalan 1991, 4.3): which branches a junction offers.
+# Road-sign primitives (Rajagopalan 1991, 4.3): which branches a junction offers.
 SIGN_BRANCHES = {'P11': ('left',), 'P12': ('right',), 'P21': ('left', 'straight'),
                  'P22': ('right', 'straight'), 'R1': ('left', 'right'),
                  'R2': ('left', 'right', 'straight')}
@@ -328,9 +329,10 @@ def _load_marker(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
 
 def _add_sign(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
               step: float) -> dict[str, Any]:
-    """A road sign on a tape: a wider patch before the junction, and a tape for each turning
-    branch, at right angles (the camera sees the width jump, then the branch at column 0 or
-    127): `branch` m long, a 0.35 m stub by default.
+    """Draw a road sign on a tape: a wider patch before the junction, and the branches.
+
+    Each turning branch is a tape at right angles (the camera sees the width jump, then the
+    branch at column 0 or 127), `branch` m long, a 0.35 m stub by default.
     """
     key = f'signs[{i}]'
     if not isinstance(spec, dict):
@@ -364,7 +366,7 @@ def _add_sign(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
 
 
 def _srm_map(entries: Any, file: Path) -> tuple[str, ...]:
-    """The layout's route map: 'location:angle' entries, location 0-31, angle -45..45 deg."""
+    """Return the layout's route map: 'location:angle' entries, location 0-31, angle -45..45."""
     if not isinstance(entries, list):
         raise LayoutError(f'{file}: key srm_map: {entries!r} must be a list of '
                           "'location:angle'")
@@ -389,15 +391,17 @@ def _check_rig(layout: Layout, file: Path) -> None:
 
 
 def layout_parameters(layout: Layout) -> dict[str, dict[str, Any]]:
-    """What a layout sets in the nodes of a truck on it: the executive's route map and the
-    kind of steering route following drives (agv-launch and the lock-step harness both).
+    """Return what a layout sets in the nodes of a truck on it.
+
+    That is the executive's route map and the kind of steering route following drives
+    (agv-launch and the lock-step harness both).
     """
     return {'executive': {'srm_map': list(layout.srm_map)},
             'route_following': {'vehicle': layout.vehicle}}
 
 
 def layout_path(name_or_file: str) -> Path:
-    """A layout by name (config/layouts/<name>.yaml) or by file path."""
+    """Load a layout by name (config/layouts/<name>.yaml) or by file path."""
     candidate = Path(name_or_file)
     if candidate.suffix == '.yaml' or candidate.exists():
         return candidate

@@ -218,7 +218,7 @@ class _Belt:
 
 @functools.cache
 def _belt_runs(params_key: tuple) -> tuple:
-    """The threshold experiment of thesis 7.1.2-7.1.3 for a unit detector.
+    """Run the threshold experiment of Baker 1983, 7.1.2-7.1.3 for a unit detector.
 
     The alternating location-2 pattern at 1 m/s, 256 samples at 340 Hz per run, ranges
     280-320 mm in 5 mm steps. For each range and detector, the mean over the peaks and over the

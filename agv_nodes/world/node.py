@@ -174,8 +174,10 @@ class WorldNode(Node):
         return self.get_clock().now().to_msg()
 
     def publish_clock_now(self) -> None:
-        """/clock at the world's time, serialized here (the world's busiest publisher: 116 Hz
-        to every node; a Python Clock message per sample cost more than the bytes).
+        """Publish /clock at the world's time, serialized here.
+
+        It is the world's busiest publisher (116 Hz to every node): a Python Clock message per
+        sample cost more than the bytes.
         """
         self.clock_pub.publish(clock_cdr(round(self.core.time * 1e9)))
 

@@ -44,9 +44,10 @@ class GraphPacer:
         return self.max_lag + self.period + self.clock_step
 
     def start(self, now: float) -> None:
-        """The world starts moving at sim time `now`: a node not heard from yet is taken as
-        heard at `now`, so the world waits for its first word as for any other (one starved
-        at start-up would otherwise fall behind unwaited).
+        """Start the world moving at sim time `now`.
+
+        A node not heard from yet is taken as heard at `now`, so the world waits for its first
+        word as for any other (one starved at start-up would otherwise fall behind unwaited).
         """
         for node, heard in self._heard.items():
             if heard is None:

@@ -21,9 +21,10 @@ from agv_nodes.ros_ports import LINKS_TOPIC, parse_links
 
 
 def parse_link_entry(entry: str) -> tuple[str, str, int | None] | None:
-    """A `wait_for_links` entry: 'NODE:RECORD' -> (node, record, None); 'NODE>RECORD:N' ->
-    (node, record, N), where RECORD may also be the progress writer; None when it is
-    neither.
+    """Parse a `wait_for_links` entry.
+
+    'NODE:RECORD' -> (node, record, None); 'NODE>RECORD:N' -> (node, record, N), where RECORD
+    may also be the progress writer; None when it is neither.
     """
     if '>' in entry:
         node, _, rest = entry.partition('>')
@@ -38,8 +39,9 @@ def parse_link_entry(entry: str) -> tuple[str, str, int | None] | None:
 
 
 class LinkWatch:
-    """The world's view of which links have matched: its own ends directly, the others' from
-    their graph/links announcements.
+    """The world's view of which links have matched.
+
+    Its own ends directly, the others' from their graph/links announcements.
     """
 
     def __init__(self, node: Node, links: list[tuple[str, str, int | None]],

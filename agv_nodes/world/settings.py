@@ -18,8 +18,10 @@ from agv_nodes.settings import ProcessSettings, setting
 
 @dataclass
 class ElectrukParams:
-    """The A.W.D. Electruk tug (Baker 1983). [A] unless noted: chosen so that 80 % duty gives
-    about 1 m/s unloaded, 20 % about 0.2 m/s and nothing moves below about 5 %.
+    """The A.W.D. Electruk tug (Baker 1983).
+
+    [A] unless noted: chosen so that 80 % duty gives about 1 m/s unloaded, 20 % about 0.2 m/s
+    and nothing moves below about 5 %.
     """
 
     wheelbase: float = setting(1.20, 'm between the axles', lo=0.1, hi=5.0)
@@ -54,7 +56,7 @@ class ElectrukParams:
 
 @dataclass
 class Concic2Params:
-    """CONCIC-II (Rajagopalan 3.1-3.3)."""
+    """CONCIC-II (Rajagopalan 1991, 6.3.1-6.3.2, Table 6.1, App. B.3-B.5, App. C)."""
 
     wheel_radius: float = setting(0.075, 'm [T Table B.3]', lo=0.01, hi=0.5)
     wheel_span: float = setting(0.52, 'm between the drive wheels, L [D]', lo=0.1, hi=2.0)
@@ -182,8 +184,9 @@ class WorldParams:
 
 @dataclass
 class WorldNodeSettings(ProcessSettings):
-    """The world node's own parameters (besides WorldParams): the layout, /clock, and how it
-    waits for the graph and paces itself on it.
+    """The world node's own parameters (besides WorldParams).
+
+    The layout, /clock, and how it waits for the graph and paces itself on it.
     """
 
     layout: str = setting('demo_1983', 'layout name (config/layouts) or file path')

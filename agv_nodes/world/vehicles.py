@@ -1,8 +1,7 @@
 """Vehicle dynamics: the A.W.D. Electruk tug (Baker 1983) and CONCIC-II (Rajagopalan 1991).
 
 Electruk (Baker 1983, 6.3.2): rear drive by two 0.4 kW separately excited d.c. motors in parallel
-from
-24 V through a one-quadrant PWM chopper (armature duty 0-80 %), a PWM field supply whose
+from 24 V through a one-quadrant PWM chopper (armature duty 0-80 %), a PWM field supply whose
 direction the traction board flips, reduction gearing and chains to the rear wheels, Ackermann
 front steering by an actuator with rate and angle limits. Per motor:
 
@@ -10,14 +9,15 @@ front steering by an actuator with rate and angle limits. Per motor:
     torque = k_phi(field) * i
 
 so reversing the field while the truck still rolls forward makes the back-EMF add to the supply
-and the torque oppose the motion: plug braking (thesis 6.3, 8.5), limited by the controller's
+and the torque oppose the motion: plug braking (Baker 1983, 6.3, 8.5), limited by the controller's
 current limit. With the armature off only friction acts (the "friction only" braking of the
 1983 stop). Parameters marked [A] are assumptions chosen so that 80 % duty gives about 1 m/s
 unloaded, 20 % about 0.2 m/s and nothing moves below about 5 % (Baker 1983, 6.3.2).
 
-CONCIC-II (Rajagopalan 3.1-3.3, 4.1, 4.6): differential drive, wheel radius 0.075 m, casters;
-each wheel's commanded speed is approached at a fixed acceleration (the LM628 trapezoid) and
-followed with a first-order lag; "motor off" coasts down (5 mm from 0.16 m/s).
+CONCIC-II (Rajagopalan 1991: the vehicle 6.3.1-6.3.2, Table 6.1, App. B.3-B.5, App. C; the
+kinematics 3.5; the LM628 and the coast 7.3.2, 7.3.4): differential drive, wheel radius 0.075
+m, casters; each wheel's commanded speed is approached at a fixed acceleration (the LM628
+trapezoid) and followed with a first-order lag; "motor off" coasts down (5 mm from 0.16 m/s).
 """
 
 from __future__ import annotations
@@ -108,8 +108,10 @@ class Electruk:
                 and self.field_enable and self.field_forward == forward)
 
     def _constants(self, dt: float) -> tuple[float, ...]:
-        """What step() needs that only dt and the parameters set, worked out again when dt,
-        the parameters object or the load changes (the world steps at one dt).
+        """Return what step() needs that only dt and the parameters set.
+
+        Worked out again when dt, the parameters object or the load changes (the world steps at
+        one dt).
         """
         p = self.p
         key = (dt, id(p), p.mass, p.payload)

@@ -63,8 +63,10 @@ def _card(k: int, m) -> list[Marker]:
 
 
 def layout_messages(layout: Layout) -> tuple[Path, MarkerArray]:
-    """world/route (every wire and tape as one path) and world/markers (wires, tapes, cards
-    and their labels), drawn once and latched.
+    """Build world/route and world/markers, drawn once and latched.
+
+    world/route is every wire and tape as one path; world/markers the wires, tapes, cards and
+    their labels.
     """
     path = Path()
     path.header.frame_id = 'map'
