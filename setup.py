@@ -22,6 +22,8 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*', 'bench', 'examples']),
+    # Every node's parameter declarations (agv_nodes/settings.py reads them at import).
+    package_data={package_name: ['parameters.yaml', '*/parameters.yaml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),

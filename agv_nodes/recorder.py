@@ -22,7 +22,6 @@ on arrival.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 import importlib
 from pathlib import Path
 import sys
@@ -50,23 +49,14 @@ from agv_nodes.params import declare, parameter_error, refuse_unknown
 from agv_nodes.rclpy_internals import drop_clock_reader, take_all
 from agv_nodes.ros_ports import clock_time_ns
 from agv_nodes.sent_time import SentTimeline
-from agv_nodes.settings import setting
+from agv_nodes.settings import settings_class
 
 SKIP = {'/parameter_events'}
 
 
-@dataclass
+@settings_class
 class RecorderSettings:
     """The recorder's parameters."""
-
-    bag: str = setting('agv_bag', 'bag directory to create (must not exist)')
-    topics: tuple[str, ...] = setting((), 'topics to record (empty: every topic found)')
-    max_bag_size: int = setting(0, 'bytes per bag before continuing in a new one (0: no '
-                                'splitting)', lo=0, hi=2**62)
-    all_namespaces: bool = setting(False, 'record other namespaces too (default: this '
-                                   'namespace plus global topics)')
-    poll_period: float = setting(0.02, 'wall seconds between takes of everything queued (0: a '
-                                 'callback per message)', lo=0.0, hi=1.0)
 
 
 def message_class(type_name: str) -> Any:

@@ -1,12 +1,14 @@
-"""Settings: every parameter of a node declared once, as a field of a settings dataclass.
+"""Settings: every parameter of a node declared once, in the parameters.yaml of its package.
 
-ROS-free. A field made with `setting()` carries its default, what it means and its constraints
-(range, choices, list length, whether it may change at run time). Nodes declare one ROS
-parameter per field from it (agv_nodes/params.py); the lock-step harness reads the same
-parameter file with `settings_from_file`; both build the dataclass through `build`, the one
-place values are checked. A nested settings dataclass gives dotted names (`wire.kp`), as ROS 2
-does for nested mappings in a parameter file. A dataclass may add a `problems()` method for
-checks that span fields; it returns (name, value, reason) triples.
+ROS-free. Each entry of a parameters.yaml carries a parameter's default, what it means and its
+constraints (range, choices, list length, whether it may change at run time); `settings_class`
+turns the section named after a class into that class's dataclass fields. Nodes declare one ROS
+parameter per field (agv_nodes/params.py); the lock-step harness reads the same parameter file
+with `settings_from_file`; both build the dataclass through `build`, the one place values are
+checked. A nested settings dataclass gives dotted names (`wire.kp`), as ROS 2 does for nested
+mappings in a parameter file. A class may add a `problems()` method for checks that span
+fields; it returns (name, value, reason) triples. Keeping the declarations as data follows
+ROS 2's generate_parameter_library, whose YAML files hold the same facts.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from dataclasses import MISSING, Field, dataclass, field, fields, is_dataclass
 import functools
 from pathlib import Path
 import re
+import sys
 import typing
 from typing import Any
 
@@ -46,14 +49,79 @@ class Spec:
         return ' '.join(words)
 
 
-def setting(default: Any, description: str, *, lo: float | None = None, hi: float | None = None,
-            choices: tuple[str, ...] = (), length: int | None = None,
-            read_only: bool = True) -> Any:
-    """Declare a dataclass field that is a node parameter (lists are stored as tuples)."""
+DEFINITIONS = 'parameters.yaml'
+_ARRAY_TYPES = {'bool_array': bool, 'integer_array': int, 'double_array': float,
+                'string_array': str}
+_ENTRY_KEYS = frozenset({'default', 'type', 'description', 'range', 'choices', 'length',
+                         'read_only'})
+
+
+class DefinitionError(ValueError):
+    """A parameters.yaml entry that cannot declare a setting (names the file, class and key)."""
+
+
+@functools.cache
+def _definitions(path: Path) -> dict[str, Any]:
+    doc = yaml.safe_load(path.read_text())
+    if not isinstance(doc, dict):
+        raise DefinitionError(f'{path}: expected settings classes at the top level')
+    return doc
+
+
+def _declaration(where: str, entry: Any) -> tuple[Any, Any, Spec]:
+    """(type hint, default, spec) of one parameters.yaml entry."""
+    if not isinstance(entry, dict) or 'default' not in entry or 'description' not in entry:
+        raise DefinitionError(f'{where}: needs a mapping with default and description')
+    unknown = set(entry) - _ENTRY_KEYS
+    if unknown:
+        raise DefinitionError(f'{where}: unknown key {sorted(unknown)[0]!r}')
+    default = entry['default']
     if isinstance(default, list):
+        item = _ARRAY_TYPES.get(entry.get('type', ''))
+        if item is None or not all(type(v) is item for v in default):
+            raise DefinitionError(f'{where}: a list default needs a type, one of '
+                                  f'{", ".join(_ARRAY_TYPES)}, that its items have')
+        hint: Any = tuple[item, ...]
         default = tuple(default)
-    return field(default=default, metadata={SPEC: Spec(description, lo, hi, tuple(choices),
-                                                        length, read_only)})
+    elif type(default) in SCALARS and 'type' not in entry:
+        hint = type(default)
+    else:
+        raise DefinitionError(f'{where}: default {default!r} is not a bool, int, float or '
+                              'string (a list needs a type)')
+    lo, hi = entry.get('range', (None, None))
+    spec = Spec(' '.join(str(entry['description']).split()), lo, hi,
+                tuple(entry.get('choices', ())), entry.get('length'),
+                entry.get('read_only', True))
+    return hint, default, spec
+
+
+def settings_class(cls: type) -> type:
+    """Make `cls` a settings dataclass with one field per entry of its parameters.yaml section.
+
+    The section is the one named after the class in the parameters.yaml beside the class's
+    module. An entry whose value is a class name is a nested group: a field holding that
+    settings class (defined earlier in the same module), its parameters named `group.name`.
+    """
+    path = Path(sys.modules[cls.__module__].__file__ or '').with_name(DEFINITIONS)
+    section = _definitions(path).get(cls.__name__)
+    if not isinstance(section, dict):
+        raise DefinitionError(f'{path}: no section {cls.__name__}')
+    module = sys.modules[cls.__module__]
+    annotations: dict[str, Any] = {}
+    for name, entry in section.items():
+        where = f'{path}: {cls.__name__}.{name}'
+        if isinstance(entry, str):  # a nested group: the settings class of that name
+            group = getattr(module, entry, None)
+            if not is_dataclass(group):
+                raise DefinitionError(f'{where}: {entry!r} is no settings class of '
+                                      f'{cls.__module__}')
+            annotations[name] = group
+            setattr(cls, name, field(default_factory=group))
+            continue
+        annotations[name], default, spec = _declaration(where, entry)
+        setattr(cls, name, field(default=default, metadata={SPEC: spec}))
+    cls.__annotations__ = annotations
+    return dataclass(cls)
 
 
 @dataclass(frozen=True)
@@ -270,32 +338,14 @@ def settings_from_file(cls: type, path: Path | str, node: str,
         raise ParameterFileError(f'{path}: node {node}: {exc}') from None
 
 
-@dataclass
+@settings_class
 class ProcessSettings:
     """What every node process of the package has (agv_nodes/node_process.py)."""
 
-    executor: str = setting('events', "rclpy executor of the node's process: events "
-                            "(rclpy's EventsExecutor: about half the CPU, inputs taken in "
-                            'arrival order) or single (SingleThreadedExecutor)',
-                            choices=('events', 'single'))
 
-
-@dataclass
+@settings_class
 class NodeSettings(ProcessSettings):
     """What every sub-system node has besides its core's settings (agv_nodes/core_node.py)."""
-
-    record_integrity: str = setting('e2e', 'end-to-end protection of the inter-processor '
-                                    'records (none: a legacy peer sending plain thesis records)',
-                                    choices=('e2e', 'none'))
-    sim_progress: bool = setting(False, 'publish sim/progress/<node>, the sim time this node has '
-                                 'handled, for a simulated world to pace itself on (set by '
-                                 'agv-launch with world:=sim; never with hardware)')
-    fault_record: str = setting('', 'inject faults into this record on its way out (empty: '
-                                'none; agv-launch --fault)')
-    fault_loss: float = setting(0.0, 'fraction of fault_record records dropped', lo=0.0, hi=1.0)
-    fault_delay: float = setting(0.0, 'extra delay of fault_record records, s (released on the '
-                                 'next /clock step)', lo=0.0, hi=1.0)
-    fault_seed: int = setting(1, 'seed of the injected losses', lo=0, hi=2**31 - 1)
 
 
 # Parameters rclpy itself declares on every node.

@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('csv', nargs='*', type=Path,
-                    default=sorted(Path('bench/results').glob('stops_*.csv')))
+                    default=sorted(Path('bench/results').glob('stops*.csv')))
     ap.add_argument('--out', type=Path, default=Path('bench/results/stops.png'))
     args = ap.parse_args()
     groups: dict[str, list[float]] = {}

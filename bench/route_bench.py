@@ -168,7 +168,7 @@ def camera_recovery(law: str, gain_i: float, gain_theta: float, speed: float, of
                     angle_deg: float, schedule: float = 0.0) -> tuple[float, float, float]:
     """Start `offset` m beside the tape (at the camera) and `angle_deg` off its heading.
 
-    thesis S5 starts at -0.08 m and 40 deg at 0.471 m/s. Return the worst
+    Rajagopalan 1991, 7.6 (Fig. 7.7) starts at -0.08 m and 40 deg at 0.471 m/s. Return the worst
     |error| (mm), time to stay within 5 mm (s), steady error (mm); nan when the tape is lost.
     """
     world = WorldCore(tape(('a', [-1.0, 0.0, 0.0], 30.0)), WorldParams(seed=2))
@@ -295,8 +295,8 @@ def main() -> int:
                 print(f'{law_cells(law, gain_theta, schedule)} {speed} | {o:.1f} | {t:.2f} | '
                       f'{e:.1f} |', flush=True)
     if 'recovery' in only:
-        print('\nCamera guidance from an initial error (thesis S5: -0.08 m and 40 deg at '
-              '0.471 m/s)\n')
+        print('\nCamera guidance from an initial error (Rajagopalan 1991, 7.6: -0.08 m and '
+              '40 deg at 0.471 m/s)\n')
         print('| law | G_theta | schedule (m/s) | offset (m) | angle (deg) | worst error (mm) '
               '| within 5 mm after (s) | steady error (mm) |\n|---|---|---|---|---|---|---|---|')
         for law, gain_i, gain_theta, schedule in LAWS:

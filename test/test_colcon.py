@@ -72,3 +72,15 @@ def test_installed_tool_runs(workspace):
     res = in_workspace(workspace, 'install/agv_nodes/lib/agv_nodes/agv-records list')
     assert res.returncode == 0, res.stderr
     assert 'navigation_status' in res.stdout
+
+
+def test_installed_package_has_its_parameter_declarations(workspace):
+    probe = ('cd / && python -c "import agv_nodes.world.settings as w, agv_nodes.settings as s; '
+             'print(w.__file__); print(len(s.parameters(w.WorldParams)))"')
+    res = in_workspace(workspace, probe.replace('python', PYTHON, 1))
+    assert res.returncode == 0, res.stderr
+    module, count = res.stdout.split()
+    assert module.startswith(str(workspace / 'install'))
+    from agv_nodes.settings import parameters
+    from agv_nodes.world.settings import WorldParams
+    assert int(count) == len(parameters(WorldParams)) > 50

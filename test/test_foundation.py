@@ -1,5 +1,6 @@
 """The foundation: cores without rclpy, rclpy's private attributes, one source of settings."""
 
+from pathlib import Path
 import subprocess
 import sys
 import time
@@ -15,6 +16,7 @@ from agv_nodes.settings import (
     settings_from_file,
 )
 
+REPO = Path(__file__).resolve().parent.parent
 CORES = ('agv_nodes.traction.core', 'agv_nodes.navigation.core', 'agv_nodes.position_sensor.core',
          'agv_nodes.route_following.core', 'agv_nodes.executive.core',
          'agv_nodes.communications.core', 'agv_nodes.load_handling.core', 'agv_nodes.world.core',
@@ -120,3 +122,23 @@ def test_every_setting_has_a_description_and_numbers_a_range():
             assert p.spec.description, (cls.__name__, p.name)
             if p.kind in (int, float) and not p.spec.choices:
                 assert p.spec.lo is not None and p.spec.hi is not None, (cls.__name__, p.name)
+
+
+def test_the_parameter_reference_is_the_one_the_declarations_make():
+    sys.path.insert(0, str(REPO / 'docs'))
+    try:
+        import parameter_table
+    finally:
+        sys.path.pop(0)
+    assert (REPO / 'docs' / 'parameters.md').read_text() == parameter_table.page(), \
+        'docs/parameters.md is stale: run docs/parameter_table.py'
+
+
+def test_a_bad_declaration_names_its_file_class_and_key(tmp_path):
+    from agv_nodes.settings import DefinitionError, _declaration
+    for entry, words in [({'default': 1.0}, 'needs a mapping with default and description'),
+                         ({'default': [], 'description': 'x'}, 'a list default needs a type'),
+                         ({'default': 1, 'description': 'x', 'rnage': [0, 2]}, "'rnage'"),
+                         ({'default': None, 'description': 'x'}, 'is not a bool')]:
+        with pytest.raises(DefinitionError, match=words):
+            _declaration('f.yaml: Cls.name', entry)

@@ -59,10 +59,8 @@ class PositionSensorCore(SubsystemCore):
         self._total = [0] * 8  # TOTAL
         self._row = 0  # run counter
         self.code = 0  # CODE of the last valid snapshot
-        self.invalid = False
-        self.saturated = False
-        self.identity = 0xFF
-        self.stop_view = 0
+        self.invalid = self.saturated = False
+        self.identity, self.stop_view = 0xFF, 0  # the last recognition, as reported
         self.recognitions = 0
         self.samples = 0
         self._streak_key: int | None = None

@@ -30,12 +30,8 @@ class RecordError(ValueError):
 
     def __init__(self, record: str, reason: str, *, code: Reject, byte: int | None = None,
                  field: str | None = None, value: Any = None) -> None:
-        self.record = record
-        self.reason = reason
-        self.code = code
-        self.byte = byte
-        self.field = field
-        self.value = value
+        self.record, self.reason, self.code = record, reason, code
+        self.byte, self.field, self.value = byte, field, value  # where, when known
         where = [record]
         if byte is not None:
             where.append(f'byte {byte}')
