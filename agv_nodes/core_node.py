@@ -15,7 +15,9 @@ from collections.abc import Callable
 import random
 from typing import Any
 
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool
 
@@ -122,6 +124,8 @@ class CoreNode(Node):
             self.periodic(self.core.period, self._tick)
         if ns.fault_record and ns.fault_delay:
             self.periodic(0.001, self._release)  # fires once per /clock step
+        if ns.fault_record:
+            self.add_on_set_parameters_callback(self._set_fault)
         self.input_diagnostics = InputDiagnostics(self, self.readers,
                                                   health=getattr(self.core, 'health', None))
 
@@ -189,10 +193,20 @@ class CoreNode(Node):
         raw = self.writers[record].pack(fields)
         if self._fault_rng.random() < self.node_settings.fault_loss:
             return  # lost on the way
+        corrupt = self.node_settings.fault_corrupt
+        if corrupt and self._fault_rng.random() < corrupt:
+            raw = bytes((raw[0] ^ 0x01,)) + raw[1:]  # byte 1 hit: the CRC no longer fits
         if self.node_settings.fault_delay:
             self._held.append((self.now_s() + self.node_settings.fault_delay, raw))
         else:
             self.writers[record].publish_raw(raw)
+
+    def _set_fault(self, params: list[Parameter]) -> SetParametersResult:
+        # the descriptor's range has checked the value; the others are read-only
+        for p in params:
+            if p.name == 'fault_corrupt':
+                self.node_settings.fault_corrupt = float(p.value)
+        return SetParametersResult(successful=True)
 
     def _release(self) -> None:
         now = self.now_s()

@@ -111,7 +111,9 @@ def status_records(now_ok: float) -> dict:
             'route': {'state': 'following', 'lateral_error': 0, 'signal': 100, 'steering': 0,
                       'sign_left': 0, 'sign_right': 0, 'sign_straight': 0, 'manoeuvre': 0},
             'load': {'state': 'idle', 'cause': 'none', 'load_first': 0, 'load_second': 0,
-                     'job': 0}}
+                     'job': 0},
+            # communications repeats the head of its queue (supervised like the others)
+            'comms': parse_task('stop at 2 first').record() | {'task_id': 1}}
 
 
 def running_executive() -> ExecutiveCore:
@@ -210,14 +212,20 @@ def test_traction_still_tripped_after_arming_is_armed_again_during_the_grace():
     assert ex.mode == 'running'
 
 
-def test_reject_burst_is_a_fault():
+@pytest.mark.parametrize('writers, named', [(['route_status'], 'route'),
+                                             (['route_status', 'traction_status'], 'none')])
+def test_reject_burst_is_a_fault_naming_the_writer(writers, named):
     ex = running_executive()
-    for k in range(8):
-        ex.on_reject('route_status', 'bad_crc', 0.6 + k * 0.01)
+    limit = ex.p.reject_limit
+    for k in range(limit):  # the budget itself is tolerated
+        ex.on_reject(writers[k % len(writers)], 'bad_crc', 0.6 + k * 0.01)
     for name, fields in status_records(0.7).items():
         ex.on_record(f'{name}_status', fields, 0.7)
     ex.tick(0.7)
-    assert ex.fault == ('rejected_records', 'none')
+    assert ex.mode == 'running'
+    ex.on_reject(writers[-1], 'bad_crc', 0.71)
+    ex.tick(0.72)
+    assert ex.fault == ('rejected_records', named)
 
 
 def test_load_handling_checks_and_transfers():

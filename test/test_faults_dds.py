@@ -14,12 +14,16 @@ fault's sim time is exact (test/graph_probe.py). Each case asserts the expected 
   not run past the end of its route: the executive's positioning limit stops it, `route limit`;
 - a lossy or slow link (agv-launch --fault, injected at the writer): 10 % of navigation's
   commands to the position sensor lost, or 20 ms more on navigation's link to traction: the
-  task completes, the stop stays in tolerance, and the reader's /diagnostics counts the gaps.
+  task completes, the stop stays in tolerance, and the reader's /diagnostics counts the gaps;
+- a genuine writer gone bad (traction's status records corrupted on their way out, switched
+  on while cruising): every one is rejected and counted, and the executive stops the truck,
+  naming traction: its status goes stale, or, with a tighter rejection budget (the
+  executive's reject_limit), the rejections themselves are the named cause.
 """
 
 from __future__ import annotations
 
-from graph_probe import GraphProbe
+from graph_probe import STOP_TOLERANCE_MM, GraphProbe
 import pytest
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
@@ -102,7 +106,7 @@ def test_lossy_or_slow_link_is_tolerated_and_diagnosed(tmp_path, fault, expected
         g.start_task('stop at 2 first', cruise=None)
         g.report_with("'stop at 2 first': completed", wall_limit=180)
         stops = [e for _t, e in g.events if e['event'] == 'stopped']
-        assert stops and -20 <= stops[-1]['error'] <= 80, stops
+        assert stops and abs(stops[-1]['error']) <= STOP_TOLERANCE_MM, stops
         reader = codec()[record].readers[0]
         g.spin_until(lambda: reader in g.inputs, 30, f'{reader} /diagnostics inputs row')
         gaps = int(g.inputs[reader][f'{record} lost (counter gaps)'])
@@ -112,5 +116,42 @@ def test_lossy_or_slow_link_is_tolerated_and_diagnosed(tmp_path, fault, expected
         fault_table.add(f'{record}: {fault.partition(":")[2]} (agv-launch --fault)', expected,
                         f'completed, stop {stops[-1]["error"]:+d} mm, {gaps} counter gaps '
                         f'seen by {reader}')
+    finally:
+        g.close()
+
+
+@pytest.mark.parametrize('reject_limit, report', [
+    # 3 statuses lost take 150 ms, the budget of 5 rejections 300 ms: the status goes stale
+    (None, 'FAILED: stale status (traction)'),
+    # 2 rejections take 100 ms: the burst is named before the status goes stale
+    (1, 'FAILED: rejected records (traction)'),
+], ids=['default_budget', 'budget_1'])
+def test_genuine_writer_sending_corrupt_records_stops_the_truck(tmp_path, reject_limit, report,
+                                                                fault_table):
+    extra = {'executive': [f'reject_limit:={reject_limit}']} if reject_limit else {}
+    g = GraphProbe(tmp_path / 'logs', faults={'traction_status': {'corrupt': 0.0}}, extra=extra)
+    try:
+        g.start_task('stop at 2 second')
+        speed = g.speed
+        before = g.counted('executive', 'traction_status rejected')
+        at = g.at_exact_time(lambda: g.set_parameters('traction', fault_corrupt=1.0))
+        at_rest = g.stays_at_rest() - at
+        cut = g.drive_off_after(at)
+        assert cut is not None and 0 < round(cut * 1000) <= round(DRIVE_OFF_WITHIN * 1000), \
+            g.events
+        g.report_with(report)
+        g.spin_until(lambda: g.counted('executive', 'traction_status rejected') > before + 20,
+                     30, 'the executive counting the corrupt traction_status records')
+        reasons = g.inputs['executive']['traction_status rejects by reason']
+        assert 'bad_crc' in reasons, reasons
+        print(f'corrupt traction_status at {at:.2f} s, {speed:.2f} m/s: drive off {cut} s, '
+              f'at rest {at_rest:.2f} s later; reports {g.reports}; rejects {reasons}')
+        budget = reject_limit if reject_limit else 5
+        fault_table.add(f'traction_status corrupted at its genuine writer while cruising '
+                        f'(executive reject_limit {budget})',
+                        f'every one rejected (bad_crc) and counted; drive off <= 0.2 s; '
+                        f'"{report}"',
+                        f'at {speed:.2f} m/s: drive off after {cut:.3f} s, at rest after '
+                        f'{at_rest:.2f} s; {reasons}')
     finally:
         g.close()

@@ -13,6 +13,7 @@ import signal
 import subprocess
 import time
 
+from graph_probe import STOP_TOLERANCE_MM
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 import pytest
@@ -76,7 +77,7 @@ def test_quick_demo_tasks_and_stops(quick):
     assert all(code == 0 for code in summary['node_exits'].values()), summary['node_exits']
     report = json.loads((quick / 'report' / 'report.json').read_text())
     assert [s['marker'] for s in report['stops']] == ['W0.1', 'W2.1']
-    assert all(abs(s['error_mm']) <= 15 for s in report['stops'])  # controlled stops
+    assert all(abs(s['error_mm']) <= STOP_TOLERANCE_MM for s in report['stops'])
     assert [x['marker'] for x in report['loads']] == ['W0.1', 'W2.1']
     for png in ('speed.png', 'path.png', 'stops.png', 'records.png', 'faults.png'):
         assert (quick / 'report' / png).stat().st_size > 1000  # a real PNG, drawn
@@ -171,7 +172,7 @@ def test_full_demonstration_programme_over_dds(tmp_path):
     report = json.loads((tmp_path / 'report' / 'report.json').read_text())
     markers = [s['marker'] for s in report['stops']]
     assert markers == ['W0.1', 'W2.1', 'W0.1', 'W2.1', 'W1.1', 'W3.1', 'W2.2', 'W2.1', 'W2.2']
-    assert all(abs(s['error_mm']) <= 15 for s in report['stops'])  # controlled stops
+    assert all(abs(s['error_mm']) <= STOP_TOLERANCE_MM for s in report['stops'])
     assert [x['marker'] for x in report['loads']] == ['W0.1', 'W2.1', 'W1.1', 'W3.1']
     finals = [t['text'] for t in report['tasks']]
     assert len(finals) == 8 and all(': completed' in t for t in finals)

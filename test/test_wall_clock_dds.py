@@ -14,7 +14,7 @@ clock. This test guards two requirements of that configuration:
 
 from __future__ import annotations
 
-from graph_probe import GraphProbe
+from graph_probe import STOP_TOLERANCE_MM, GraphProbe
 import pytest
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
@@ -26,7 +26,7 @@ def test_wall_clock_graph_completes_a_task_and_stops_on_sigint(tmp_path):
         g.start_task('stop at 2 first', cruise=None)
         g.report_with("'stop at 2 first': completed", wall_limit=120)
         stops = [e for _t, e in g.events if e['event'] == 'stopped']
-        assert stops and -20 <= stops[-1]['error'] <= 80, stops
+        assert stops and abs(stops[-1]['error']) <= STOP_TOLERANCE_MM, stops
     finally:
         g.close()
     # Every process ended on the launcher's SIGINT, with status 0 and nothing fatal said.

@@ -61,7 +61,7 @@ class ExecutiveCore(SubsystemCore):
         self.max_age: dict[str, float] = {}  # oldest status seen while supervising (diagnostics)
         self.arrivals = 0  # status records received, all sub-systems
         self.arrivals_at: dict[str, int] = {}  # the count when each sub-system last reported
-        self.rejects: list[float] = []  # times of rejected records
+        self.rejects: list[tuple[float, str]] = []  # (time, writer) of rejected records
         self.mode = 'idle'  # idle | running | cruising | failed
         self.task: dict[str, Any] | None = None
         self.task_id = 0
@@ -130,7 +130,7 @@ class ExecutiveCore(SubsystemCore):
 
     def on_reject(self, record: str, reason: str, now: float) -> dict | None:
         """Count rejected status records (a burst of them is a fault)."""
-        self.rejects.append(now)
+        self.rejects.append((now, SUBSYSTEM_OF.get(record, 'none')))
         return None
 
     def _task_record(self, fields: dict[str, Any], now: float) -> None:
@@ -326,7 +326,17 @@ class ExecutiveCore(SubsystemCore):
 
     # -- faults -----------------------------------------------------------------------------
     def _supervise(self, now: float) -> None:
-        for sub in ('navigation', 'traction', 'route', 'load'):
+        # First: a writer whose records are being rejected also goes stale, and the rejections
+        # are the better name for it.
+        self.rejects = [(t, sub) for t, sub in self.rejects if now - t <= 1.0]
+        if len(self.rejects) > self.p.reject_limit:
+            writers = sorted({sub for _t, sub in self.rejects})
+            return self._fail(now, 'rejected_records', writers[0] if len(writers) == 1
+                              else 'none', f'{len(self.rejects)} in 1 s')
+        # Communications too: a silent sub-system is a fault to stop on (Baker 1983, 7.2: one
+        # that failed made the others reset, which hid the fault), and without it no abort
+        # reaches the truck. Its 100 ms status makes status_timeout 1.5 of its periods.
+        for sub in ('navigation', 'traction', 'route', 'load', 'communications'):
             t = self.status_time.get(sub)
             if t is None:
                 if now - self.task_start > 1.0:
@@ -338,9 +348,6 @@ class ExecutiveCore(SubsystemCore):
             if age > self.p.status_timeout and (others >= self.p.stale_confirm
                                                 or age > 2 * self.p.status_timeout):
                 return self._fail(now, 'stale_status', sub, f'{age:.2f} s old')
-        self.rejects = [t for t in self.rejects if now - t <= 1.0]
-        if len(self.rejects) > self.p.reject_limit:
-            return self._fail(now, 'rejected_records', 'none', f'{len(self.rejects)} in 1 s')
         nav = self.status.get('navigation') or {}
         if nav.get('sensor_lost'):
             return self._fail(now, 'sensor_lost', 'navigation', 'marker sensor lost')

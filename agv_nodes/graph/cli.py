@@ -37,9 +37,12 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--respawn', action='store_true', help='restart nodes that die')
     ap.add_argument('--duration', type=float, help='stop after this many real seconds')
     ap.add_argument('--log-dir', type=Path, help="also write each node's output here")
-    ap.add_argument('--fault', action='append', default=[], metavar='RECORD:loss=P,delay=S',
-                    help='lose a fraction of one record and/or delay it (sim s) at its writer, '
-                    'e.g. navigation_status:loss=0.1 or traction_link:delay=0.02')
+    ap.add_argument('--fault', action='append', default=[],
+                    metavar='RECORD:loss=P,delay=S,corrupt=P',
+                    help='lose a fraction of one record, delay it (sim s) or corrupt a fraction '
+                    'at its writer, e.g. navigation_status:loss=0.1, traction_link:delay=0.02 '
+                    'or traction_status:corrupt=0.5 (corrupt may change at run time: the '
+                    "writer's fault_corrupt parameter)")
     ap.add_argument('-p', '--param', action='append', default=[], metavar='NODE:NAME:=VALUE',
                     help='extra parameter for one node, e.g. traction:control:=closed_loop')
     ap.add_argument('--realtime', type=int, default=0, metavar='PRIORITY',

@@ -101,7 +101,7 @@ def wait_links(graph: Graph, recording: bool = False, paced: Iterable[str] = ())
 
 
 def parse_fault(text: str, graph: Graph) -> tuple[str, dict[str, float]]:
-    """'RECORD:loss=0.1,delay=0.02' -> (record, {'loss': 0.1, 'delay': 0.02})."""
+    """'RECORD:loss=0.1,delay=0.02' -> (record, {'loss': 0.1, 'delay': 0.02}); also corrupt=P."""
     record, _, spec = text.partition(':')
     c = codec()
     writers = {n.name for n in graph.nodes if n.role == 'node'}
@@ -115,11 +115,13 @@ def parse_fault(text: str, graph: Graph) -> tuple[str, dict[str, float]]:
             number = float(value)
         except ValueError:
             number = -1.0
-        if key not in ('loss', 'delay', 'seed') or number < 0 or (key == 'loss' and number > 1):
-            raise GraphError(f'--fault {text!r}: {item!r} (expected loss=0..1, delay=S, seed=N)')
+        if key not in ('loss', 'delay', 'corrupt', 'seed') or number < 0 or \
+                (key in ('loss', 'corrupt') and number > 1):
+            raise GraphError(f'--fault {text!r}: {item!r} (expected loss=0..1, delay=S, '
+                             'corrupt=0..1, seed=N)')
         out[key] = number
     if not out:
-        raise GraphError(f'--fault {text!r}: nothing to inject (loss=..., delay=...)')
+        raise GraphError(f'--fault {text!r}: nothing to inject (loss=..., delay=..., corrupt=...)')
     return record, out
 
 
@@ -165,6 +167,7 @@ def node_parameters(graph: Graph, spec: NodeSpec, options: Options,
             if codec()[record].writer == spec.name:
                 out.update(fault_record=record, fault_loss=fault.get('loss', 0.0),
                            fault_delay=fault.get('delay', 0.0),
+                           fault_corrupt=fault.get('corrupt', 0.0),
                            fault_seed=int(fault.get('seed', 1)))
     if spec.role == 'world':
         paced = paced_nodes(graph, options)
