@@ -53,6 +53,7 @@ setup(
             'agv-demo = agv_nodes.demo:main',
             'agv-diag = agv_nodes.executive.diag_view:main',
             'agv-launch = agv_nodes.graph.cli:main',
+            'agv-layout = agv_nodes.world.layout_cli:main',
             'agv-records = agv_nodes.records.cli:main',
             'agv-report = agv_nodes.report:main',
         ],

@@ -235,7 +235,8 @@ def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
     Each core has the settings a launched node of the graph gets: the graph's parameter file
     (config/agv_demo.yaml), what the layout sets (`layout_parameters`), then `overrides`
     ({node: {name: value}}, as agv-launch's `-p NODE:NAME:=VALUE`). `seed` seeds the world and
-    the harness.
+    the harness. As the world node does, it refuses a layout with a marker its sensor cannot
+    read as the truck drives the route (unless the world's `layout_check` is 'warn').
     """
     from agv_nodes.communications.core import CommunicationsCore
     from agv_nodes.executive.core import ExecutiveCore
@@ -257,15 +258,43 @@ def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
     def settings(node: str, cls: type, also: type | None = None, **fixed: Any) -> Any:
         values = {**from_layout.get(node, {}), **fixed, **given.get(node, {})}
         known = frozenset(p.name for p in parameters(also)) if also else frozenset()
-        return settings_from_file(cls, params_file, node, values, also_known=known)
+        unknown = set(values) - {p.name for p in parameters(cls)} - known
+        if unknown:
+            raise ValueError(f'truck: node {node}: unknown parameter {sorted(unknown)[0]!r}')
+        ours = {name: value for name, value in values.items() if name not in known}
+        return settings_from_file(cls, params_file, node, ours, also_known=known)
 
-    world = WorldCore(lay, settings('world', WorldParams, WorldNodeSettings, seed=seed))
+    world_params = settings('world', WorldParams, WorldNodeSettings, seed=seed)
+    if settings('world', WorldNodeSettings, WorldParams).layout_check != 'warn':
+        _check(lay, world_params)
+    world = WorldCore(lay, world_params)
     cores = [core_type(settings(core_type.node, core_type.settings_type))
              for core_type in (TractionCore, PositionSensorCore, NavigationCore, RouteCore,
                                ExecutiveCore, CommunicationsCore, LoadHandlingCore)]
     h = Harness(world, cores, integrity=integrity, seed=seed)
     h.cores = {c.node: c for c in cores}
     return h
+
+
+_CHECKED: dict[tuple[str, str, str], list[str]] = {}  # each layout's check, by what it drove
+
+
+def _check(layout: Any, world_params: Any) -> None:
+    """Refuse a layout with an unreadable marker, as the world node does.
+
+    Once per process for each layout and truck: the drives take a second or two.
+    """
+    p = world_params
+    key = (str(layout.file), layout.file.read_text(), repr((
+        p.electruk, p.pickup, p.sample_rate, p.substeps, p.guide_wire_rate, p.odometry_rate)))
+    if key not in _CHECKED:
+        from agv_nodes.world.layout_check import check_layout
+
+        _CHECKED[key] = check_layout(layout, world_params).errors()
+    if _CHECKED[key]:
+        from agv_nodes.world.layout import LayoutError
+
+        raise LayoutError('\n'.join(_CHECKED[key]))
 
 
 def submit(h: Harness, text: str) -> None:

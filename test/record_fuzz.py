@@ -48,7 +48,8 @@ def bad_values(schema: RecordSchema) -> list[tuple[int, int, int]]:
         if f.n_bytes != 1:
             continue
         for raw in range(1 << f.width):
-            if not f.valid(raw):
+            signed = f.encoding == 'twos_complement' and raw >> (f.width - 1)
+            if not f.valid(raw - (1 << f.width) if signed else raw):
                 out.append((f.byte - 1, f.mask, raw << f.lo_bit))
     return out
 

@@ -3,6 +3,9 @@
 A `RecordWriter` packs a core's field dict into 16 bytes (advancing the E2E counter); a
 `RecordReader` validates what arrives and keeps the last good record, its age, and a count of
 every rejection by reason, so `/diagnostics` can show "the 32 bytes" (thesis 8.2.2) and rejects.
+A rejected record changes nothing but the rejection counts (and, for a counter jump, the
+resynchronisation runs of records/e2e.py): the last good record, its age and the sequence
+reference stay as they were.
 """
 
 from __future__ import annotations
@@ -46,10 +49,10 @@ class RecordReader:
     """Validates received records of one schema; never lets a bad one through."""
 
     def __init__(self, schema: RecordSchema, integrity: str = 'e2e',
-                 max_delta: int = 15) -> None:
+                 max_delta: int = 15, sync_records: int = 3) -> None:
         self.schema = schema
         self.integrity = integrity
-        self.sequence = SequenceCheck(max_delta)
+        self.sequence = SequenceCheck(max_delta, sync_records)
         self.fields: dict[str, Any] | None = None  # last accepted record
         self.raw: bytes | None = None  # its 16 bytes
         self.stamp_ns: int | None = None  # when it was accepted
@@ -71,20 +74,30 @@ class RecordReader:
             self._reject(exc.code.value, str(exc))
             return None
         if self.schema.protected and self.integrity == 'e2e':
-            verdict = self.sequence.check(e2e_counter(data))
+            counter = e2e_counter(data)
+            verdict = self.sequence.check(counter)
             if verdict is Sequence.REPEATED:
                 self._reject('repeated_counter', f'{self.schema.name}: repeated counter '
-                             f'{e2e_counter(data)} (not new data)')
+                             f'{counter} (not new data)')
                 return None
             if verdict is Sequence.WRONG_SEQUENCE:
-                self._reject('wrong_sequence', f'{self.schema.name}: counter jumped to '
-                             f'{e2e_counter(data)}')
+                self._reject('wrong_sequence', f'{self.schema.name}: counter {counter} out '
+                             f'of sequence (last accepted {self.sequence.last})')
+                return None
+            if verdict is Sequence.SYNC:
+                self._reject('resyncing', f'{self.schema.name}: counter {counter} continues a '
+                             f'run after a jump (resynchronising after '
+                             f'{self.sequence.sync_records}, not acted on)')
                 return None
         self.fields = fields
         self.raw = bytes(data)
         self.stamp_ns = now_ns
         self.accepted += 1
         return fields
+
+    def resync(self) -> None:
+        """Accept the next valid record whatever its counter (its writer is known to be new)."""
+        self.sequence.resync()
 
     def age_s(self, now_ns: int) -> float:
         """Seconds since the last accepted record (inf if none yet)."""

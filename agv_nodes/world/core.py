@@ -18,7 +18,7 @@ from agv_nodes.markers import SNAPSHOT_FIELDS
 from agv_nodes.world.camera import BinaryCamera
 from agv_nodes.world.guide_wire import GuideWirePickup
 from agv_nodes.world.layout import Layout, Marker
-from agv_nodes.world.marker_sensor import MarkerSensorModel
+from agv_nodes.world.marker_sensor import MarkerSensorModel, axis_on_card, lens_position
 from agv_nodes.world.settings import WorldParams
 from agv_nodes.world.vehicles import Concic2, Electruk
 
@@ -178,10 +178,8 @@ class WorldCore:
         if self.layout.kind == 'rig':
             s = self.vehicle.state
             return (s.x, s.y), s.heading
-        sx, sy = self.vehicle.sensor_point
         h = self.vehicle.state.heading
-        lat = self.layout.sensor_lateral
-        return (sx + math.sin(h) * lat, sy - math.cos(h) * lat), h
+        return lens_position(self.vehicle.sensor_point, h, self.layout.sensor_lateral), h
 
     def _ride_height(self) -> float:
         payload = self.p.electruk.payload if isinstance(self.vehicle, Electruk) else 0.0
@@ -309,18 +307,15 @@ class WorldCore:
             del self._card_side[i]  # out of sight: its side is news again when it comes back
 
     def _marker_passages(self, lens: tuple[float, float], heading: float) -> None:
-        ax, ay = math.sin(heading), -math.cos(heading)
         for i, m in self._near:
             dx, dy = lens[0] - m.centre[0], lens[1] - m.centre[1]
             if dx * dx + dy * dy > 0.36:
                 self._card_side.pop(i, None)
                 continue
-            # Where the optical axis meets the card, along the card (+ = downstream).
-            denom = ax * m.normal[0] + ay * m.normal[1]
-            if denom > -0.2:
+            on_card = axis_on_card(lens, heading, m)
+            if on_card is None:
                 continue
-            t = -(dx * m.normal[0] + dy * m.normal[1]) / denom
-            u = (dx + t * ax) * m.along[0] + (dy + t * ay) * m.along[1]
+            t, u, _cos = on_card
             before = self._card_side.get(i)
             self._card_side[i] = u
             if before is not None and (before < 0.0) != (u < 0.0):

@@ -25,6 +25,15 @@ from agv_nodes.markers import ELEMENT_HEIGHT, ELEMENT_WIDTH, LOCATION_PATTERNS, 
 from agv_nodes.world.settings import SensorParams
 
 NOISE_PER_SNAPSHOT = 17  # standard normals a snapshot uses: 8 lit, 8 dark, 1 ambient
+# Lens-to-card ranges of the threshold experiment (Baker 1983, 7.1.2-7.1.3), which `calibrate`
+# repeats: Table 7.1's thresholds are set for the worst of them.
+CALIBRATION_RANGES = tuple(0.280 + 0.005 * k for k in range(9))
+# The working range a layout is held to (agv_nodes/world/layout_check.py): the standoff band the
+# thresholds hold over, and how far the card may be turned about the vertical from square to the
+# optical axis (Baker 1983, 7.1.4, fig 7.13: recognition against angle, about +-10 degrees).
+READ_STANDOFF = (CALIBRATION_RANGES[0], CALIBRATION_RANGES[-1])  # m along the optical axis
+READ_ANGLE = 10.0  # degrees either way
+EDGE_ON = -0.2  # cosine of incidence (negated) beyond which a card is seen edge-on or from behind
 SQRT2 = math.sqrt(2.0)
 INV_SQRT_2PI = 1.0 / math.sqrt(2.0 * math.pi)
 
@@ -39,6 +48,30 @@ def _psi(z: float) -> float:
     if z <= -8.5:
         return 0.0
     return z * 0.5 * (1.0 + math.erf(z / SQRT2)) + INV_SQRT_2PI * math.exp(-0.5 * z * z)
+
+
+def lens_position(sensor_point: tuple[float, float], heading: float,
+                  lateral: float) -> tuple[float, float]:
+    """Return the lens position: `lateral` m right of the sensor point, square to the truck."""
+    return (sensor_point[0] + math.sin(heading) * lateral,
+            sensor_point[1] - math.cos(heading) * lateral)
+
+
+def axis_on_card(lens: tuple[float, float], heading: float,
+                 card) -> tuple[float, float, float] | None:
+    """Where the optical axis meets a card's plane: (range t, along the card u, cos incidence).
+
+    u is + downstream of the card centre; None when the card is seen edge-on or from behind.
+    """
+    ax, ay = math.sin(heading), -math.cos(heading)
+    nx, ny = card.normal
+    denom = ax * nx + ay * ny
+    if denom > EDGE_ON:
+        return None
+    dx, dy = lens[0] - card.centre[0], lens[1] - card.centre[1]
+    t = -(dx * nx + dy * ny) / denom
+    u = (dx + t * ax) * card.along[0] + (dy + t * ay) * card.along[1]
+    return t, u, -denom
 
 
 class MarkerSensorModel:
@@ -85,7 +118,7 @@ class MarkerSensorModel:
                 norm = math.hypot(rx, ry)
                 rx, ry = rx / norm, ry / norm
                 denom = rx * nx + ry * ny
-                if denom > -0.2:  # card seen edge-on or from behind
+                if denom > EDGE_ON:  # card seen edge-on or from behind
                     continue
                 t = (dx * nx + dy * ny) / denom
                 if not 0.05 < t < 0.8:
@@ -228,8 +261,8 @@ def _belt_runs(params_key: tuple) -> tuple:
     model = MarkerSensorModel.__new__(MarkerSensorModel)
     model.p = SensorParams(**dict(params_key))
     runs = []
-    for step in range(9):
-        belt = _Belt(0.280 + 0.005 * step)
+    for standoff in CALIBRATION_RANGES:
+        belt = _Belt(standoff)
         series = [model.optics((-0.35 + k / 340.0, 0.0), 0.0, [belt]) for k in range(256 + 3)]
         per_detector = []
         for d in range(8):

@@ -44,6 +44,7 @@ from agv_nodes.ros_ports import (
 )
 from agv_nodes.world.core import WorldCore
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
+from agv_nodes.world.layout_check import enforce
 from agv_nodes.world.pacing import GraphPacer
 from agv_nodes.world.peers import LinkWatch, parse_link_entry
 from agv_nodes.world.settings import WorldNodeSettings, WorldParams
@@ -62,6 +63,11 @@ class WorldNode(Node):
         refuse_unknown(self)
         self.executor_kind = s.executor
         self.layout = self._load_layout(s)
+        try:  # a marker the sensor cannot read as the truck drives there (agv-layout check)
+            for line in enforce(self.layout, wp, s.layout_check):
+                self.get_logger().warning(line)
+        except LayoutError as exc:
+            raise parameter_error(self, 'layout', s.layout, str(exc)) from None
         self.core = WorldCore(self.layout, wp)
         self.core.wire_powered = s.wire_powered
         self.paused = s.start_paused
