@@ -82,7 +82,7 @@ def starved(age: str) -> ExecutiveCore:
     time as first placed, never raised: navigation's queue empties long before the clock's).
     """
     ex, t = cruising(age != 'arrival', stale_confirm=0)
-    order = ('clock', 'traction', 'route', 'load', 'navigation')
+    order = ('clock', 'traction', 'route', 'load', 'comms', 'navigation')
     queues: dict[str, list[int]] = {name: [] for name in order}
     for k in range(100, 130):
         for name in order:
