@@ -68,13 +68,19 @@ def recipes(schema: RecordSchema) -> st.SearchStrategy[Recipe]:
             st.builds(Recipe, kind=st.just('repeated_counter')),
             st.builds(Recipe, kind=st.just('skipped_counter'), skip=st.integers(16, 240)),
         ]
+    return st.one_of(options + field_defects(schema))
+
+
+def field_defects(schema: RecordSchema) -> list[st.SearchStrategy[Recipe]]:
+    """Return the recipes that set a spare bit or put a value a field may not hold."""
+    out = []
     if spare_bits(schema):
-        options.append(st.builds(Recipe, kind=st.just('spare_set'),
-                                 position=st.integers(0, len(spare_bits(schema)) - 1)))
+        out.append(st.builds(Recipe, kind=st.just('spare_set'),
+                             position=st.integers(0, len(spare_bits(schema)) - 1)))
     if bad_values(schema):
-        options.append(st.builds(Recipe, kind=st.just('bad_value'),
-                                 position=st.integers(0, len(bad_values(schema)) - 1)))
-    return st.one_of(options)
+        out.append(st.builds(Recipe, kind=st.just('bad_value'),
+                             position=st.integers(0, len(bad_values(schema)) - 1)))
+    return out
 
 
 def _seal(schema: RecordSchema, data: bytearray) -> bytes:

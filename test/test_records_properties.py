@@ -10,7 +10,7 @@ from collections import Counter
 from hypothesis import event, given, settings
 from hypothesis import strategies as st
 import pytest
-from record_fuzz import Recipe, apply, bad_values, recipes, rejected, spare_bits
+from record_fuzz import Recipe, apply, field_defects, recipes, rejected
 
 from agv_nodes.records import RecordError, RecordReader, RecordWriter, codec
 from agv_nodes.records.e2e import record_crc
@@ -226,13 +226,7 @@ def malformations(schema: RecordSchema) -> st.SearchStrategy[Recipe]:
     """Return record_fuzz's defects that the codec refuses by itself (no counter involved)."""
     options = [st.builds(Recipe, kind=st.just('random_bytes'),
                          noise=st.binary(min_size=16, max_size=16))]
-    if spare_bits(schema):
-        options.append(st.builds(Recipe, kind=st.just('spare_set'),
-                                 position=st.integers(0, len(spare_bits(schema)) - 1)))
-    if bad_values(schema):
-        options.append(st.builds(Recipe, kind=st.just('bad_value'),
-                                 position=st.integers(0, len(bad_values(schema)) - 1)))
-    return st.one_of(options)
+    return st.one_of(options + field_defects(schema))
 
 
 class Fuzzer:
