@@ -7,6 +7,7 @@ RecordPublisher per record the core writes and one RecordSubscription per record
 feeds accepted records and rejections to the core, runs its timer on the ROS clock, takes
 hw/radio_stop for cores that read it, logs the core's notes, and publishes what it returns.
 With `sim_progress` (a simulated world) it also says how far it has got (agv_nodes/sim_progress).
+Under sim time a wall-clock watch says on /diagnostics when /clock stops (agv_nodes/clock_watch).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool
 
 from agv_nodes import qos, sim_progress
+from agv_nodes.clock_watch import ClockWatch
 from agv_nodes.node_process import spin_main
 from agv_nodes.params import declare, parameter_error, refuse_unknown
 from agv_nodes.rclpy_internals import drop_clock_reader
@@ -128,6 +130,8 @@ class CoreNode(Node):
             self.add_on_set_parameters_callback(self._set_fault)
         self.input_diagnostics = InputDiagnostics(self, self.readers,
                                                   health=getattr(self.core, 'health', None))
+        if self.get_parameter('use_sim_time').value:
+            self.clock_watch = ClockWatch(self)
 
     def periodic(self, period: float, callback: Callable[[], None]) -> None:
         """Call `callback` every `period` s of ROS time, as a rclpy timer would.

@@ -3,12 +3,15 @@
 `spin_main` is what every console script's main() calls: init, make the node, spin on the
 executor the node asks for (never MultiThreadedExecutor), and end with the right exit status.
 A bad parameter file or value ends start-up with one line and status 2; SIGINT and SIGTERM end
-the spin between two callbacks; the DDS teardown is bounded (`_teardown`).
+the spin between two callbacks; the DDS teardown is bounded (`_teardown`). Every node process
+dies with the process that started it (`die_with_parent`): a launcher killed without a goodbye
+(agv-launch, ros2 launch, ros2 run) leaves no truck node running on its ROS domain.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+import ctypes
 import faulthandler
 import gc
 import os
@@ -143,6 +146,25 @@ def _teardown(node: Node | None, spinner: Any, code: int, limit: float = TEARDOW
         done.set()
 
 
+PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent() -> None:
+    """Have Linux send this process SIGTERM when its parent exits (prctl PR_SET_PDEATHSIG).
+
+    A node orphaned by a SIGKILLed launcher would run on, cross-talking with the next graph on
+    its domain and holding the truck's last outputs. SIGTERM ends the spin cleanly. The parent
+    here is whatever started the node: agv-launch's child wrapper (which asks the same for
+    itself), ros2 launch, ros2 run or a shell; under systemd it is PID 1, which never exits.
+    """
+    if not sys.platform.startswith('linux'):
+        return
+    parent = os.getppid()
+    ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    if os.getppid() != parent:  # the parent died before the request was in place
+        os.kill(os.getpid(), signal.SIGTERM)
+
+
 def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
               executor: Callable[[], Any] | None = None,
               run: Callable[[Any, Any], int] | None = None) -> int:
@@ -153,6 +175,7 @@ def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
     (_StopRequest), and the teardown is bounded (_teardown). `run(node, executor)` replaces
     the plain spin for a node with a loop of its own (the world), which checks running().
     """
+    die_with_parent()
     try:  # before rclpy reads them: its own error names neither the file nor the line
         for path in params_files(sys.argv if args is None else args):
             read_parameter_file(path)

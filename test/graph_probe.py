@@ -214,6 +214,18 @@ class GraphProbe:
         cut = [e_t - t for e_t, e in self.events if e['event'] == 'drive_off' and e_t >= t - 0.05]
         return cut[0] if cut else None
 
+    def drive_off_ms(self, t: float, within: float) -> int:
+        """Whole ms from `t` to the drive going off, asserted in (0, `within` s].
+
+        world_event stamps are whole milliseconds, so the budget is compared in them
+        (0.2 + 2e-16 s is 200 ms).
+        """
+        cut = self.drive_off_after(t)
+        assert cut is not None, f'no drive_off after {t:.3f} s (events {self.events})'
+        ms = round(cut * 1000)
+        assert 0 < ms <= round(within * 1000), f'drive off {ms} ms after {t:.3f} s'
+        return ms
+
     def travelled_since(self, t0: float) -> float:
         """Metres along the ground-truth path since sim time `t0`."""
         pts = [(x, y) for t, x, y in self.path if t >= t0]

@@ -316,27 +316,55 @@ def test_guide_wire_coils_agree_with_the_vectorised_field():
     assert paths == {'numpy', 'scalar'}  # straights and curves both summed
 
 
-def test_conveyor_transfer_only_when_aligned_and_commanded(drive_codec):
-    lay = layout('straight_track')
+LOAD_FIRST = {'first': 'load', 'second': 'off', 'station_request': 1}
+
+
+def _command_conveyors(world: WorldCore, seconds: float, every: int = 17) -> None:
+    """Step `world`, sending LOAD_FIRST each `every` samples (load handling's 50 ms period)."""
+    for k in range(round(340 * seconds)):
+        if k % every == 0:
+            world.on_record('conveyor_command', LOAD_FIRST, world.time)
+        world.step()
+
+
+def _at_stop_marker(lay, short: float) -> WorldCore:
+    """Return a world with the truck at rest, its sensor `short` m before S0's stop marker."""
     world = WorldCore(lay, WorldParams(seed=3))
     card = next(m for m in lay.markers if m.station == 'S0')
-    # Put the truck at rest with its sensor 20 mm short of the stop marker.
     st = world.vehicle.state
-    st.x = card.centre[0] - 0.02 - world.p.electruk.wheelbase
+    st.x = card.centre[0] - short - world.p.electruk.wheelbase
     st.y, st.heading = 0.0, 0.0
-    world.on_record('conveyor_command', {'first': 'load', 'second': 'off', 'station_request': 1},
-                    0.0)
-    for _ in range(340 * 5):
-        world.step()
+    return world
+
+
+def test_conveyor_transfer_only_when_aligned_and_commanded(drive_codec):
+    lay = layout('straight_track')
+    world = _at_stop_marker(lay, 0.02)
+    _command_conveyors(world, 5.0)
     assert world.loads[0] and world.station_loads['S0'] == 0
     # Not aligned: 0.3 m off, nothing moves.
-    world2 = WorldCore(lay, WorldParams(seed=3))
-    world2.vehicle.state.x = card.centre[0] - 0.3 - world.p.electruk.wheelbase
-    world2.on_record('conveyor_command', {'first': 'load', 'second': 'off',
-                                          'station_request': 1}, 0.0)
-    for _ in range(340 * 5):
-        world2.step()
+    world2 = _at_stop_marker(lay, 0.3)
+    _command_conveyors(world2, 5.0)
     assert not world2.loads[0] and world2.station_loads['S0'] == 1
+
+
+def test_conveyors_stop_when_their_commands_stop(drive_codec):
+    """A load-handling processor gone silent leaves no conveyor running (conveyor_timeout)."""
+    world = _at_stop_marker(layout('straight_track'), 0.02)
+    _command_conveyors(world, 1.0)  # a 3.2 s transfer, a third done
+    world.on_record('conveyor_command', LOAD_FIRST, world.time)  # the last command
+    started = world.transfer
+    assert 0.25 < started < 0.4
+    for _ in range(round(340 * world.p.conveyor_timeout) + 1):
+        world.step()  # within the timeout the last command still runs them
+    held = world.transfer
+    assert held - started == pytest.approx(world.p.conveyor_timeout * world.p.conveyor_speed
+                                           / world.p.transfer_length, abs=0.002)
+    for _ in range(340 * 5):
+        world.step()
+    assert world.transfer == held and not world.loads[0] and world.station_loads['S0'] == 1
+    _command_conveyors(world, 3.0)  # commands again: the transfer completes
+    assert world.loads[0]
 
 
 # -- camera ----------------------------------------------------------------------------------

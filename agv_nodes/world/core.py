@@ -63,6 +63,7 @@ class WorldCore:
         self.wire_powered = True  # the guide-wire generator (a fault test switches it off)
         self._last_watchdog: int | None = None
         self._watchdog_time = -1e9
+        self._conveyor_time = -1e9
         self._steer_time = -1e9
         self.conveyor_command: dict[str, Any] = {'first': 'off', 'second': 'off',
                                                  'station_request': 0}
@@ -128,6 +129,7 @@ class WorldCore:
                 self.vehicle.set_wheels(0.0, 0.0, False)
         elif record == 'conveyor_command':
             self.conveyor_command = dict(fields)
+            self._conveyor_time = now
 
     def set_radio_stop(self, on: bool) -> None:
         """Set the radio-control stop input (hw/radio_stop): no drive torque while set."""
@@ -251,6 +253,8 @@ class WorldCore:
     def _conveyors(self) -> None:
         cmd = self.conveyor_command
         aligned = self._aligned()
+        if self.time - self._conveyor_time > self.p.conveyor_timeout:
+            return  # the conveyor drives' own watchdog: no fresh command, no motion
         if aligned is None or not cmd.get('station_request'):
             return
         marker, j = aligned

@@ -1,0 +1,67 @@
+"""ClockWatch: a node's word, on the wall clock, that sim time has stopped (the world is gone)."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.clock import Clock as RosClock
+from rclpy.clock import ClockType
+
+from agv_nodes import qos
+from agv_nodes.records import codec
+from agv_nodes.records.ports import inputs_report
+from agv_nodes.ros_ports import diagnostic_status
+
+
+class ClockWatch:
+    """Says on /diagnostics, on the wall clock, that sim time has stopped (the world is gone).
+
+    Under sim time every timer of a node, its /diagnostics included, runs on the world's
+    /clock: with the world killed, time stands still and no node would ever say so. A steady
+    timer notices that the node's time has not moved for `LOST_AFTER` s of wall time and
+    publishes its inputs row as ERROR: "clock lost", the hardware (world) inputs lost and the
+    other inputs silent since. The world's pacing waits up to 1.5 s (lag_patience) for a slow
+    node, so a shorter silence is not yet a loss; a paused world reads the same. A node that
+    was itself frozen (SIGSTOP) or starved finds a long gap between its own checks, and starts
+    counting afresh. Once /clock moves again, the node's own sim-time row says OK again.
+    """
+
+    LOST_AFTER = 2.0  # s of wall time
+
+    def __init__(self, node: Any, period: float = 0.5) -> None:
+        self._node = node
+        self._seen = 0.0  # the node's sim time at the last check
+        self._since = self._checked = time.monotonic()
+        self._accepted: dict[str, int] = {}
+        self._pub = node.create_publisher(DiagnosticArray, '/diagnostics', qos.EVENTS)
+        node.create_timer(period, self.check, clock=RosClock(clock_type=ClockType.STEADY_TIME))
+
+    def check(self) -> None:
+        """Publish the loss if sim time has stood still for LOST_AFTER s of wall time."""
+        node, readers = self._node, self._node.readers
+        now, wall = node.ros_now_s(), time.monotonic()
+        stalled = wall - self._checked > self.LOST_AFTER  # this process was frozen or starved
+        self._checked = wall
+        if now != self._seen or stalled:  # (its /clock samples may still wait in its queue)
+            self._seen, self._since = now, wall
+            self._accepted = {name: r.accepted for name, r in readers.items()}
+            return
+        if now <= 0 or wall - self._since < self.LOST_AFTER:
+            return  # the world has not started, or is only slow
+        silent = [n for n, r in sorted(readers.items()) if r.accepted == self._accepted.get(n)]
+        hardware = [n for n in silent if codec()[n].writer == 'world']
+        others = [n for n in silent if n not in hardware]
+        message = (f'clock lost: sim time stopped at {now:.3f} s, no /clock for '
+                   f'{wall - self._since:.1f} s of wall time (world gone or paused); '
+                   f'hardware inputs lost: {", ".join(hardware) or "none"}; silent since: '
+                   f'{", ".join(others) or "none"}')
+        values = inputs_report(readers)[2]  # the counts, as the sim-time row has them
+        values.update({'sim time (s)': f'{now:.3f}', 'wall s without /clock':
+                       f'{wall - self._since:.1f}', 'silent inputs': ', '.join(silent) or 'none'})
+        name = node.get_name()
+        msg = DiagnosticArray(status=[diagnostic_status(node, f'{name}/inputs', 2, message,
+                                                       name, values)])
+        msg.header.stamp = node.get_clock().now().to_msg()
+        self._pub.publish(msg)
