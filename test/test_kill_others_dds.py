@@ -17,9 +17,10 @@ the processes around them, one at a time, each on the whole graph (config/graph.
 from __future__ import annotations
 
 import signal
+import statistics
 import time
 
-from graph_probe import CRUISE, GraphProbe
+from graph_probe import CRUISE, STOP_TOLERANCE_MM, GraphProbe
 import pytest
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
@@ -65,8 +66,10 @@ def test_load_handling_killed_during_a_transfer(tmp_path, fault_table):
         g.close()
 
 
-@pytest.mark.timeout(120)  # ~8 s alone
-def test_world_killed_every_node_names_its_lost_inputs(tmp_path, fault_table):
+@pytest.mark.timeout(180)  # ~8 s alone (SIGSTOP: ~20 s)
+@pytest.mark.parametrize('sig', [signal.SIGKILL, signal.SIGSTOP], ids=['kill', 'stop'])
+def test_world_gone_every_node_names_its_lost_inputs(tmp_path, sig, fault_table):
+    """Killed or frozen, the world stops sim time; frozen and woken, the run carries on."""
     from agv_nodes.records.codec import codec
 
     g = GraphProbe(tmp_path / 'logs')
@@ -74,9 +77,10 @@ def test_world_killed_every_node_names_its_lost_inputs(tmp_path, fault_table):
     nodes = [s.name for s in g.launch.specs() if s.role == 'node']
     lost = {n: sorted(s.name for s in codec() if s.writer == 'world' and n in s.readers)
             for n in nodes}
+    world = g.launch.procs['world']
     try:
         g.start_task('stop at 2 second')
-        g.launch.procs['world'].send_signal(signal.SIGKILL)
+        world.send_signal(sig)
         killed = time.monotonic()
         g.errors.clear()
 
@@ -86,15 +90,30 @@ def test_world_killed_every_node_names_its_lost_inputs(tmp_path, fault_table):
         g.spin_until(lambda: len(named()) == len(nodes), 60,
                      f'every node to name its lost inputs; have {g.errors}')
         took = time.monotonic() - killed
-        print(f'world SIGKILL: all named after {took:.1f} s wall: ' + '\n'.join(
+        print(f'world {sig.name}: all named after {took:.1f} s wall: ' + '\n'.join(
             f'{n}: {g.errors[n + "/inputs"]}' for n in nodes))
         assert took <= CLOCK_LOST_WITHIN, f'named only {took:.1f} s after the kill'
-        fault_table.add('SIGKILL world (hardware gone, sim time stops)',
+        outcome = ''
+        if sig == signal.SIGSTOP:  # the hardware back: time runs on, nothing was missed
+            frozen_at = g.time
+            world.send_signal(signal.SIGCONT)
+            g.spin_until(lambda: g.time > frozen_at + 0.5, 60, 'sim time to run again')
+            g.report_with('completed', wall_limit=120)
+            assert set(g.trips) <= {'startup'} and not any('FAILED' in r for r in g.reports), (
+                g.trips, g.reports)
+            stops = [e['error'] for _, e in g.events if e['event'] == 'stopped']
+            assert stops and abs(stops[-1]) <= STOP_TOLERANCE_MM, stops
+            outcome = f'; after SIGCONT the task completed, stop {stops[-1]:+d} mm'
+        fault_table.add(f'{sig.name} world (hardware gone, sim time stops)',
                         f'every node: /diagnostics ERROR "clock lost" naming its hardware '
-                        f'inputs within {CLOCK_LOST_WITHIN:.0f} s wall',
+                        f'inputs within {CLOCK_LOST_WITHIN:.0f} s wall' + (
+                            '; woken (SIGCONT): the task completes, no fault'
+                            if sig == signal.SIGSTOP else ''),
                         f'all {len(nodes)} nodes after {took:.1f} s wall, e.g. route_following: '
-                        f'{", ".join(lost["route_following"])}')
+                        f'{", ".join(lost["route_following"])}{outcome}')
     finally:
+        if sig == signal.SIGSTOP and world.poll() is None:
+            world.send_signal(signal.SIGCONT)  # so that it can shut down
         g.close()
 
 
@@ -161,6 +180,51 @@ def test_killed_recorder_leaves_a_bag_readable_to_its_last_second(tmp_path, faul
                         f'{len([c for c in clocks if c * 1e-9 <= limit])} /clock checked)')
     finally:
         g.close()
+
+
+@pytest.mark.timeout(150)  # ~20 s alone
+def test_frozen_recorder_resumes_and_the_truck_never_notices(tmp_path, fault_table):
+    """SIGSTOP the recorder for 3 s of a real-time run, then SIGCONT: nobody waits for it."""
+    from rosbags.highlevel import AnyReader
+
+    bag = tmp_path / 'bag'
+    g = GraphProbe(tmp_path / 'logs', bag=bag, time_factor=1.0)  # sim s = wall s
+    recorder = g.launch.procs['recorder']
+    try:
+        g.start_task('stop at 2 second')
+        recorder.send_signal(signal.SIGSTOP)
+        frozen = g.time
+        g.spin_until(lambda: g.time > frozen + 3.0, 60, '3 s with the recorder frozen')
+        recorder.send_signal(signal.SIGCONT)
+        woken = g.time
+        g.report_with("'stop at 2 second': completed", wall_limit=120)
+        assert set(g.trips) <= {'startup'} and not any('FAILED' in r for r in g.reports), (
+                g.trips, g.reports)
+        g.spin_until(lambda: g.time > woken + 2.0, 60, '2 s after the recorder woke')
+        ends = g.time
+    finally:
+        if recorder.poll() is None:
+            recorder.send_signal(signal.SIGCONT)
+        g.close()  # the recorder closes its bag
+    with AnyReader([bag]) as reader:
+        stamps = sorted(stamp * 1e-9 for conn, stamp, _ in reader.messages()
+                        if conn.topic == '/clock')
+    before = [t for t in stamps if t < frozen - 0.1]
+    after = [t for t in stamps if woken + 0.5 < t < ends - 0.5]
+    # what came before the freeze is there, and once it woke, every /clock step: no gap
+    # wider than two steps
+    step = statistics.median(b - a for a, b in zip(before, before[1:], strict=False))
+    assert before and frozen - before[-1] < 0.2, (frozen, before[-3:])
+    gaps = [b - a for a, b in zip(after, after[1:], strict=False)]
+    assert len(after) > 100 and max(gaps) <= 2.5 * step, (len(after), step, max(gaps))
+    print(f'recorder frozen {frozen:.2f}-{woken:.2f} s: {len(before)} /clock before, '
+          f'{len(after)} after, /clock step {step * 1000:.1f} ms, widest gap after '
+          f'{max(gaps) * 1000:.1f} ms; reports {g.reports}')
+    fault_table.add('SIGSTOP recorder for 3 s, then SIGCONT (real time)',
+                    'the task completes with no fault; the bag, closed at the end, holds '
+                    'the run before the freeze and every /clock step after it',
+                    f'completed; {len(before)} /clock before the freeze, {len(after)} after '
+                    f'the wake, no gap over {max(gaps) * 1000:.0f} ms')
 
 
 @pytest.mark.timeout(180)  # ~13 s alone
