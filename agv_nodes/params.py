@@ -57,8 +57,7 @@ def params_files(argv: Sequence[str] | None = None) -> list[str]:
 
 def descriptor(p: Parameter) -> ParameterDescriptor:
     """Return the ROS parameter descriptor of one setting."""
-    desc = ParameterDescriptor(name=p.name, description=p.spec.text(),
-                               read_only=p.spec.read_only)
+    desc = ParameterDescriptor(name=p.name, description=p.spec.text(), read_only=p.spec.read_only)
     if p.kind is tuple and not p.default:
         # rclpy types an empty list as a byte array and then refuses any other list: an empty
         # default takes its type from what it is given (build() checks it)

@@ -65,8 +65,7 @@ class _Tokens:
     i: int = 0
 
     def __post_init__(self) -> None:
-        self.items = [(m.group(0).lower(), m.start() + 1)
-                      for m in re.finditer(r'\S+', self.text)]
+        self.items = [(m.group(0).lower(), m.start() + 1) for m in re.finditer(r'\S+', self.text)]
 
     def peek(self) -> str | None:
         return self.items[self.i][0] if self.i < len(self.items) else None

@@ -68,7 +68,6 @@ def load_graph(file: Path | None = None) -> Graph:
         realtime = spec.get('realtime', False)
         if not isinstance(realtime, bool):
             raise GraphError(f'{file}: key nodes[{i}].realtime: {realtime!r} is not true/false')
-        nodes.append(NodeSpec(spec['name'], spec['executable'], spec['module'], role,
-                              realtime))
+        nodes.append(NodeSpec(spec['name'], spec['executable'], spec['module'], role, realtime))
     params = file.parent / str(doc.get('parameters', 'agv_demo.yaml'))
     return Graph(str(doc.get('graph', 'agv')), nodes, params, file)

@@ -194,8 +194,7 @@ class NavigationCore(SubsystemCore):
         elif record == 'wheel_odometry':
             self._speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
             # the encoders' own distance, not speed x tick (agv_nodes.odometry)
-            self._odometer = self._wheels.update(fields['left_distance'],
-                                                 fields['right_distance'])
+            self._odometer = self._wheels.update(fields['left_distance'], fields['right_distance'])
         return self._flush()
 
     def on_reject(self, record: str, reason: str, now: float) -> dict | None:

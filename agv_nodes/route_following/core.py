@@ -34,8 +34,7 @@ from agv_nodes.route_following.settings import RouteParams
 from agv_nodes.subsystem import SubsystemCore
 
 
-def wire_offset(left: float, right: float, spacing: float, height: float,
-                nominal: float) -> float:
+def wire_offset(left: float, right: float, spacing: float, height: float, nominal: float) -> float:
     """Lateral offset (m, + = wire left of the sensor point) from the two coil amplitudes.
 
     A coil at lateral distance y from a long straight wire, height h above it, reads
@@ -142,8 +141,7 @@ class RouteCore(SubsystemCore):
             self._mode_since = now
             self._integral = 0.0
             self._prev_lateral = None
-            self.state = {'idle': 'idle', 'follow_wire': 'following',
-                          'camera': 'following'}[mode]
+            self.state = {'idle': 'idle', 'follow_wire': 'following', 'camera': 'following'}[mode]
             return self._outputs(now, force_status=True)
         return None
 
@@ -288,8 +286,7 @@ class RouteCore(SubsystemCore):
                 # turn): our own ramp, gentler than the drive's trapezoid, which accelerates
                 # both wheels alike and so cannot steer while it ramps (from 40 deg off the
                 # tape the window loses it before the wheels reach cruise).
-                speed = min(speed, self.p.steering.set_off_acceleration
-                            * (now - self._set_off_at))
+                speed = min(speed, self.p.steering.set_off_acceleration * (now - self._set_off_at))
                 if speed >= (self.speed_request or self.p.camera_speed):
                     self._set_off_at = None
             self.wheels = self.camera.wheel_speeds(speed, theta) if self.motor_on else (0, 0)

@@ -125,8 +125,7 @@ class TractionCore(SubsystemCore):
             self.measured_speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
             self._odometry_count += 1
             # The encoders' own distance, not speed x tick (agv_nodes.odometry).
-            self.odometer = self._wheels.update(fields['left_distance'],
-                                                fields['right_distance'])
+            self.odometer = self._wheels.update(fields['left_distance'], fields['right_distance'])
         if record in ('traction_command', 'traction_link'):
             self._odometry_at[record] = self._odometry_count
         return None
@@ -178,8 +177,7 @@ class TractionCore(SubsystemCore):
         self._last_tick = now
         self.watchdog = (self.watchdog + 1) & 0xFF  # MONO, also inside every WAIT1
         if not self.tripped:
-            if self._stale('traction_command', now - self.command_time,
-                           self.p.command_timeout):
+            if self._stale('traction_command', now - self.command_time, self.p.command_timeout):
                 self._trip('stale_command')
             elif (self._position_has_priority()
                   and self._stale('traction_link', now - self.link_time, self.p.link_timeout)):

@@ -212,8 +212,7 @@ def _box_blur_cover(a: float, b: float, lo: float, hi: float, sigma: float) -> f
     if sigma <= 0.0:
         return max(0.0, min(b, hi) - max(a, lo))
     s = sigma
-    return s * (_psi((b - lo) / s) - _psi((b - hi) / s) - _psi((a - lo) / s)
-                + _psi((a - hi) / s))
+    return s * (_psi((b - lo) / s) - _psi((b - hi) / s) - _psi((a - lo) / s) + _psi((a - hi) / s))
 
 
 def _trapezoid_mass(z0: float, z1: float, height: float, flat: float) -> float:

@@ -30,8 +30,7 @@ def parse_link_entry(entry: str) -> tuple[str, str, int | None] | None:
         node, _, rest = entry.partition('>')
         record, _, count = rest.partition(':')
         readers = int(count) if count.isdigit() and int(count) > 0 else None
-        if not node or readers is None or (record not in codec()
-                                           and record != sim_progress.LINK):
+        if not node or readers is None or (record not in codec() and record != sim_progress.LINK):
             return None
         return node, record, readers
     node, _, record = entry.partition(':')

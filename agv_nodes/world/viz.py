@@ -52,8 +52,7 @@ def _card(k: int, m) -> list[Marker]:
     card.color.a = 1.0
     card.color.r = 1.0 if m.kind == 'stop' else 0.2
     card.color.g = 1.0 if m.kind == 'location' else 0.2
-    label = Marker(ns='labels', id=k, type=Marker.TEXT_VIEW_FACING, action=Marker.ADD,
-                   text=m.name)
+    label = Marker(ns='labels', id=k, type=Marker.TEXT_VIEW_FACING, action=Marker.ADD, text=m.name)
     label.header.frame_id = 'map'
     label.pose = card.pose
     label.pose.position.z = 0.8
