@@ -1,11 +1,8 @@
 """agv-launch: start the graph one process per node, as `ros2 launch` would on a ROS install.
 
-It reads the graph description (config/graph.yaml) and the parameter file, and starts every
-node as its own process (agv_nodes.graph.supervisor) with what the launch sets on top of the
-file (agv_nodes.graph.parameters: the same values launch/agv_demo.launch.py passes).
-SIGINT/SIGTERM shut the graph down in order. The world waits before it moves until every link
-of the graph has matched at both ends (and, on sim time, every node's progress writer has
-matched its reader): the graph is complete before time starts.
+Every node of config/graph.yaml runs as its own process (agv_nodes.graph.supervisor) with the
+parameter file plus agv_nodes.graph.parameters; SIGINT/SIGTERM shut the graph down in order. The
+world moves only once every link has matched at both ends (docs/architecture.md, "Start-up").
 """
 
 from __future__ import annotations

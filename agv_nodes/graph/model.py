@@ -1,8 +1,6 @@
-"""The graph description: which nodes the graph has, how each is started, and its role.
+"""The graph description (config/graph.yaml): each node, its console script, module and role.
 
-config/graph.yaml names each node, its console script and module, its role (`node`: a
-sub-system; `world`: the simulated world; `recorder`: the bag writer), whether it is on the
-sensor-to-traction chain (`realtime`), and the ROS parameter file of the graph.
+Roles: `node` (a sub-system), `world`, `recorder`; `realtime` marks the sensor-to-traction chain.
 """
 
 from __future__ import annotations

@@ -1,22 +1,13 @@
 """Layout check: the marker sensor's view of every marker as the truck drives the route.
 
-A layout places each card square to its wire at the sensor's standoff, but the truck does not
-carry the lens along the wire's normal: on a bend the front axle (the sensor point, Baker 1983,
-6.3.2) follows the wire while the rear axle cuts inside, so the truck's heading lags the wire's
-and the lens, `sensor.lateral` to the right of the front axle and square to the truck (Baker
-1983, 5.1), swings toward or away from the stands, its axis turned off the cards' normal. That
-lasts a few wheelbases past the bend, and an SRM's landing (7.2) leaves the truck off the wire
-in heading and offset for as long.
-
-So the check drives the truck: the world's own Electruk model (agv_nodes/world/vehicles.py),
-steered by the route-following core's wire law (agv_nodes/route_following/core.py) from the
-world's pickup model, each fed as in the lock-step harness. It drives every wire from its start,
-and the truck from the layout's start by the route map (an SRM at each location of `srm_map`),
-twice round. For each marker it takes the pass furthest from the sensor's working range
-(`READ_STANDOFF`, `READ_ANGLE`, agv_nodes/world/marker_sensor.py): the standoff along the
-optical axis and the card's angle off it as the axis crosses the card centre. On the belt rig
-the lens runs along the belt line itself. Tape layouts are driven by the camera; their markers
-are not checked (none of the shipped ones has any).
+On a bend the front axle (the sensor point, Baker 1983, 6.3.2) follows the wire while the rear axle
+cuts inside, so the lens (Baker 1983, 5.1) swings off the cards' normal for a few wheelbases, and
+likewise after an SRM's landing (7.2). So the check drives the world's Electruk model
+(agv_nodes.world.vehicles) with the route-following core's wire law, fed as in the lock-step
+harness, every wire from its start and the truck by the route map twice round, and takes each
+marker's pass furthest from the sensor's working range (`READ_STANDOFF`, `READ_ANGLE`,
+agv_nodes.world.marker_sensor). On the belt rig the lens runs along the belt line itself; tape
+layouts (camera) are not checked. See docs/architecture.md, "Layout check".
 """
 
 from __future__ import annotations

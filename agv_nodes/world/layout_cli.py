@@ -1,11 +1,10 @@
-"""agv-layout: check layouts before a run (agv_nodes/world/layout_check.py).
+"""agv-layout: check layouts before a run (agv_nodes.world.layout_check).
 
     agv-layout check FILE [FILE...]
 
-prints each marker's standoff and angle as the truck drives the route, and whether the marker
-sensor reads it there. Exit 0: every marker is readable; 1: one line per marker that is not
-(on stderr); 2: a file that cannot be read or is no valid layout (one line naming it and the key).
-A FILE may also be a layout's name (config/layouts/<name>.yaml).
+Exit 0: every marker is readable; 1: one line per marker that is not (stderr); 2: a file that is no
+valid layout. A FILE may be a layout's name (config/layouts/<name>.yaml). See docs/architecture.md,
+"Layout check".
 """
 
 from __future__ import annotations

@@ -1,11 +1,9 @@
 """Before the world moves: every link of the graph matched at both ends (graph/links).
 
-Discovery is two-sided: a writer may match a reader before the reader has matched the writer,
-and either side that has not matched loses what is sent meanwhile. So each node announces on
-graph/links which of its inputs have matched a writer and how many readers each of its outputs
-(its progress writer included) has matched (agv_nodes/ros_ports.LinkAnnouncer), and the world
-waits for the links agv-launch names in `wait_for_links`: 'NODE:RECORD' (NODE's reader has
-matched the record's writer) and 'NODE>RECORD:N' (NODE's writer has matched N readers).
+Each node announces which inputs have matched a writer and how many readers each output has matched
+(agv_nodes.ros_ports.LinkAnnouncer); the world waits for `wait_for_links`: 'NODE:RECORD' (NODE's
+reader has matched the writer) and 'NODE>RECORD:N' (NODE's writer has matched N readers). Why:
+docs/architecture.md, "Start-up".
 """
 
 from __future__ import annotations
