@@ -1,9 +1,6 @@
-"""communications: tasks in on comms/task, reports out on comms/report.
+"""communications: tasks in on comms/task, reports out on comms/report (std_msgs/String).
 
-Run it with `ros2 run agv_nodes communications`. comms/task and comms/report are
-std_msgs/String; the task language is in `agv_nodes.communications.core` and docs/tasks.md.
-Tasks go to the executive as comms/status records; its comms/command records come back as
-reports.
+Run it with `ros2 run agv_nodes communications`; the task language: agv_nodes.communications.core.
 """
 
 from __future__ import annotations

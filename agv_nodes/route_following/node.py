@@ -1,8 +1,7 @@
-"""route_following: guide wire, SRMs and binary-camera guidance.
+"""route_following: guide wire, SRMs and binary-camera guidance (`agv_nodes.route_following.core`).
 
-Run it with `ros2 run agv_nodes route_following`. Reads route/command, hw/guide_wire,
-hw/wheel_odometry and hw/camera/front (sensor_msgs/Image, mono8, tape dark); writes
-hw/steering/command and route/status. Behaviour: `agv_nodes.route_following.core`.
+Run it with `ros2 run agv_nodes route_following`; besides its records it reads hw/camera/front
+(sensor_msgs/Image, mono8, tape dark).
 """
 
 from __future__ import annotations
