@@ -58,11 +58,7 @@ class SentTimeline:
         return raised
 
     def record(self, name: str, sent_ns: int) -> float:
-        """Sim time a record taken now was sent at, as far as the samples taken tell.
-
-        A record sent after the latest sample is given that sample's time for now and
-        remembered: `clock` raises it until a sample sent after it arrives.
-        """
+        """Sim time a record taken now was sent at; one sent after the latest sample is kept."""
         if sent_ns >= self.latest_ns():
             self._unplaced[name] = sent_ns
         else:

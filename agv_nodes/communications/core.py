@@ -23,8 +23,13 @@ from dataclasses import dataclass, field
 import re
 from typing import Any
 
-from agv_nodes.communications.settings import CommsParams
+from agv_nodes.settings import settings_class
 from agv_nodes.subsystem import SubsystemCore
+
+
+@settings_class
+class CommsParams:
+    """The task queue and its relay to the executive (its parameters.yaml section)."""
 
 
 class TaskError(ValueError):
