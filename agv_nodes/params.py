@@ -12,12 +12,7 @@ from collections.abc import Sequence
 import sys
 from typing import Any
 
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    ParameterType,
-)
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 from rclpy.exceptions import (
     InvalidParameterTypeException,
     InvalidParameterValueException,
