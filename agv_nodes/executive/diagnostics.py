@@ -18,8 +18,7 @@ OK, WARN, ERROR = 0, 1, 2
 SUBSYSTEMS = {  # name: (status record in, command record out)
     'navigation': ('navigation_status', 'navigation_command'),
     'traction': ('traction_status', 'traction_command'),
-    'route': ('route_status', 'route_command'),
-    'load': ('load_status', 'load_command'),
+    'route': ('route_status', 'route_command'), 'load': ('load_status', 'load_command'),
     'communications': ('comms_status', 'comms_command'),
 }
 

@@ -141,11 +141,7 @@ class Launch:
                 print(f'[{name:{width}s}] {line}', flush=True)
 
     def child_command(self, spec: NodeSpec) -> list[str]:
-        """Return command() through the child wrapper.
-
-        The node gets SIGTERM if this launcher dies (even by SIGKILL), and takes its real-time
-        priority (if any) before it execs.
-        """
+        """Return command() through the child wrapper (SIGTERM if the launcher dies; priority)."""
         command = [sys.executable, '-m', CHILD, str(os.getpid())]
         if priority := realtime_priority(spec, self.o):
             command += ['--sched-fifo', str(priority)]

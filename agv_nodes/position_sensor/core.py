@@ -233,17 +233,10 @@ class PositionSensorCore(SubsystemCore):
         last = self._last_adc if self._last_adc is not None else self._first_now
         stale = now - last > self.p.adc_timeout
         return {
-            'recognised': int(recognised),
-            'invalid': int(self.invalid),
-            'adc_stale': int(stale),
-            'table': self.table,
-            'saturated': int(self.saturated),
-            'code': self.code,
-            'identity': self.identity,
-            'stop_view': self.stop_view,
-            'recognitions': self.recognitions,
-            'sample_count': self.samples,
-            'epoch': self.epoch,
+            'recognised': int(recognised), 'invalid': int(self.invalid), 'adc_stale': int(stale),
+            'table': self.table, 'saturated': int(self.saturated), 'code': self.code,
+            'identity': self.identity, 'stop_view': self.stop_view,
+            'recognitions': self.recognitions, 'sample_count': self.samples, 'epoch': self.epoch,
         }
 
     def tick(self, now: float) -> dict | None:

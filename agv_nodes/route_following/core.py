@@ -419,6 +419,5 @@ class RouteCore(SubsystemCore):
             'signal': int(max(0, min(255, round(self.signal * 100)))),
             'steering': int(max(-128, min(127, round(math.degrees(self.steer))))),
             'sign_left': self.sign['left'], 'sign_right': self.sign['right'],
-            'sign_straight': self.sign['straight'],
-            'manoeuvre': self.manoeuvre,
+            'sign_straight': self.sign['straight'], 'manoeuvre': self.manoeuvre,
         }
