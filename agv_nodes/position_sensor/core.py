@@ -180,10 +180,7 @@ class PositionSensorCore(SubsystemCore):
         return match
 
     def _sequence_levels(self, x: list[int]) -> list[float]:
-        """Return the sequence decoder's running sum of this snapshot's d.c.-removed `x`.
-
-        `x` is as SUBT made it for THRESH; the sum is in band units (0 = THROFF, 1 = THRON).
-        """
+        """Sum SUBT's `x` over the sequence decoder's run, in band units (0 THROFF, 1 THRON)."""
         row, total = self._seq_oldest[self._seq_row], self._seq_total
         self._seq_row = (self._seq_row + 1) % self.p.sequence_run_length
         z = []
