@@ -75,10 +75,7 @@ class SequenceDecoder:
         self._reported = False
 
     def sample(self, z: list[float]) -> int | None:
-        """One snapshot: z[d] = (TOTAL - THROFF) / (THRON - THROFF) per detector 1-8.
-
-        Returns a CODE of the table when this snapshot completes a recognition.
-        """
+        """Take a snapshot, z[d] = (TOTAL - THROFF) / (THRON - THROFF); a CODE when one is read."""
         self._sample += 1
         before, self._before = self._before, z
         if self._open == 0 and max(z) <= LEVEL:  # nothing white in view: the usual case
@@ -139,10 +136,7 @@ class SequenceDecoder:
             ((col.fall if col.fall is not None else col.rise) - col.rise) / ELEMENTS
 
     def _read(self, col: _Column) -> int | None:
-        """Return the CODE one column read (C1 in bit 3 of each nibble).
-
-        None if any element is inside `margin` of the band's middle.
-        """
+        """Return one column's CODE (C1 in each nibble's bit 3); None if unsure (`margin`)."""
         length = col.fall - col.rise
         if length < 2.0:
             return None

@@ -18,10 +18,7 @@ class SensorProcessing:
         return tuple(self.white) or table['white'], tuple(self.black) or table['black']
 
     def problems(self) -> list[tuple[str, Any, str]]:
-        """Make the checks `build` needs beyond each field's own.
-
-        Each black threshold must be below its white one.
-        """
+        """Check what `build` cannot field by field: each black threshold below its white."""
         white, black = self.thresholds()
         low = [d for d, (w, b) in enumerate(zip(white, black, strict=True), 1) if b >= w]
         if not low:
