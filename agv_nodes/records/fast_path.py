@@ -14,14 +14,13 @@ if TYPE_CHECKING:
 def compile_fast_paths(schema: RecordSchema) -> tuple[Callable, Callable]:
     """(pack, unpack): straight-line Python for one schema's fields, generated once.
 
-    `pack(values)` -> bytearray(16) with bytes 15-16 zero, and `unpack(data)` -> the field
-    dict of 16 checked bytes, for records whose every value is a valid int (a bool for a
-    flag, a name for an enum). They return None on anything else - a bool elsewhere, an enum
-    code, a special value's name, a value out of range - and the general, field-by-field
-    path (`_encode_fields`, `_decode_fields`) then decides and names the error, so the two can
-    only differ in speed (test_records checks they agree). The loop over the plan cost ~1 us a
-    field; the harness runs ~7 records a world sample, and every node packs and unpacks each
-    record it sends and takes.
+    `pack(values)` -> bytearray(16), bytes 15-16 zero; `unpack(data)` -> the field dict of 16
+    checked bytes; for records whose every value is a valid int (a bool for a flag, a name for an
+    enum). Anything else - a bool elsewhere, an enum code, a special value's name, a value out of
+    range - returns None, and the general path (`_encode_fields`, `_decode_fields`) decides and
+    names the error, so the two differ only in speed (test_records checks they agree). The loop
+    over the plan cost ~1 us a field, on ~7 records a world sample in the harness and every record
+    a node sends and takes.
     """
     env: dict[str, Any] = {}
     pack = ['def pack(values):', '    get = values.get']

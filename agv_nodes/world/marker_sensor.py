@@ -1,16 +1,16 @@
 """The pulsed-IR marker sensor: 2 x 4 photodiodes looking sideways at marker cards (Baker ch 5).
 
-Each detector images a 20 x 40 mm patch of the marker plane at 300 mm (magnification 1/3, f =
-75 mm; Baker 1983, 5.1). Its output is the integral of card reflectance over its aperture,
-i.e. the convolution of the element box-car with the aperture of thesis fig 5.5, blurred by
-defocus away from 300 mm, times an illumination fall-off with range and incidence, times a
-per-detector gain, plus an offset. Ambient light adds to the lit and the dark conversion alike
-(so the on/off difference removes it) and can saturate the 8-bit ADC0809; both conversions carry
-noise. Gains and black levels default to values derived from Table 7.1 (see `calibrate`).
+Each detector images a 20 x 40 mm patch of the marker plane at 300 mm (magnification 1/3, f = 75
+mm; Baker 1983, 5.1): card reflectance integrated over its aperture (the element box-car convolved
+with the aperture of thesis fig 5.5), blurred by defocus away from 300 mm, times an illumination
+fall-off with range and incidence and a per-detector gain, plus an offset. Ambient light adds to
+the lit and the dark conversion alike (the on/off difference removes it) and can saturate the 8-bit
+ADC0809; both conversions carry noise. Gains and black levels default to values derived from Table
+7.1 (`calibrate`).
 
-Geometry: the lens sits at the sensor point, `sensor_lateral` to the right of the guide-wire
-sensor point, its axis horizontal and square to the truck, pointing right. Column C1 looks
-furthest forward, so a card passing in forward travel moves across the image from C1 to C4.
+The lens sits `sensor_lateral` right of the guide-wire sensor point, its axis horizontal, square to
+the truck, pointing right; column C1 looks furthest forward, so a card passing in forward travel
+crosses the image from C1 to C4.
 """
 
 from __future__ import annotations
@@ -252,10 +252,10 @@ class _Belt:
 def _belt_runs(params_key: tuple) -> tuple:
     """Run the threshold experiment of Baker 1983, 7.1.2-7.1.3 for a unit detector.
 
-    The alternating location-2 pattern at 1 m/s, 256 samples at 340 Hz per run, ranges
-    280-320 mm in 5 mm steps. For each range and detector, the mean over the peaks and over the
-    troughs of the x4 running sum of the black part X = illum (1 - cover) and the white part
-    Y = illum cover, so that any detector (signal = A X + B Y) follows by linearity.
+    Location-2's alternating pattern at 1 m/s, 256 samples at 340 Hz a run, 280-320 mm in 5 mm
+    steps: per range and detector the mean over peaks and troughs of the x4 running sum of the
+    black part X = illum (1 - cover) and the white part Y = illum cover; any detector (A X + B Y)
+    follows by linearity.
     """
     model = MarkerSensorModel.__new__(MarkerSensorModel)
     model.p = SensorParams(**dict(params_key))
@@ -283,13 +283,12 @@ def _belt_runs(params_key: tuple) -> tuple:
 def calibrate(params: SensorParams) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """Per-detector gains and black levels that reproduce Table 7.1.
 
-    With threshold = trough + {0.2, 0.8} x amplitude (Baker 1983, 7.1.3), Table 7.1 implies each
-    detector's worst-case mean trough and peak of the x4 running sum (the lowest mean peak and
-    highest mean trough over 28 +- 2 cm, thesis 7.1.3). The model is linear in A = gain x black
-    and B = gain, so the simulated threshold experiment fixes both. A is kept >= 0 (a detector
-    cannot see less than no light): where the optics cannot reach the table's contrast, the
-    black level is 0 and the simulated worst trough lies above the table's, still below the
-    black threshold.
+    With threshold = trough + {0.2, 0.8} x amplitude (Baker 1983, 7.1.3), Table 7.1 gives each
+    detector's worst-case mean trough and peak of the x4 running sum over 28 +- 2 cm. The model is
+    linear in A = gain x black and B = gain, so the simulated threshold experiment fixes both. A is
+    kept >= 0 (a detector cannot see less than no light): where the optics cannot reach the table's
+    contrast, the black level is 0 and the simulated worst trough lies above the table's, still
+    below the black threshold.
     """
     key = tuple(sorted((k, v) for k, v in vars(params).items()
                        if k not in ('gains', 'blacks', 'unit', 'noise', 'ambient',
