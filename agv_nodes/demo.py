@@ -29,12 +29,7 @@ STATUS_REPLY = 'comms: status:'
 def comms_handshake(spin_once: Callable[[], None], send: Callable[[str], None],
                     reports: list[str], timeout: float = 60.0,
                     alive: Callable[[], bool] = lambda: True) -> None:
-    """Ask communications `status` until it answers on comms/report.
-
-    A reliable writer matched to a reader may still lose what it sends before the reader has
-    matched it back (a volatile reader drops it): a slow start-up could lose the whole programme.
-    An answer proves both directions; `status` changes nothing, so asking again is harmless.
-    """
+    """Ask communications `status` until it answers on comms/report (why: docs/tasks.md)."""
     deadline, asked = time.monotonic() + timeout, 0.0
     while not any(line.startswith(STATUS_REPLY) for line in reports):
         if not alive() or time.monotonic() > deadline:
