@@ -128,12 +128,9 @@ class RecordSchema:
     # (a frozen dataclass still has an instance __dict__ for cached_property).
     @functools.cached_property
     def _plan(self) -> tuple[tuple, ...]:
-        plan = []
-        for f in self.fields:
-            plan.append((f, f.name, f.byte - 1, f.n_bytes == 2, f.lo_bit, (1 << f.width) - 1,
-                         f.width, f.encoding, f.lo, f.hi, frozenset(f.special), f.names,
-                         f.values))
-        return tuple(plan)
+        return tuple((f, f.name, f.byte - 1, f.n_bytes == 2, f.lo_bit, (1 << f.width) - 1,
+                      f.width, f.encoding, f.lo, f.hi, frozenset(f.special), f.names, f.values)
+                     for f in self.fields)
 
     @functools.cached_property
     def _names(self) -> frozenset[str]:
@@ -149,18 +146,13 @@ class RecordSchema:
     def encode(self, values: Mapping[str, Any] | None = None, *, integrity: str = 'e2e',
                counter: int = 0) -> bytes:
         """Pack `values` (missing fields take their defaults) into 16 bytes."""
-        if values is None:
-            values = {}
-        names = self._names
-        for key in values:
-            if key not in names:
-                raise RecordError(self.name, 'no such field', code=Reject.UNKNOWN_FIELD,
-                                  field=sorted(set(values) - names)[0])
-        if integrity not in INTEGRITY_MODES:
-            _check_integrity(self.name, integrity)
-        out = self._compiled[0](values)  # None: something the general path must judge
-        if out is None:
-            out = self._encode_fields(values)
+        values = {} if values is None else values
+        if not self._names.issuperset(values):
+            raise RecordError(self.name, 'no such field', code=Reject.UNKNOWN_FIELD,
+                              field=sorted(set(values) - self._names)[0])
+        _check_integrity(self.name, integrity)
+        # None from the fast path: something the general path must judge
+        out = self._compiled[0](values) or self._encode_fields(values)
         if self.protected and integrity == 'e2e':
             if not 0 <= counter <= 255:
                 raise RecordError(self.name, 'e2e counter must be 0-255', code=Reject.BAD_VALUE,
@@ -191,13 +183,11 @@ class RecordSchema:
         return out
 
     def _to_raw(self, f: Field, value: Any) -> int:
-        if f.encoding == 'enum':
-            if isinstance(value, str):
-                if value not in f.values:
-                    raise RecordError(self.name, f'unknown enum name (one of {list(f.values)})',
-                                      code=Reject.BAD_VALUE, byte=f.byte, field=f.name,
-                                      value=value)
-                return f.values[value]
+        if f.encoding == 'enum' and isinstance(value, str):
+            if value not in f.values:
+                raise RecordError(self.name, f'unknown enum name (one of {list(f.values)})',
+                                  code=Reject.BAD_VALUE, byte=f.byte, field=f.name, value=value)
+            return f.values[value]
         if isinstance(value, bool):
             value = int(value)
         if not isinstance(value, int):
@@ -228,8 +218,7 @@ class RecordSchema:
         if len(data) != RECORD_LENGTH:
             raise RecordError(self.name, f'length {len(data)}, expected {RECORD_LENGTH} bytes',
                               code=Reject.WRONG_LENGTH)
-        if integrity not in INTEGRITY_MODES:
-            _check_integrity(self.name, integrity)
+        _check_integrity(self.name, integrity)
         check_spare = RECORD_LENGTH
         if self.protected:
             check_spare = 14
@@ -248,8 +237,7 @@ class RecordSchema:
         spare = self._spare_masks[0 if check_spare == 14 else 1]
         if int.from_bytes(data[:check_spare], 'big') & spare:
             for i in range(check_spare):
-                stray = data[i] & ~self.used[i] & 0xFF
-                if stray:
+                if stray := data[i] & ~self.used[i] & 0xFF:
                     raise RecordError(self.name, f'spare bits set (mask {stray:02X}H), must be '
                                       '0', code=Reject.SPARE_SET, byte=i + 1, value=data[i])
         out = self._compiled[1](data)  # None: a value the general path must name
