@@ -1,4 +1,4 @@
-"""Where the package's shared files (msg_schemas/, config/, launch/) live.
+"""Where the package's shared files (msg_schemas/, config/, launch/) live, and reading them.
 
 Three installs must work: a colcon workspace or a ROS install (found through ament_index, i.e.
 `share/agv_nodes` under an AMENT_PREFIX_PATH entry), a source checkout or `pip install -e`
@@ -8,10 +8,14 @@ data_files land in `<prefix>/share/agv_nodes`).
 
 from __future__ import annotations
 
+from collections.abc import Collection
 import functools
 import os
 from pathlib import Path
 import sys
+from typing import Any
+
+import yaml
 
 PACKAGE = 'agv_nodes'
 _MARKER = 'msg_schemas'
@@ -49,3 +53,23 @@ def schema_dir() -> Path:
 def config_dir() -> Path:
     """Directory of the ROS-format parameter files and world layouts."""
     return share_dir() / 'config'
+
+
+def read_mapping(path: Path, error: type[Exception],
+                 keys: Collection[str] | None = None) -> dict[str, Any]:
+    """Read the top-level mapping of a YAML file.
+
+    Raise `error` (naming the file and the offending key) when the file cannot be read, is not
+    a mapping, or has a key not in `keys`.
+    """
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        reason = ' '.join(str(exc).split())  # one line, whatever the YAML parser printed
+        raise error(f'{path}: cannot read: {reason}') from None
+    if not isinstance(doc, dict):
+        raise error(f'{path}: expected a mapping at the top level')
+    extra = set(doc) - set(keys) if keys is not None else set()
+    if extra:
+        raise error(f'{path}: unknown key {sorted(extra)[0]!r}')
+    return doc

@@ -8,8 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from agv_nodes.package_share import config_dir
-from agv_nodes.yaml_files import read_mapping
+from agv_nodes.package_share import config_dir, read_mapping
 
 NODE_KEYS = frozenset({'name', 'executable', 'module', 'role', 'realtime'})
 ROLES = ('node', 'world', 'recorder')

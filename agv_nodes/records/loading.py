@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from agv_nodes.package_share import read_mapping
 from agv_nodes.records.errors import SchemaError
 from agv_nodes.records.schema import (
     ENCODINGS,
@@ -19,7 +20,6 @@ from agv_nodes.records.schema import (
     Field,
     RecordSchema,
 )
-from agv_nodes.yaml_files import read_mapping
 
 _RECORD_KEYS = {'record', 'data_id', 'kind', 'topic', 'writer', 'readers', 'period_ms', 'qos',
                 'thesis', 'summary', 'fields'}

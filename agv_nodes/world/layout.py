@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from agv_nodes.markers import LOCATION_PATTERNS, STOP_STRIP, WHITE_CARD
-from agv_nodes.yaml_files import read_mapping
+from agv_nodes.package_share import config_dir, read_mapping
 
 
 class LayoutError(ValueError):
@@ -405,6 +405,4 @@ def layout_path(name_or_file: str) -> Path:
     candidate = Path(name_or_file)
     if candidate.suffix == '.yaml' or candidate.exists():
         return candidate
-    from agv_nodes.package_share import config_dir
-
     return config_dir() / 'layouts' / f'{name_or_file}.yaml'
