@@ -6,8 +6,6 @@ comms/task, shows the reports, stops the graph, writes the report (agv-report) a
 table. `--quick` runs the CI variant (tasks 1 and 2).
 """
 
-from __future__ import annotations
-
 import argparse
 from collections.abc import Callable
 import json

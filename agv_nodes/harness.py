@@ -14,8 +14,6 @@ the 1983 boards' pigeon-holes were read on the next loop; timer ticks run after 
 at their own rate on the simulated clock.
 """
 
-from __future__ import annotations
-
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field

@@ -7,8 +7,6 @@ column C1, the column that sees a feature first during forward travel; detector 
 address d-1) is row R1 column C_d for d <= 4 and row R2 column C_(d-4) otherwise.
 """
 
-from __future__ import annotations
-
 # The adc_snapshot record's fields for detectors 1..8, lit (IREDs on) and dark (off).
 LIT_FIELDS = tuple(f'lit_{d}' for d in range(1, 9))
 DARK_FIELDS = tuple(f'dark_{d}' for d in range(1, 9))

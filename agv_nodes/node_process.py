@@ -3,8 +3,6 @@
 Every console script's main() calls `spin_main`.
 """
 
-from __future__ import annotations
-
 from collections.abc import Callable
 import faulthandler
 import gc

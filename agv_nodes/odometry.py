@@ -6,8 +6,6 @@ loop period, is exact however the loop's ticks fall: under sim time over DDS a t
 most once per /clock step, so ticks are skipped and speed x period loses distance.
 """
 
-from __future__ import annotations
-
 
 def counter_step(before: int, after: int) -> int:
     """Signed mm between two readings of a wrapping u16 mm counter (|step| < 32.768 m)."""

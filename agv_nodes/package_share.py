@@ -6,8 +6,6 @@ Three installs must work: a colcon workspace or a ROS install (found through ame
 data_files land in `<prefix>/share/agv_nodes`).
 """
 
-from __future__ import annotations
-
 from collections.abc import Collection
 import functools
 import os

@@ -6,8 +6,6 @@ section that names the node, or given with -p) or an unreadable parameter file s
 with one line naming the file(s), the node, the key and the value.
 """
 
-from __future__ import annotations
-
 from collections.abc import Sequence
 import sys
 from typing import Any

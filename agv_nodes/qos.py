@@ -10,8 +10,6 @@ that leaves the writer's history before it acknowledged it, and with 10 the quic
 323 of 340 snapshots a second on a loaded machine.
 """
 
-from __future__ import annotations
-
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from agv_nodes.records.schema import RecordSchema

@@ -6,8 +6,6 @@ stops, markers, faults, tasks), summary.md and PNG plots: speed against time wit
 sub-system over time, and the faults.
 """
 
-from __future__ import annotations
-
 import argparse
 from collections import Counter, defaultdict
 import json

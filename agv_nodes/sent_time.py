@@ -15,8 +15,6 @@ samples bracketing its send gets the latest sim time known, raised as they come 
 is never blamed; a dead writer is aged exactly.
 """
 
-from __future__ import annotations
-
 from bisect import bisect_right
 from collections import deque
 

@@ -5,8 +5,6 @@ handled, at most once per PERIOD of sim time; the world (agv_nodes.world.pacing)
 lags. Never in the 16-byte records; see docs/architecture.md, "Time and pacing".
 """
 
-from __future__ import annotations
-
 PERIOD = 0.02  # s of sim time between a node's progress messages
 LINK = 'progress'  # the progress writer's name in graph/links announcements and wait lists
 

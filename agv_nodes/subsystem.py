@@ -8,8 +8,6 @@ through its `Notes`: its node takes the new ones after each call into the core a
 and displays, and both queues are bounded, so a long run never grows.
 """
 
-from __future__ import annotations
-
 from collections import deque
 from dataclasses import dataclass
 from typing import Any

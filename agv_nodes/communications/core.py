@@ -6,8 +6,6 @@ the executive's comms_command records into readable reports. A bad task is rejec
 and the reason, and changes nothing.
 """
 
-from __future__ import annotations
-
 from dataclasses import dataclass, field
 import re
 from typing import Any

@@ -3,8 +3,6 @@
 Run it with `ros2 run agv_nodes communications`; the task language: agv_nodes.communications.core.
 """
 
-from __future__ import annotations
-
 import sys
 
 from std_msgs.msg import String

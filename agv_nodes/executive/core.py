@@ -29,8 +29,6 @@ still waits in its queue. `status_age: sent` ages each status from the sim time 
 (agv_nodes.sent_time), so a starved executive blames nobody.
 """
 
-from __future__ import annotations
-
 from typing import Any
 
 from agv_nodes.executive.itinerary import NO_TASK, Step, itinerary

@@ -7,8 +7,6 @@ display of thesis 8.2.2. Statuses from every publisher are merged by name. `--on
 table and exits (scripts and tests).
 """
 
-from __future__ import annotations
-
 import argparse
 import sys
 

@@ -7,8 +7,6 @@ sub-system at fault. The executive node turns these into a diagnostic_msgs/Diagn
 /diagnostics; agv-diag shows the same as a live table.
 """
 
-from __future__ import annotations
-
 from dataclasses import dataclass
 from typing import Any
 

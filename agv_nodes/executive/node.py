@@ -4,8 +4,6 @@ Besides its records it publishes /diagnostics once a second, with each sub-syste
 (thesis 8.2.2).
 """
 
-from __future__ import annotations
-
 import sys
 from typing import Any
 

@@ -1,7 +1,5 @@
 """Executive settings: the classes its parameters.yaml declares the parameters of."""
 
-from __future__ import annotations
-
 from collections.abc import Iterable
 from typing import Any
 

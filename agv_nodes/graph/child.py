@@ -7,8 +7,6 @@ COMMAND (same pid). So a SIGKILLed launcher leaves no graph to cross-talk with a
 ROS domain. Popen's preexec_fn is not safe once the launcher has threads; a fresh interpreter is.
 """
 
-from __future__ import annotations
-
 import ctypes
 import os
 import signal

@@ -5,8 +5,6 @@ parameter file plus agv_nodes.graph.parameters; SIGINT/SIGTERM shut the graph do
 world moves only once every link has matched at both ends (docs/architecture.md, "Start-up").
 """
 
-from __future__ import annotations
-
 import argparse
 from pathlib import Path
 import sys

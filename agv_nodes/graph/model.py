@@ -3,8 +3,6 @@
 Roles: `node` (a sub-system), `world`, `recorder`; `realtime` marks the sensor-to-traction chain.
 """
 
-from __future__ import annotations
-
 from dataclasses import dataclass
 from pathlib import Path
 

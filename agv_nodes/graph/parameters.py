@@ -5,8 +5,6 @@ two cannot drift (test/test_launch_file.py compares them): sim time, record inte
 faults, the simulation channel, the links the world waits for and the real-time priority.
 """
 
-from __future__ import annotations
-
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 import os

@@ -11,8 +11,6 @@ last, so the bag sees the end); a node that dies ends the launch with a non-zero
 restarted, --respawn). Discovery is localhost-only, on a ROS domain of the graph's own (never 0).
 """
 
-from __future__ import annotations
-
 import atexit
 import fcntl
 import os

@@ -34,8 +34,6 @@ A sensor that goes quiet (no status for `sensor_timeout`, or its ADC stale or sa
 navigation report LOST and request speed 0.
 """
 
-from __future__ import annotations
-
 from typing import Any
 
 from agv_nodes.markers import CENTRE_VIEW, EDIM, SLOW1, STOP_VIEWS

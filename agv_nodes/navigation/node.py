@@ -1,7 +1,5 @@
 """navigation: PC6/1's navigating and positioning loops (ros2 run agv_nodes navigation)."""
 
-from __future__ import annotations
-
 import sys
 
 from agv_nodes.core_node import CoreNode, spin_main

@@ -30,8 +30,6 @@ covers LEN = 5 entries, so stop views 6 and 7 never match. The default `intended
 described.
 """
 
-from __future__ import annotations
-
 from typing import Any
 
 from agv_nodes.markers import DARK_FIELDS, LIT_FIELDS, LOCATION_TABLE, STOP_VIEWS

@@ -1,7 +1,5 @@
 """position_sensor: marker recognition from ADC snapshots (ros2 run agv_nodes position_sensor)."""
 
-from __future__ import annotations
-
 import sys
 
 from agv_nodes.core_node import CoreNode, spin_main

@@ -22,8 +22,6 @@ card is a template (78H -> E1H, 3CH -> C3H, 5AH -> A5H, 1EH -> 87H, A3H -> C5H):
 recognises nothing (it only reverses positioning).
 """
 
-from __future__ import annotations
-
 from dataclasses import dataclass, field
 
 ELEMENTS = 4  # elements of a navigating-table card along the track (Baker 1983, 4.3)

@@ -1,7 +1,5 @@
 """Position sensor settings: the classes its parameters.yaml declares the parameters of."""
 
-from __future__ import annotations
-
 from typing import Any
 
 from agv_nodes.markers import THRESHOLDS

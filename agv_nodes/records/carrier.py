@@ -9,8 +9,6 @@ returns None for the caller's general deserializer, so a foreign writer's valid 
 refused for its form.
 """
 
-from __future__ import annotations
-
 import struct
 
 CDR_LE = b'\x00\x01\x00\x00'  # encapsulation: plain CDR, little endian, no options

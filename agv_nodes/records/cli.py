@@ -3,8 +3,6 @@
 Bad input exits with status 2 and a one-line reason on stderr, never a traceback.
 """
 
-from __future__ import annotations
-
 import argparse
 from pathlib import Path
 import sys

@@ -4,8 +4,6 @@ Each schema lives in its own msg_schemas/<record>.yaml (loaded and checked by lo
 codec adds what only the set can check: no two records share a data_id or a topic.
 """
 
-from __future__ import annotations
-
 from collections.abc import Iterable, Iterator, Mapping
 import functools
 from pathlib import Path

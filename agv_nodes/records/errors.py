@@ -5,8 +5,6 @@ why in one word, so a receiving port can count rejections by reason without read
 message, and the message names the record, byte, field and value for a person.
 """
 
-from __future__ import annotations
-
 import enum
 from typing import Any
 

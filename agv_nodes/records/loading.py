@@ -4,8 +4,6 @@ A file that cannot be used raises SchemaError naming the file, the key and the v
 typo in a schema is found when the codec loads, never as a wrong byte on the wire.
 """
 
-from __future__ import annotations
-
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any

@@ -7,8 +7,6 @@ bytes and carry no protection. Every bit that no field claims is spare and must 
 also generates a straight-line fast path for its fields once (`compile_fast_paths`).
 """
 
-from __future__ import annotations
-
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 import functools

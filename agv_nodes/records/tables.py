@@ -1,7 +1,5 @@
 """Human-readable record tables (docs/records.md and `agv-records show`), from the schemas."""
 
-from __future__ import annotations
-
 from agv_nodes.records.codec import Codec
 from agv_nodes.records.schema import Field, RecordSchema
 

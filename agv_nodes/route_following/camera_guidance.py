@@ -6,8 +6,6 @@ eps_d > 0 when the tape lies to the left of the window centre, eps_theta > 0 whe
 CCW, and the caster angle theta_s > 0 turns the vehicle left.
 """
 
-from __future__ import annotations
-
 from dataclasses import dataclass
 import enum
 import math

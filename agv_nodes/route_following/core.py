@@ -18,8 +18,6 @@ chosen branch the sign does not offer stops it ("no_branch": "the vehicle stops 
 straight choice where the track ends stops it by the four absent frames.
 """
 
-from __future__ import annotations
-
 import math
 from typing import Any
 

@@ -4,8 +4,6 @@ Run it with `ros2 run agv_nodes route_following`; besides its records it reads h
 (sensor_msgs/Image, mono8, tape dark).
 """
 
-from __future__ import annotations
-
 import sys
 
 import numpy as np

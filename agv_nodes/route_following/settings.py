@@ -4,8 +4,6 @@ The nested groups give dotted names: `wire.kp`, `image.min_run`, `steering.law`,
 `turning.approach_speed`.
 """
 
-from __future__ import annotations
-
 from agv_nodes.settings import settings_class
 
 

@@ -33,8 +33,6 @@ controlled stop (thesis 8.5) needs it, and it holds the asked speed under load
 0.161).
 """
 
-from __future__ import annotations
-
 from typing import Any
 
 from agv_nodes.odometry import Odometer

@@ -1,7 +1,5 @@
 """traction: the only node that moves the truck (ros2 run agv_nodes traction; traction.core)."""
 
-from __future__ import annotations
-
 import sys
 
 from agv_nodes.core_node import CoreNode, spin_main

@@ -7,8 +7,6 @@ pixel differences. The rear camera is the same window at -L_c, facing backwards 
 180 degrees).
 """
 
-from __future__ import annotations
-
 import math
 
 import numpy as np

@@ -6,8 +6,6 @@ rectified lateral component: over a straight wire ~ h / (h^2 + y^2) at height h 
 distance y, equal in both coils over the wire, falling off to nothing far from every wire.
 """
 
-from __future__ import annotations
-
 import math
 
 import numpy as np

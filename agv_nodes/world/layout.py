@@ -8,8 +8,6 @@ is held to +-1 cm, a goal of this reproduction: the thesis text states no tolera
 Every error names the file, the key and the value.
 """
 
-from __future__ import annotations
-
 from dataclasses import dataclass, field
 import math
 from pathlib import Path

@@ -10,8 +10,6 @@ agv_nodes.world.marker_sensor). On the belt rig the lens runs along the belt lin
 layouts (camera) are not checked. See docs/architecture.md, "Layout check".
 """
 
-from __future__ import annotations
-
 from dataclasses import dataclass
 import math
 import random

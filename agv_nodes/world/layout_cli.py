@@ -7,8 +7,6 @@ valid layout. A FILE may be a layout's name (config/layouts/<name>.yaml). See do
 "Layout check".
 """
 
-from __future__ import annotations
-
 import argparse
 import sys
 

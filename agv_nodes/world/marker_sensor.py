@@ -13,8 +13,6 @@ the truck, pointing right; column C1 looks furthest forward, so a card passing i
 crosses the image from C1 to C4.
 """
 
-from __future__ import annotations
-
 import functools
 import math
 import random

@@ -10,8 +10,6 @@ truck stop. A node given up is waited for again once heard from. See docs/archit
 and pacing".
 """
 
-from __future__ import annotations
-
 from dataclasses import dataclass, field
 
 from agv_nodes import sim_progress

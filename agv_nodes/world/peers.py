@@ -6,8 +6,6 @@ reader has matched the writer) and 'NODE>RECORD:N' (NODE's writer has matched N 
 docs/architecture.md, "Start-up".
 """
 
-from __future__ import annotations
-
 from collections.abc import Callable, Mapping
 
 from rclpy.node import Node

@@ -4,8 +4,6 @@ WorldParams is the simulated hardware (WorldCore); WorldNodeSettings is what the
 has besides (agv_nodes/world/node.py).
 """
 
-from __future__ import annotations
-
 from agv_nodes.settings import ProcessSettings, settings_class
 
 

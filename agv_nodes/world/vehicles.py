@@ -20,8 +20,6 @@ m, casters; each wheel's commanded speed is approached at a fixed acceleration (
 trapezoid) and followed with a first-order lag; "motor off" coasts down (5 mm from 0.16 m/s).
 """
 
-from __future__ import annotations
-
 from dataclasses import dataclass
 import math
 

@@ -1,7 +1,5 @@
 """The world's pictures: the route and marker cards (latched), the pose, camera frames."""
 
-from __future__ import annotations
-
 import math
 
 from builtin_interfaces.msg import Time
