@@ -1,9 +1,8 @@
 """Node parameters: declared from settings dataclasses (agv_nodes/settings.py), checked once.
 
-Each field becomes a parameter with a descriptor (description, range, read-only for values
-read at start-up). A bad value, a name the node has no parameter for (in a parameter file
-section that names the node, or given with -p) or an unreadable parameter file stops start-up
-with one line naming the file(s), the node, the key and the value.
+Each field becomes a parameter with a descriptor (description, range, read-only for values read at
+start-up). A bad value, an unknown name or an unreadable parameter file stops start-up with one
+line naming the file(s), the node, the key and the value.
 """
 
 from collections.abc import Sequence
@@ -36,8 +35,7 @@ class ParameterError(ValueError):
 
 
 _ARRAYS = {bool: ParameterType.PARAMETER_BOOL_ARRAY, int: ParameterType.PARAMETER_INTEGER_ARRAY,
-           float: ParameterType.PARAMETER_DOUBLE_ARRAY,
-           str: ParameterType.PARAMETER_STRING_ARRAY}
+           float: ParameterType.PARAMETER_DOUBLE_ARRAY, str: ParameterType.PARAMETER_STRING_ARRAY}
 _SCALARS = {bool: ParameterType.PARAMETER_BOOL, int: ParameterType.PARAMETER_INTEGER,
             float: ParameterType.PARAMETER_DOUBLE, str: ParameterType.PARAMETER_STRING}
 
@@ -74,12 +72,8 @@ def descriptor(p: Parameter) -> ParameterDescriptor:
 
 
 def parameter_error(node: Node, name: str, value: Any, reason: str) -> ParameterError:
-    """Return the one-line error that stops a node's start-up.
-
-    It names the node, parameter, value, reason and the parameter files it was given.
-    """
-    return ParameterError(f'{node.get_name()}: parameter {name!r} = {value!r}: {reason}'
-                          f'{_where()}')
+    """Return the one-line start-up error: node, parameter, value, reason and parameter files."""
+    return ParameterError(f'{node.get_name()}: parameter {name!r} = {value!r}: {reason}{_where()}')
 
 
 def _where() -> str:
@@ -91,10 +85,9 @@ def declare(node: Node, cls: type) -> Any:
     """Declare every setting of `cls` on `node` and build it from the values given."""
     values: dict[str, Any] = {}
     for p in parameters(cls):
-        desc = descriptor(p)
         default: Any = list(p.default) if p.kind is tuple else p.default
         try:
-            value = node.declare_parameter(p.name, default, desc).value
+            value = node.declare_parameter(p.name, default, descriptor(p)).value
         except (InvalidParameterTypeException, InvalidParameterValueException,
                 ParameterUninitializedException) as exc:
             given = parameter_overrides(node).get(p.name, '?')
@@ -113,10 +106,9 @@ def declare(node: Node, cls: type) -> Any:
 
 
 def refuse_unknown(node: Node) -> None:
-    """Stop start-up on a parameter the node does not have.
+    """Stop start-up on an unreadable parameter file, or a parameter the node does not have.
 
-    That is one in a parameter file section that names this node, or given on the command
-    line (-p); an unreadable file stops it too.
+    That is one in a file section that names this node, or given on the command line (-p).
     """
     declared = set(node.get_parameters_by_prefix(''))
     shared: set[str] = set()

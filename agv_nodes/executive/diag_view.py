@@ -9,6 +9,7 @@ table and exits (scripts and tests).
 
 import argparse
 import sys
+import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 import rclpy
@@ -27,8 +28,7 @@ def level_of(status) -> int:
 
 def label(status) -> str:
     """Return a row's name: the status name without its 'agv/' prefix (e.g. traction/inputs)."""
-    name = status.name
-    return name.split('/', 1)[1] if name.startswith('agv/') else status.hardware_id
+    return status.name.split('/', 1)[1] if status.name.startswith('agv/') else status.hardware_id
 
 
 class Merged:
@@ -62,10 +62,8 @@ def render(msg: DiagnosticArray, detail: str | None = None, colour: bool = True)
                      f'{values.get("age (s)", "-"):>7s} {values.get("rejected", "-"):>8s}  '
                      f'{st.message}')
         if detail and detail in (st.hardware_id, label(st)):
-            for key in ('in (hex)', 'in', 'out (hex)', 'out', 'rejects by reason',
-                        'last rejection'):
-                if key in values:
-                    lines.append(f'    {key:18s} {values[key]}')
+            lines += [f'    {key:18s} {values[key]}' for key in ('in (hex)', 'in', 'out (hex)',
+                      'out', 'rejects by reason', 'last rejection') if key in values]
     return '\n'.join(lines)
 
 
@@ -85,8 +83,6 @@ def main(argv: list[str] | None = None) -> int:
     code = 0
     try:
         if args.once:
-            import time
-
             deadline = time.monotonic() + args.timeout
             while not got.fresh and time.monotonic() < deadline:
                 executor.spin_once(timeout_sec=0.1)
