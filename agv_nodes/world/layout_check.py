@@ -25,8 +25,7 @@ from agv_nodes.world.vehicles import Electruk
 
 # Speeds of the executive's demands (executive parameters: cruise_demand 55 % ~ 0.7 m/s, the
 # practical top speed of Baker 1983, 7.2; srm_demand 27 % ~ 0.3 m/s, kept to the next landmark).
-CRUISE = 0.7
-SRM_SPEED = 0.3
+CRUISE, SRM_SPEED = 0.7, 0.3
 VIEW = 0.6  # m: the optics look no further for a card (MarkerSensorModel.optics)
 LAPS = 2  # the route map is driven twice round, so what a lap leaves off-wire comes round again
 
@@ -138,11 +137,7 @@ def check_layout(layout: Layout, world: WorldParams | None = None,
 
 
 def enforce(layout: Layout, world: WorldParams | None = None, mode: str = 'error') -> list[str]:
-    """Run the check as the world does on the layout it loads.
-
-    Raise LayoutError with one line per unreadable marker (mode 'error'), or return those
-    lines for the caller to log (mode 'warn').
-    """
+    """Check as the world does: LayoutError of the lines (mode 'error'), else return them."""
     errors = check_layout(layout, world).errors()
     if errors and mode != 'warn':
         raise LayoutError('\n'.join(errors))
@@ -153,17 +148,12 @@ class _Drive:
     """One drive: the lens's passes over the cards, kept where they are the worst so far."""
 
     def __init__(self, layout: Layout, passages: list[Passage], label: str) -> None:
-        self.layout = layout
-        self.passages = passages
-        self.label = label
+        self.layout, self.passages, self.label = layout, passages, label
         self._side: dict[int, tuple[float, float, float]] = {}  # marker -> last (t, u, angle)
         self.passed: list[Marker] = []  # cards whose centre the axis crossed on the last sample
 
     def look(self, lens: tuple[float, float], heading: float, count: bool = True) -> None:
-        """Take one lens pose: note the cards whose centre the optical axis has just crossed.
-
-        Not `count`: the truck is not where those cards are for (it is leaving their wire).
-        """
+        """Note the cards whose centre the axis just crossed (not `count`: leaving their wire)."""
         self.passed = []
         for i, p in enumerate(self.passages):
             m = p.marker
@@ -202,10 +192,10 @@ class _Drive:
 
     def truck(self, world: WorldParams, route_params: RouteParams,
               start: tuple[str, float, float, float], distance: float, route_map: bool) -> None:
-        """Drive the Electruk on the wires from `start` (path, at, lateral, heading), `distance` m.
+        """Drive the Electruk `distance` m from `start` (path, at, lateral, heading).
 
-        Its speed is held (cruise; the SRM speed from an SRM to the next landmark); the steering
-        is the route-following core's, from the pickup's coils, as the harness wires them.
+        Its speed is held (cruise; the SRM speed from an SRM to the next landmark); the steering is
+        the route-following core's, from the pickup's coils, as the harness wires them.
         """
         lay = self.layout
         truck = Electruk(world.electruk)
