@@ -9,6 +9,7 @@ import functools
 from pathlib import Path
 from typing import Any
 
+from agv_nodes.package_share import schema_dir
 from agv_nodes.records.errors import RecordError, Reject, SchemaError
 from agv_nodes.records.loading import load_schema
 from agv_nodes.records.schema import RecordSchema
@@ -28,8 +29,7 @@ class Codec:
             if s.topic in topics:
                 raise SchemaError(f"{s.path}: key 'topic': {s.topic!r} already used by "
                                   f'{topics[s.topic]}')
-            ids[s.data_id] = s.name
-            topics[s.topic] = s.name
+            ids[s.data_id] = topics[s.topic] = s.name
             self._schemas[s.name] = s
 
     def __getitem__(self, name: str) -> RecordSchema:
@@ -61,9 +61,7 @@ class Codec:
 
     def for_node(self, node: str) -> tuple[list[RecordSchema], list[RecordSchema]]:
         """Return the port declarations of `node`: (records it reads, records it writes)."""
-        reads = [s for s in self if node in s.readers]
-        writes = [s for s in self if s.writer == node]
-        return reads, writes
+        return [s for s in self if node in s.readers], [s for s in self if s.writer == node]
 
 
 def load_codec(directory: Path | str) -> Codec:
@@ -78,6 +76,4 @@ def load_codec(directory: Path | str) -> Codec:
 @functools.cache
 def codec() -> Codec:
     """Return the installed package's codec (schemas loaded once per process)."""
-    from agv_nodes.package_share import schema_dir
-
     return load_codec(schema_dir())
