@@ -51,17 +51,14 @@ def load_graph(file: Path | None = None) -> Graph:
     for i, spec in enumerate(doc['nodes']):
         if not isinstance(spec, dict):
             raise GraphError(f'{file}: key nodes[{i}]: {spec!r} must be a mapping')
-        extra = set(spec) - NODE_KEYS
-        if extra:
+        if extra := set(spec) - NODE_KEYS:
             raise GraphError(f'{file}: key nodes[{i}].{sorted(extra)[0]}: unknown key')
         for key in ('name', 'executable', 'module'):
             if not isinstance(spec.get(key), str) or not spec[key]:
                 raise GraphError(f'{file}: key nodes[{i}].{key}: {spec.get(key)!r} missing')
-        role = spec.get('role', 'node')
-        if role not in ROLES:
+        if (role := spec.get('role', 'node')) not in ROLES:
             raise GraphError(f'{file}: key nodes[{i}].role: {role!r} not one of {ROLES}')
-        realtime = spec.get('realtime', False)
-        if not isinstance(realtime, bool):
+        if not isinstance(realtime := spec.get('realtime', False), bool):
             raise GraphError(f'{file}: key nodes[{i}].realtime: {realtime!r} is not true/false')
         nodes.append(NodeSpec(spec['name'], spec['executable'], spec['module'], role, realtime))
     params = file.parent / str(doc.get('parameters', 'agv_demo.yaml'))
