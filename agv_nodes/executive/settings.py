@@ -7,9 +7,9 @@ from agv_nodes.settings import settings_class
 
 
 def parse_srm_map(entries: Iterable[str]) -> dict[int, int]:
-    """('1:15', '3:15') -> {1: 15, 3: 15} (location: SRM angle in degrees, + = left).
+    """('1:15', '3:15') -> {1: 15, 3: 15} (location 0-31: SRM angle -45..45 degrees, + = left).
 
-    ValueError names the first entry that is not location:angle, 0-31 and -45..45.
+    ValueError names the first entry that is not so.
     """
     out = {}
     for entry in entries:

@@ -1,8 +1,4 @@
-"""World settings: the classes its parameters.yaml declares the parameters of.
-
-WorldParams is the simulated hardware (WorldCore); WorldNodeSettings is what the world node
-has besides (agv_nodes/world/node.py).
-"""
+"""World settings: WorldParams, the simulated hardware, and WorldNodeSettings, the node's own."""
 
 from agv_nodes.settings import ProcessSettings, settings_class
 
@@ -49,7 +45,4 @@ class WorldParams:
 
 @settings_class
 class WorldNodeSettings(ProcessSettings):
-    """The world node's own parameters (besides WorldParams).
-
-    The layout, /clock, and how it waits for the graph and paces itself on it.
-    """
+    """The world node's own parameters: layout, /clock, waiting for the graph, pacing on it."""
