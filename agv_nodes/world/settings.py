@@ -5,11 +5,7 @@ from agv_nodes.settings import ProcessSettings, settings_class
 
 @settings_class
 class ElectrukParams:
-    """The A.W.D. Electruk tug (Baker 1983).
-
-    [A] unless noted: chosen so that 80 % duty gives about 1 m/s unloaded, 20 % about 0.2 m/s
-    and nothing moves below about 5 %.
-    """
+    """The A.W.D. Electruk tug (Baker 1983); [A]: 80 % duty ~1 m/s unloaded, 20 % ~0.2, <5 % 0."""
 
 
 @settings_class
