@@ -22,13 +22,11 @@ _MARKER = 'msg_schemas'
 @functools.cache
 def share_dir() -> Path:
     """Return the directory holding msg_schemas/, config/ and launch/ for this install."""
-    override = os.environ.get('AGV_NODES_SHARE')
-    if override:
+    if override := os.environ.get('AGV_NODES_SHARE'):
         return Path(override)
-    candidates: list[Path] = []
     # A source checkout / editable install first: the files next to this very module belong to
     # the code that is running, whatever else is on AMENT_PREFIX_PATH.
-    candidates.append(Path(__file__).resolve().parent.parent)
+    candidates = [Path(__file__).resolve().parent.parent]
     try:
         from ament_index_python.packages import get_package_share_directory
 
@@ -57,8 +55,8 @@ def read_mapping(path: Path, error: type[Exception],
                  keys: Collection[str] | None = None) -> dict[str, Any]:
     """Read the top-level mapping of a YAML file.
 
-    Raise `error` (naming the file and the offending key) when the file cannot be read, is not
-    a mapping, or has a key not in `keys`.
+    `error` (naming the file and the offending key) when it cannot be read, is not a mapping, or
+    has a key not in `keys`.
     """
     try:
         doc = yaml.safe_load(path.read_text())
@@ -67,7 +65,6 @@ def read_mapping(path: Path, error: type[Exception],
         raise error(f'{path}: cannot read: {reason}') from None
     if not isinstance(doc, dict):
         raise error(f'{path}: expected a mapping at the top level')
-    extra = set(doc) - set(keys) if keys is not None else set()
-    if extra:
+    if extra := set(doc) - set(keys) if keys is not None else set():
         raise error(f'{path}: unknown key {sorted(extra)[0]!r}')
     return doc

@@ -36,10 +36,10 @@ class GraphPacer:
         return self.max_lag + self.period + self.clock_step
 
     def start(self, now: float) -> None:
-        """Start the world moving at sim time `now`.
+        """Start the world at sim time `now`; a node not heard from yet counts as heard at `now`.
 
-        A node not heard from yet is taken as heard at `now`, so the world waits for its first
-        word as for any other (one starved at start-up would otherwise fall behind unwaited).
+        So the world waits for its first word as for any other (one starved at start-up would
+        otherwise fall behind unwaited).
         """
         for node, heard in self._heard.items():
             if heard is None:
@@ -62,9 +62,7 @@ class GraphPacer:
 
     def lagging(self, now: float) -> list[str]:
         """Nodes that have fallen behind the world."""
-        if not self.max_lag:
-            return []
-        return [node for node in self.nodes if self.behind(node, now) > 0]
+        return [node for node in self.nodes if self.max_lag and self.behind(node, now) > 0]
 
     def give_up(self, nodes: list[str]) -> None:
         """Stop waiting for `nodes` until they are heard from again."""

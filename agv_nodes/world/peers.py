@@ -17,10 +17,9 @@ from agv_nodes.ros_ports import LINKS_TOPIC, parse_links
 
 
 def parse_link_entry(entry: str) -> tuple[str, str, int | None] | None:
-    """Parse a `wait_for_links` entry.
+    """Parse a `wait_for_links` entry: 'NODE:RECORD' -> (node, record, None), else None.
 
-    'NODE:RECORD' -> (node, record, None); 'NODE>RECORD:N' -> (node, record, N), where RECORD
-    may also be the progress writer; None when it is neither.
+    'NODE>RECORD:N' -> (node, record, N), where RECORD may also be the progress writer.
     """
     if '>' in entry:
         node, _, rest = entry.partition('>')
@@ -34,10 +33,7 @@ def parse_link_entry(entry: str) -> tuple[str, str, int | None] | None:
 
 
 class LinkWatch:
-    """The world's view of which links have matched.
-
-    Its own ends directly, the others' from their graph/links announcements.
-    """
+    """The world's view of which links have matched: its own ends, the others' announcements."""
 
     def __init__(self, node: Node, links: list[tuple[str, str, int | None]],
                  own_readers: Mapping[str, Callable[[], int]],
@@ -52,8 +48,7 @@ class LinkWatch:
 
     def _on_links(self, msg: String) -> None:
         name, inputs, outputs = parse_links(msg.data)
-        self._inputs[name] = inputs
-        self._outputs[name] = outputs
+        self._inputs[name], self._outputs[name] = inputs, outputs
 
     def missing(self) -> list[str]:
         """Links not matched yet."""

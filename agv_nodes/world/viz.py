@@ -60,11 +60,7 @@ def _card(k: int, m) -> list[Marker]:
 
 
 def layout_messages(layout: Layout) -> tuple[Path, MarkerArray]:
-    """Build world/route and world/markers, drawn once and latched.
-
-    world/route is every wire and tape as one path; world/markers the wires, tapes, cards and
-    their labels.
-    """
+    """Build world/route (every wire and tape as one path) and world/markers (paths and cards)."""
     path = Path()
     path.header.frame_id = 'map'
     markers = MarkerArray()
