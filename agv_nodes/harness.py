@@ -243,8 +243,7 @@ def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
     def settings(node: str, cls: type, also: type | None = None, **fixed: Any) -> Any:
         values = {**from_layout.get(node, {}), **fixed, **given.get(node, {})}
         known = frozenset(p.name for p in parameters(also)) if also else frozenset()
-        unknown = set(values) - {p.name for p in parameters(cls)} - known
-        if unknown:
+        if unknown := set(values) - {p.name for p in parameters(cls)} - known:
             raise ValueError(f'truck: node {node}: unknown parameter {sorted(unknown)[0]!r}')
         ours = {name: value for name, value in values.items() if name not in known}
         return settings_from_file(cls, params_file, node, ours, also_known=known)

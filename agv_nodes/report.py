@@ -203,8 +203,7 @@ def plots(data: dict[str, Any], result: dict[str, Any], out: Path) -> list[str]:
     save(fig, 'path.png')
 
     fig, ax = plt.subplots(figsize=(8, 4))
-    stops = result['stops']
-    if stops:
+    if stops := result['stops']:
         ax.bar(range(1, len(stops) + 1), [s['error_mm'] for s in stops], color='tab:orange')
         ax.set_xticks(range(1, len(stops) + 1), [s['marker'] for s in stops], rotation=45,
                       fontsize=7)

@@ -128,8 +128,7 @@ class ExecutiveCore(SubsystemCore):
             self.report = {'state': 'completed', 'cause': 'none', 'subsystem': 'none'}
             self._log(now, f'task {self.task_id}: abort')
             return
-        steps = itinerary(fields)
-        if not steps:
+        if not (steps := itinerary(fields)):
             self.report = {'state': 'rejected', 'cause': 'bad_task', 'subsystem': 'none'}
             self._log(now, f'task {self.task_id}: rejected (no itinerary)')
             return

@@ -210,8 +210,7 @@ class Launch:
             names = [n for n in self.procs if self.graph.node(n).role == group]
             for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 3.0),
                               (signal.SIGKILL, 3.0)):
-                alive = [n for n in names if self.procs[n].poll() is None]
-                if not alive:
+                if not (alive := [n for n in names if self.procs[n].poll() is None]):
                     break
                 if sig != signal.SIGINT:
                     print(f'agv-launch: {", ".join(alive)} still running: sending '

@@ -67,8 +67,7 @@ class Codec:
 def load_codec(directory: Path | str) -> Codec:
     """Load every `*.yaml` schema of `directory`."""
     directory = Path(directory)
-    files = sorted(directory.glob('*.yaml'))
-    if not files:
+    if not (files := sorted(directory.glob('*.yaml'))):
         raise SchemaError(f'{directory}: no record schemas (*.yaml) found')
     return Codec(load_schema(p) for p in files)
 

@@ -47,8 +47,7 @@ def _load_field(spec: Any, index: int, file: Path, last_byte: int) -> Field:
     where = f'fields[{index}]: '
     if not isinstance(spec, dict):
         raise SchemaError(f'{file}: {where}expected a mapping, got {spec!r}')
-    extra = set(spec) - _FIELD_KEYS
-    if extra:
+    if extra := set(spec) - _FIELD_KEYS:
         raise SchemaError(f'{file}: {where}unknown key {sorted(extra)[0]!r}')
     name = _need(spec, 'name', file, where)
     where = f'field {name!r}: '

@@ -69,8 +69,7 @@ class ImageAnalyser:
         none or its near edge is behind the window.
         """
         column = frame[:, 0 if side == 'left' else -1]
-        runs = [(a, n) for a, n in runs_of(column) if n >= self.p.sign_rows]
-        if not runs:
+        if not (runs := [(a, n) for a, n in runs_of(column) if n >= self.p.sign_rows]):
             return None
         a, n = max(runs, key=lambda k: k[1])
         last = a + n - 1  # rearmost dark row (row 0 is ahead)
