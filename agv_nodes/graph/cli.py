@@ -59,10 +59,9 @@ def options_from(args: argparse.Namespace) -> Options:
     faults = dict(parse_fault(text, graph) for text in args.fault)
     return Options(faults=faults, graph=args.graph, params=args.params, namespace=args.namespace,
                    use_sim_time=args.use_sim_time == 'true', time_factor=args.time_factor,
-                   record_integrity=args.record_integrity, world=args.world,
+                   record_integrity=args.record_integrity, world=args.world, extra=extra,
                    domain_id=args.domain_id, bag=args.bag, respawn=args.respawn,
-                   layout=args.layout, extra=extra, log_dir=args.log_dir,
-                   realtime=args.realtime)
+                   layout=args.layout, log_dir=args.log_dir, realtime=args.realtime)
 
 
 def main(argv: list[str] | None = None) -> int:

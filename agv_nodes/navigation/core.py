@@ -1,8 +1,7 @@
 """Navigation: PC6/1's navigating and positioning loops (Baker 6.2, App. B.1).
 
-Records in: navigation_command (the executive's INFO), position_sensor_status (recognitions),
-wheel_odometry (controlled stopping only). Records out: navigation_status (OUTFO), traction_link
-(the direct Position -> Traction port), position_sensor_command (SAMIC/EDGIC).
+INFO is navigation_command, OUTFO navigation_status, the link traction_link (Position -> Traction),
+SAMIC/EDGIC position_sensor_command; wheel_odometry serves the controlled stop only.
 
 * INSTRS (idle): a new INFO[0] starts navigating (OPLOP) to that location with FLAG.4 := INFO[1].0;
   a change of INFO[1] alone means "position to the next stop marker" (CLOP).
@@ -10,27 +9,22 @@ wheel_odometry (controlled stopping only). Records out: navigation_status (OUTFO
 * OPLOP: link 40H (the executive has speed control), OUTFO = 00H / LOCN, filter cleared with the
   location table. Every other location marker recognised is reported (OUTFO[1] := identity, then 52
   ms "move clear of it"); stop-marker centres (0EH) never are. At the task location: CLOP at once
-  (first stop marker), or, for the second, wait for the first stop marker's centre view and
-  position from there.
+  (first stop marker), or for the second, from the first one's centre view.
 * CLOP: link 14H (Position priority, forward, 20 %), OUTFO = 03H / INFO[0], stop-view table. Each
   view sets the link to its EDGE speed byte (14H creep, 00H at the centre); at the centre OUTFO =
-  0BH and the loop ends (the truck coasts to rest on friction).
+  0BH and the loop ends (the truck coasts to rest).
 
-`variant = as_listed` keeps PC6/1's quirks (Baker 1983, App. B.1): LOCN starts at 00H (the first
-OPLOP reports marker 00H), and a centre view still in sight when positioning starts is accepted at
-once (the second-stop-marker hazard). `intended` (default) starts LOCN at FFH and, entering CLOP,
-ignores the centre view until another stop view is seen.
+`variant = as_listed` keeps PC6/1's quirks (App. B.1): LOCN starts at 00H (the first OPLOP reports
+marker 00H), and a centre view in sight when positioning starts is accepted at once (the
+second-stop-marker hazard). `intended` (default) starts LOCN at FFH and, entering CLOP, ignores the
+centre view until another stop view is seen.
 
-`stopping = controlled` (Baker 1983, 8.5: controlled braking, reverse correction; the default, as
-it beats `friction_1983` in bench/stop_bench.py: +-3 mm against +34..+55 mm): every stop view gives
-the distance still to go (+60 ... -60 mm, Baker 1983, 4.3, fig 4.4); wheel odometry carries it
-between views and the link asks closed-loop traction to stop in that distance
-(traction_link.stop_in); an overshoot reverses slowly back onto the centre.
-
-`speed_request_path = via_executive` (Baker 1983, 8.2.2): no direct link; the request travels in
-navigation_status.speed_request and the executive forwards it.
-
-A sensor that goes quiet (no status for `sensor_timeout`, or its ADC stale or saturated) makes
+`stopping = controlled` (Baker 1983, 8.5; the default: +-3 mm against friction_1983's +34..+55 mm,
+bench/stop_bench.py): each stop view gives the distance to go (+60 ... -60 mm, 4.3, fig 4.4),
+carried between views by wheel odometry; the link asks closed-loop traction to stop in it
+(traction_link.stop_in); an overshoot reverses slowly onto the centre. `speed_request_path =
+via_executive` (8.2.2): the request rides in navigation_status.speed_request for the executive to
+forward. A quiet sensor (no status for `sensor_timeout`, or its ADC stale or saturated) makes
 navigation report LOST and request speed 0.
 """
 

@@ -89,8 +89,7 @@ def _load_field(spec: Any, index: int, file: Path, last_byte: int) -> Field:
             if not isinstance(code, int) or not full_lo <= code <= full_hi:
                 raise SchemaError(f"{file}: {where}key 'values.{vname}': {code!r} does not fit "
                                   f'{width} bits')
-    lo = spec.get('min', full_lo)
-    hi = spec.get('max', full_hi)
+    lo, hi = spec.get('min', full_lo), spec.get('max', full_hi)
     if not (isinstance(lo, int) and isinstance(hi, int) and full_lo <= lo <= hi <= full_hi):
         raise SchemaError(f"{file}: {where}keys 'min'/'max': {lo!r}..{hi!r} do not fit "
                           f'{width} bits ({full_lo}..{full_hi})')

@@ -1,36 +1,34 @@
 """The Traction sub-processor: the 1983 speed-control program, its trips, and a closed loop.
 
 `open_loop_1983` is the listing of Baker 1983, App. B.2 as a state machine on the loop clock: START
-= MONO, GETREF, SENSOR, MONO, SUM, COMP, where the Z-80's blocking waits (the "runout" after a
-limited step, the two FLIP waits, the field build-up after reset) become timed states during which
-MONO keeps retriggering the trip relay. Record for record:
+= MONO, GETREF, SENSOR, MONO, SUM, COMP, the Z-80's blocking waits (the "runout" after a limited
+step, the two FLIP waits, the field build-up after reset) as timed states during which MONO keeps
+retriggering the trip relay:
 
 * GETREF: manual (command byte 1 bit 0) takes byte 1 whole as the signed REF before any other check
-  (it bypasses the emergency and the radio stop); auto with byte 2 = 00H gives REF = -5 % (plug
-  braking, "emergency stop"); then the radio stop input (armature off, DCYCLE := 0, re-poll); then
-  the source: the executive (byte 2) or the Position link (A := port & 3FH, NEG if bit 5).
+  (bypassing the emergency and the radio stop); auto with byte 2 = 00H gives REF = -5 % (plug
+  braking, "emergency stop"); then the radio stop (armature off, DCYCLE := 0, re-poll); then the
+  source: the executive (byte 2) or the Position link (A := port & 3FH, NEG if bit 5).
 * SENSOR: SPEED := DCYCLE (open loop, SPDTAB is the identity).
-* SUM: ERROR := REF - SPEED limited to +-16 % (`arithmetic`: `saturating`, the intent, is the
-  default; `faithful_8bit` keeps the listing's mod-256 wrap, Baker 1983, App. B.2.2).
-* COMP: DCYCLE := SPEED + ERROR clamped to +-80; a sign that disagrees with the field direction
-  runs FLIP (armature and field off, wait, toggle, field on, wait); armature off when the demand is
-  0 (coast), else CTC1 := |DCYCLE| and armature on; a limited step waits `runout_wait`.
+* SUM: ERROR := REF - SPEED limited to +-16 % (`arithmetic`: `saturating`, the intent, or
+  `faithful_8bit`, the listing's mod-256 wrap, App. B.2.2).
+* COMP: DCYCLE := SPEED + ERROR clamped to +-80; a sign against the field direction runs FLIP
+  (armature and field off, wait, toggle, field on, wait); armature off at demand 0 (coast), else
+  CTC1 := |DCYCLE| and armature on; a limited step waits `runout_wait`.
 
-Waits: the prose says 200 ms (runout) and 100 ms (FLIP halves, field build-up); B.2.2's delay
-formula gives 100 and 50 ms (Baker 1983, 6.3 against App. B.2.2). Both are parameters; the prose is
-the default.
+Waits: the prose says 200 ms (runout) and 100 ms (FLIP halves, field build-up), B.2.2's delay
+formula 100 and 50 ms (6.3 against App. B.2.2); both are parameters, the prose the default.
 
 Trip relay (modern): traction opens the contactor (drive and field off) and latches when its loop
-stalls, when the executive's command is older than `command_timeout`, when the Position link it
-obeys is older than `link_timeout`, or on a corrupt command/link record; it also starts tripped.
-Only a fresh valid command with byte 2 = 00H, then one non-zero, clears the latch.
+stalls, the executive's command is older than `command_timeout`, the Position link it obeys older
+than `link_timeout`, or a command/link record is corrupt; it also starts tripped. Only a valid
+command with byte 2 = 00H, then one non-zero, clears it.
 
-`closed_loop` (beyond 1983, thesis B.2's skeleton with a speed sensor; the default): REF is a speed
-demand through the open-loop map v = (|REF| - 5) / 75 m/s (Baker 1983, 6.3.2), shaped by
-acceleration and jerk limits, and a PI loop on wheel odometry sets the armature duty. Navigation's
-controlled stop (thesis 8.5) needs it, and it holds the asked speed under load
-(bench/traction_bench.py: 0.200 m/s at 20 % loaded or not, where the open loop gives 0.195 /
-0.161).
+`closed_loop` (the default; beyond 1983: B.2's skeleton with a speed sensor): REF is a speed demand
+through the open-loop map v = (|REF| - 5) / 75 m/s (6.3.2), shaped by acceleration and jerk limits,
+and a PI loop on wheel odometry sets the duty. Navigation's controlled stop (8.5) needs it, and it
+holds the speed under load (bench/traction_bench.py: 0.200 m/s at 20 % loaded or not; open loop
+0.195 / 0.161).
 """
 
 from typing import Any
