@@ -84,12 +84,8 @@ class MarkerSensorModel:
         self._normals = np.random.default_rng(rng.getrandbits(64))
         self._noise: list[float] = []
         self._noise_at = 0
-        if not params.gains or not params.blacks:
-            gains, blacks = calibrate(params)
-            self.gains = params.gains or gains
-            self.blacks = params.blacks or blacks
-        else:
-            self.gains, self.blacks = params.gains, params.blacks
+        gains, blacks = calibrate(params) if not params.gains or not params.blacks else ((), ())
+        self.gains, self.blacks = params.gains or gains, params.blacks or blacks
         if len(self.gains) != 8 or len(self.blacks) != 8 or len(params.skew) != 8:
             raise ValueError('marker sensor: gains, blacks and skew need 8 values each')
 
@@ -187,11 +183,7 @@ def _adc8(value: float) -> int:
 
 @functools.cache
 def _white_runs(row: str) -> tuple[tuple[float, float], ...]:
-    """White runs of a card row as (start, end) along the card from its upstream end, m.
-
-    Element j (0-based, C1 first) is the downstream-most at j = 0, so it spans
-    [(n - 1 - j) w, (n - j) w] from the upstream edge.
-    """
+    """White runs (start, end) of a card row, m from its upstream end (C1, j = 0, downstream)."""
     n = len(row)
     runs: list[tuple[float, float]] = []
     for j, ch in enumerate(row):
