@@ -1,17 +1,17 @@
 """Lock-step harness: the world core and any set of node cores stepped together without DDS.
 
-Deterministic and seeded; every record goes through the writer's `RecordWriter` and each reader's
-`RecordReader` as in the graph, with ports from the schemas' writer/readers (docs/architecture.md,
-"The lock-step harness"). A node core is any object with:
+Deterministic and seeded; records go through `RecordWriter` and `RecordReader` with the schemas'
+ports, as in the graph (docs/architecture.md, "The lock-step harness"). A node core is any object
+with:
 
     node: str                     # its name in msg_schemas (writer / readers)
     period: float | None          # seconds between tick() calls; None = only on_record
     on_record(record, fields, now) -> {record: fields} | None   # an accepted input
     tick(now) -> {record: fields} | None                         # its timer
 
-Records a core returns are delivered at once (breadth first) within the same world sample, the way
-the 1983 boards' pigeon-holes were read on the next loop; timer ticks run after the world's sample
-at their own rate on the simulated clock.
+Records a core returns are delivered at once (breadth first) within the world sample, as the 1983
+boards' pigeon-holes were read on the next loop; timers run after the sample on the simulated
+clock.
 """
 
 from collections import deque

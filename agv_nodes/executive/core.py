@@ -11,22 +11,18 @@ sub-systems' records (level 3):
     srm(n, angle)   cruise, reporting landmarks, until n is passed, then leave the wire there
     continue        cruise on along the wire (the task is over, the truck keeps going)
 
-At every location marker reported the route map decides continue or SRM (the demo floor needs one
-at L1 and L3 every lap); wire changes run at `srm_demand`, and the truck stays slow until the next
-landmark (location 0, just after an SRM, is passed slowly, thesis 7.2). Traction's byte 2 is kept
-non-zero while navigation positions the truck.
+At each location marker reported the route map decides continue or SRM (the demo floor needs one at
+L1 and L3 every lap); wire changes run at `srm_demand`, slow until the next landmark (thesis 7.2).
+Traction's byte 2 stays non-zero while navigation positions the truck. Faults - wire or marker
+sensor lost, a stale status, over `reject_limit` rejected records in a second, a sub-system fault
+(traction tripped, radio stop, load failed), a step longer than `route_limit` - give an emergency
+stop (traction byte 2 = 00H) and fail the task naming cause and sub-system until a new task.
 
-Faults - wire or marker sensor lost, a stale status, over `reject_limit` rejected records in a
-second, a sub-system fault (traction tripped, radio stop, load failed), a step longer than
-`route_limit` - give an emergency stop (traction byte 2 = 00H) and fail the task naming cause and
-sub-system; the truck stays stopped until a new task.
-
-A status is stale when older than `status_timeout` *and* `stale_confirm` records from the other
-sub-systems have arrived since (or when twice that old): after a stall a starved executive's clock
-jumps ahead at once (its /clock reader keeps only the latest) while the records queued behind it
-are taken one per topic per turn, and the count keeps it from blaming a sub-system whose record
-still waits in its queue. `status_age: sent` ages each status from the sim time it was sent
-(agv_nodes.sent_time), so a starved executive blames nobody.
+A status is stale when older than `status_timeout` *and* `stale_confirm` records from the others
+have arrived since (or twice that old): after a stall a starved executive's /clock jumps ahead at
+once while its queued records are taken one per topic per turn, and the count keeps it from blaming
+a record still queued. `status_age: sent` ages each status from its send (agv_nodes.sent_time), so
+it blames nobody.
 """
 
 from typing import Any

@@ -2,32 +2,27 @@
 
 Per snapshot (Baker 1983, 5.2-5.3, 7.1.4):
 1. d.c. removal: x = lit - dark, clamped at 0 (SUBT);
-2. running sum of run length 4 per detector, TOTAL = x_k + ... + x_(k-3) (no division; thresholds
-   in x4 units), cleared on every table change (SAMIC/EDGIC), so the first three snapshots after
-   one read dark;
-3. THRESH per detector: WHITE if TOTAL > THRON, BLACK if TOTAL <= THROFF, otherwise the snapshot is
-   INVALID (all eight are still processed);
-4. CODE: each valid decision shifts a bit in, detector 1 ending in bit 7 (Baker 1983, 5.3.5.2);
+2. running sum of run length 4 per detector, TOTAL = x_k + ... + x_(k-3) (thresholds in x4 units),
+   cleared on every table change (SAMIC/EDGIC): three snapshots after one read dark;
+3. THRESH: WHITE if TOTAL > THRON, BLACK if TOTAL <= THROFF, otherwise the snapshot is INVALID;
+4. CODE: each valid decision shifts a bit in, detector 1 ending in bit 7 (5.3.5.2);
 5. TARGET: a valid CODE is looked up in the active table (navigating: UCTAB, the four location
    markers and the stop-marker centre; positioning: EDGE, the seven stop views);
-6. a recognition is reported after `min_consecutive_matches` equal matches in successive snapshots
-   (thesis 7.1.4; 1 = the printed listing); an invalid or different snapshot resets the count.
+6. a recognition is reported after `min_consecutive_matches` equal matches in a row (7.1.4; 1 = the
+   printed listing).
 
 `invalid_band = hold` (modern; default `invalid`): a detector inside its band keeps its last
-decision, so a blurred card (off focus, fast passes) yields more matching snapshots; a recognition
-still needs one snapshot of the streak with every detector decided, which keeps held codes from
-misreading.
+decision, so a blurred card yields more matching snapshots; one snapshot of the streak must still
+have every detector decided, which keeps held codes from misreading.
 
 `decoder = sequence` (modern, the default; `snapshot` is the thesis rule): in the navigating table
-each detector column reads the passing card's four elements in time
-(agv_nodes.position_sensor.sequence), so no snapshot needs all eight detectors decided at once;
-positioning (stop views at creep speed, each view's timing drives the stop) always uses the
-snapshot rule, and the status record's CODE and `invalid` are the snapshot's either way.
+each detector column reads the passing card in time (agv_nodes.position_sensor.sequence);
+positioning (creep speed, each view's timing drives the stop) always uses the snapshot rule, whose
+CODE and `invalid` the status record carries either way.
 
-`variant = as_listed` keeps the listing's defects (Baker 1983, 5.2.3, App. B.1, register items 1
-and 14): the black test compares only the high bytes of TOTAL and THROFF, and the EDGE search
-covers LEN = 5 entries, so stop views 6 and 7 never match. The default `intended` is the design as
-described.
+`variant = as_listed` keeps the listing's defects (5.2.3, App. B.1, register items 1 and 14): the
+black test compares only the high bytes of TOTAL and THROFF, and EDGE is searched over LEN = 5
+entries, so stop views 6 and 7 never match; `intended` (default) is the design as described.
 """
 
 from typing import Any

@@ -1,25 +1,23 @@
 """Sequence decoding of the navigating table: each detector column reads a passing card in time.
 
-The thesis decides a card from one snapshot with all eight detectors outside their invalid band at
-once (Baker 1983, 5.2.3). Off focus, with the detectors' along-track skew (thesis 7.1.3: +-1
-sample) and at speed (a 20 mm element lasts 6.8 snapshots at 1 m/s, 3.4 at 2 m/s) such a snapshot
-is rare: across 280-320 mm standoff and +-10 mm height the thesis rule missed 974 of 10,020 passes
-at 1 m/s (bench/recognition_bench.py).
+The thesis needs one snapshot with all eight detectors outside their invalid band (Baker 1983,
+5.2.3); off focus, with the along-track skew (7.1.3: +-1 sample) and at speed (a 20 mm element
+lasts 6.8 snapshots at 1 m/s) that is rare: over 280-320 mm standoff and +-10 mm height the thesis
+rule missed 974 of 10,020 passes at 1 m/s (bench/recognition_bench.py).
 
-Yet every column sees every element of its row go by. Each navigating card (the four location
-markers, Baker 1983, 4.3, fig 4.6, and the stop marker's centre view, fig 4.4) is four elements
-long with white, in one row or the other, in its first and last element: each column sees one
-white-bounded window four elements long, and read at the middle of each quarter its two detectors
-give the card's whole CODE, at their own time (skew cannot split them). A card is recognised when
-`agree` columns read the same template, no column that read cleanly read anything else, and every
-window is as long as four elements at the speed the columns' start times give (20 mm apart): a
-truck that stops, reverses or changes speed over a card stretches its windows out of step, and
-without this check misreads L1 as L3 (bench/recognition_bench.py --motion).
+Yet every column sees every element of its row go by. Each navigating card (location markers, 4.3,
+fig 4.6; the stop centre view, fig 4.4) is four elements long, white in its first and last, so each
+column sees one white-bounded window four elements long, and read at the middle of each quarter its
+two detectors give the whole CODE at their own time (skew cannot split them). A card is recognised
+when `agree` columns read the same template, no clean column read another, and every window is as
+long as four elements at the speed the columns' start times (20 mm apart) give: a truck that stops,
+reverses or changes speed over a card stretches its windows out of step, and would misread L1 as L3
+(recognition_bench --motion).
 
-Time order: in forward travel a card crosses the image from C1 to C4 (world marker_sensor), so
-every column sees its C4 element first. In reverse the read is mirrored, and no mirrored navigating
-card is a template (78H -> E1H, 3CH -> C3H, 5AH -> A5H, 1EH -> 87H, A3H -> C5H): a reversing truck
-recognises nothing (it only reverses positioning).
+In forward travel a card crosses the image from C1 to C4 (world marker_sensor), so a column sees
+its C4 element first. In reverse the read is mirrored, and no mirrored navigating card is a
+template (78H -> E1H, 3CH -> C3H, 5AH -> A5H, 1EH -> 87H, A3H -> C5H): a reversing truck recognises
+nothing (it only reverses positioning).
 """
 
 from dataclasses import dataclass, field

@@ -1,16 +1,13 @@
 """The pulsed-IR marker sensor: 2 x 4 photodiodes looking sideways at marker cards (Baker ch 5).
 
 Each detector images a 20 x 40 mm patch of the marker plane at 300 mm (magnification 1/3, f = 75
-mm; Baker 1983, 5.1): card reflectance integrated over its aperture (the element box-car convolved
-with the aperture of thesis fig 5.5), blurred by defocus away from 300 mm, times an illumination
-fall-off with range and incidence and a per-detector gain, plus an offset. Ambient light adds to
-the lit and the dark conversion alike (the on/off difference removes it) and can saturate the 8-bit
-ADC0809; both conversions carry noise. Gains and black levels default to values derived from Table
-7.1 (`calibrate`).
-
-The lens sits `sensor_lateral` right of the guide-wire sensor point, its axis horizontal, square to
-the truck, pointing right; column C1 looks furthest forward, so a card passing in forward travel
-crosses the image from C1 to C4.
+mm; 5.1): card reflectance over its aperture (the element box-car convolved with the aperture of
+fig 5.5), blurred by defocus off 300 mm, times an illumination fall-off with range and incidence
+and a per-detector gain, plus an offset. Ambient light adds to lit and dark conversion alike (the
+difference removes it) and can saturate the 8-bit ADC0809; both carry noise. Gains and black levels
+default to values derived from Table 7.1 (`calibrate`). The lens sits `sensor_lateral` right of the
+guide-wire sensor point, its axis horizontal, square to the truck, pointing right; column C1 looks
+furthest forward, so a card passing in forward travel crosses the image from C1 to C4.
 """
 
 import functools
