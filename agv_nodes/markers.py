@@ -1,10 +1,9 @@
 """The marker facts of Baker (1983): patterns, templates and the detector threshold tables.
 
-Shared by the world (which draws the cards and calibrates its photodiode model) and the
-position sensor (which thresholds and matches). Everything is in CODE space (Baker 1983,
-5.3.5.2): the high nibble is image row R1, the low nibble row R2, and bit 3 of a nibble is
-column C1, the column that sees a feature first during forward travel; detector d = 1..8 (ADC
-address d-1) is row R1 column C_d for d <= 4 and row R2 column C_(d-4) otherwise.
+Shared by the world (cards, photodiode calibration) and the position sensor (thresholds, matching).
+All in CODE space (5.3.5.2): the high nibble is image row R1, the low nibble R2, and bit 3 of a
+nibble column C1, the one that sees a feature first in forward travel; detector d = 1..8 (ADC
+address d-1) is row R1 column C_d for d <= 4, else row R2 column C_(d-4).
 """
 
 # The adc_snapshot record's fields for detectors 1..8, lit (IREDs on) and dark (off).

@@ -1,9 +1,8 @@
 """Where the package's shared files (msg_schemas/, config/, launch/) live, and reading them.
 
-Three installs must work: a colcon workspace or a ROS install (found through ament_index, i.e.
-`share/agv_nodes` under an AMENT_PREFIX_PATH entry), a source checkout or `pip install -e`
-(the files sit next to the `agv_nodes` package), and a plain `pip install` (setup.py's
-data_files land in `<prefix>/share/agv_nodes`).
+Three installs must work: a colcon workspace or ROS install (ament_index: `share/agv_nodes` under
+AMENT_PREFIX_PATH), a source checkout or `pip install -e` (next to the package), and a plain `pip
+install` (setup.py's data_files in `<prefix>/share/agv_nodes`).
 """
 
 from collections.abc import Collection
@@ -53,11 +52,7 @@ def config_dir() -> Path:
 
 def read_mapping(path: Path, error: type[Exception],
                  keys: Collection[str] | None = None) -> dict[str, Any]:
-    """Read the top-level mapping of a YAML file.
-
-    `error` (naming the file and the offending key) when it cannot be read, is not a mapping, or
-    has a key not in `keys`.
-    """
+    """Read a YAML file's top-level mapping; `error` names the file and any key not in `keys`."""
     try:
         doc = yaml.safe_load(path.read_text())
     except (OSError, yaml.YAMLError) as exc:

@@ -106,10 +106,7 @@ def declare(node: Node, cls: type) -> Any:
 
 
 def refuse_unknown(node: Node) -> None:
-    """Stop start-up on an unreadable parameter file, or a parameter the node does not have.
-
-    That is one in a file section that names this node, or given on the command line (-p).
-    """
+    """Stop start-up on a bad file or an unknown parameter (in this node's file section, or -p)."""
     declared = set(node.get_parameters_by_prefix(''))
     shared: set[str] = set()
     for path in params_files():

@@ -1,11 +1,9 @@
 """SubsystemCore: what every sub-system core is to its node and to the lock-step harness.
 
-A core is ROS-free: it is told records, rejections and the time, and returns the records to
-send. Its class names the node (the writer/readers of msg_schemas), its settings dataclass
-(agv_nodes/settings.py) and the setting that is its timer's period. What it says in words goes
-through its `Notes`: its node takes the new ones after each call into the core and logs them
-(communications also publishes them on comms/report); the last `keep` stay readable for tests
-and displays, and both queues are bounded, so a long run never grows.
+A core is ROS-free: told records, rejections and the time, it returns the records to send. Its
+class names the node (msg_schemas' writer/readers), its settings dataclass and its timer's period
+setting. What it says in words goes through its `Notes`, which its node takes after each call and
+logs (communications also publishes them on comms/report); both queues are bounded.
 """
 
 from collections import deque

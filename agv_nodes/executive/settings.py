@@ -7,10 +7,7 @@ from agv_nodes.settings import settings_class
 
 
 def parse_srm_map(entries: Iterable[str]) -> dict[int, int]:
-    """('1:15', '3:15') -> {1: 15, 3: 15} (location 0-31: SRM angle -45..45 degrees, + = left).
-
-    ValueError names the first entry that is not so.
-    """
+    """('1:15', '3:15') -> {1: 15, 3: 15} (deg, + = left); ValueError: entry not 0-31:-45..45."""
     out = {}
     for entry in entries:
         location, _, angle = entry.partition(':')

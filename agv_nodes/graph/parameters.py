@@ -121,11 +121,7 @@ def from_layout(graph: Graph, options: Options) -> dict[str, dict[str, object]]:
 
 def node_parameters(graph: Graph, spec: NodeSpec, options: Options,
                     ready_file: Path | None = None) -> dict[str, object]:
-    """Return the parameters the launch sets for one node on top of the parameter file.
-
-    `ready_file`: the file the world writes when it starts moving, for agv-launch to watch; the
-    launch file passes none (no file is written).
-    """
+    """Return what the launch sets on one node over the file (`ready_file`: the world's signal)."""
     out: dict[str, object] = {'use_sim_time': options.use_sim_time}
     if spec.role == 'node':
         out.update(from_layout(graph, options).get(spec.name, {}))

@@ -132,10 +132,7 @@ class CameraSteering:
         self.absent = 0
 
     def update(self, m: Measurement, dt: float, speed: float = 0.0) -> float | None:
-        """Return the new caster angle theta_s; None (stop) when the track is absent.
-
-        `speed` is the cruise asked for (only the gain schedule uses it).
-        """
+        """Return the caster angle theta_s at cruise `speed`; None (stop): the track is absent."""
         p = self.p
         gain_d = p.gain_d
         if p.schedule_speed > 0 and speed > p.schedule_speed:

@@ -199,10 +199,10 @@ class TractionCore(SubsystemCore):
         return self.link is not None and not self.link['executive_priority']
 
     def _field_wait(self, now: float, forward_at_start: bool) -> bool:
-        """Run the field's timed waits, the same in both controls; True when this pass was one.
+        """Run BEGIN/INIT's and FLIP's timed field waits; True when this pass was one.
 
-        BEGIN/INIT (field on, WAIT1 build-up; the listing's INIT leaves the field reversed, the
-        closed loop starts it forward) and FLIP's second half (toggle, field on, wait).
+        Both controls; INIT leaves the field reversed in the listing, the closed loop starts it
+        forward.
         """
         if self.state == 'start':
             self.field_off, self.armature_off, self.state = False, True, 'run'

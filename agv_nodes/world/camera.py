@@ -61,10 +61,7 @@ class BinaryCamera:
         return frame
 
     def truth(self, cx: float, cy: float, heading: float) -> tuple[float, float] | None:
-        """Return (eps_d, eps_theta) of the nearest tape at the window centre.
-
-        The signs are those of Rajagopalan 1991, 5.2.
-        """
+        """Return (eps_d, eps_theta) of the nearest tape at the window centre (Rajagopalan 5.2)."""
         best = None
         for tape in self.tapes:
             s, lateral, tangent = tape.project(cx, cy)

@@ -1,11 +1,9 @@
 """World layouts (config/layouts/*.yaml): guide wires or tape, markers on stands, workstations.
 
-A path (guide wire or optical tape) is built from a start pose and a list of straight and arc
-segments, and sampled into a polyline every `step` metres for the field and image models.
-Markers are placed by (path, distance along it); their card faces the path from the vehicle's
-sensor side at the sensor's standoff (Baker 1983, 4.4 and 5.1: 300 mm from the lens; the route
-is held to +-1 cm, a goal of this reproduction: the thesis text states no tolerance).
-Every error names the file, the key and the value.
+A path (guide wire or optical tape) is a start pose and straight and arc segments, sampled every
+`step` m. Markers are placed by (path, distance along it), the card facing the path from the sensor
+side at the standoff (Baker 1983, 4.4 and 5.1: 300 mm from the lens; the route held to +-1 cm, this
+reproduction's goal: the thesis states none). Every error names the file, the key and the value.
 """
 
 from dataclasses import dataclass, field
@@ -389,11 +387,7 @@ def _check_rig(layout: Layout, file: Path) -> None:
 
 
 def layout_parameters(layout: Layout) -> dict[str, dict[str, Any]]:
-    """Return what a layout sets in the nodes of a truck on it.
-
-    That is the executive's route map and the kind of steering route following drives
-    (agv-launch and the lock-step harness both).
-    """
+    """Return what a layout sets in its truck's nodes: the route map, route following's vehicle."""
     return {'executive': {'srm_map': list(layout.srm_map)},
             'route_following': {'vehicle': layout.vehicle}}
 

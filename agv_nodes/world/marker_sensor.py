@@ -54,10 +54,7 @@ def lens_position(sensor_point: tuple[float, float], heading: float,
 
 def axis_on_card(lens: tuple[float, float], heading: float,
                  card) -> tuple[float, float, float] | None:
-    """Where the optical axis meets a card's plane: (range t, along the card u, cos incidence).
-
-    u is + downstream of the card centre; None when the card is seen edge-on or from behind.
-    """
+    """(t range, u along the card, + downstream, cos incidence) of the axis; None if edge-on."""
     ax, ay = math.sin(heading), -math.cos(heading)
     nx, ny = card.normal
     denom = ax * nx + ay * ny

@@ -17,10 +17,7 @@ from agv_nodes.ros_ports import LINKS_TOPIC, parse_links
 
 
 def parse_link_entry(entry: str) -> tuple[str, str, int | None] | None:
-    """Parse a `wait_for_links` entry: 'NODE:RECORD' -> (node, record, None), else None.
-
-    'NODE>RECORD:N' -> (node, record, N), where RECORD may also be the progress writer.
-    """
+    """'NODE:RECORD' -> (node, record, None), 'NODE>RECORD:N' (or progress) -> N; else None."""
     if '>' in entry:
         node, _, rest = entry.partition('>')
         record, _, count = rest.partition(':')
