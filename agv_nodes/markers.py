@@ -60,10 +60,10 @@ def stop_view_columns(view: int) -> int:
 
 def trough_and_peak(unit: str, fraction: tuple[float, float] = (0.2, 0.8)
                     ) -> list[tuple[float, float]]:
-    """Per detector (trough, peak) in x4 units implied by threshold = trough + p * amplitude.
+    """Per detector (trough, peak) in x4 units, threshold = trough + p * amplitude (7.1.3).
 
     The thesis set WHITE at 80 % and BLACK at 20 % of the worst-case amplitude; reading the
-    percentages from the trough fits Table 7.1 (Baker 1983, 7.1.3).
+    percentages from the trough fits Table 7.1.
     """
     lo, hi = fraction
     out = []

@@ -93,9 +93,9 @@ def record_integrity(raw: bytes) -> str:
 def final_stops(events: list[dict[str, Any]], merge_s: float = 5.0) -> list[dict[str, Any]]:
     """One entry per stop from the world's `stopped` events: where the truck finally rested.
 
-    A controlled stop (thesis 8.5) that overshoots rests, backs up and rests on the centre: rests
-    at one marker under `merge_s` apart with no load moved between are one stop, with the
-    approach's `speed_mm_s` and the count of `rests`.
+    An overshooting controlled stop (thesis 8.5) rests, backs up and rests again: rests at one
+    marker under `merge_s` apart, no load moved between, are one stop (`rests`, approach
+    `speed_mm_s`).
     """
     stops: list[dict[str, Any]] = []
     merge = False  # a rest may join the previous one

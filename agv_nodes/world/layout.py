@@ -325,10 +325,10 @@ def _load_marker(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
 
 def _add_sign(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
               step: float) -> dict[str, Any]:
-    """Draw a road sign on a tape: a wider patch before the junction, and the branches.
+    """Draw a road sign on a tape: a wider patch before the junction, then the branches.
 
-    Each turning branch is a tape at right angles (the camera sees the width jump, then the
-    branch at column 0 or 127), `branch` m long, a 0.35 m stub by default.
+    Each turning branch is a tape at right angles (the camera sees the width jump, then the branch
+    at column 0 or 127), `branch` m long (0.35 m).
     """
     key = f'signs[{i}]'
     if not isinstance(spec, dict):
