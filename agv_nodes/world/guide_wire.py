@@ -53,10 +53,7 @@ class GuideWirePickup:
         self._near_at = (math.inf, math.inf)
 
     def field(self, xy: np.ndarray, segments: np.ndarray | None = None) -> np.ndarray:
-        """Field vectors (arbitrary units, z up) at floor points `xy` (k, 2), coil height up.
-
-        Sums the segments within `reach` of the points' centre, or those `segments` (indices).
-        """
+        """Field (z up) at floor points `xy` (k, 2), coil height up: `segments` or all in reach."""
         h = self.p.coil_height
         near = segments
         if near is None:

@@ -36,11 +36,7 @@ class GraphPacer:
         return self.max_lag + self.period + self.clock_step
 
     def start(self, now: float) -> None:
-        """Start the world at sim time `now`; a node not heard from yet counts as heard at `now`.
-
-        So the world waits for its first word as for any other (one starved at start-up would
-        otherwise fall behind unwaited).
-        """
+        """Start the world at `now`; a node not heard yet counts as heard then (so waited for)."""
         for node, heard in self._heard.items():
             if heard is None:
                 self._heard[node] = now
