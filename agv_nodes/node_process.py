@@ -76,11 +76,7 @@ def running() -> bool:
 
 
 def _shutting_down(wait: float = 0.5) -> bool:
-    """Return True when SIGINT is shutting the context down (rclpy's signal thread, just after).
-
-    Meanwhile rclpy 7.1 can raise from inside the executor (RCLError 'context is not valid',
-    RuntimeError from take_message) instead of ExternalShutdownException: a clean exit too.
-    """
+    """Return True when SIGINT shuts the context down (rclpy 7.1 may raise meanwhile: clean)."""
     deadline = time.monotonic() + wait
     while rclpy.ok():
         if time.monotonic() > deadline:

@@ -1,7 +1,4 @@
-"""communications: tasks in on comms/task, reports out on comms/report (std_msgs/String).
-
-Run it with `ros2 run agv_nodes communications`; the task language: agv_nodes.communications.core.
-"""
+"""communications (ros2 run agv_nodes communications): comms/task in, comms/report out."""
 
 import sys
 

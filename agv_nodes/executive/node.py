@@ -1,8 +1,4 @@
-"""executive: the Vehicle Executive (ros2 run agv_nodes executive; `agv_nodes.executive.core`).
-
-Besides its records it publishes /diagnostics once a second, with each sub-system's 32-byte display
-(thesis 8.2.2).
-"""
+"""executive (ros2 run agv_nodes executive); also /diagnostics, the 32-byte display (8.2.2)."""
 
 import sys
 from typing import Any

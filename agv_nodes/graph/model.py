@@ -1,7 +1,4 @@
-"""The graph description (config/graph.yaml): each node, its console script, module and role.
-
-Roles: `node` (a sub-system), `world`, `recorder`; `realtime` marks the sensor-to-traction chain.
-"""
+"""The graph description (config/graph.yaml): each node's script, module, role and realtime."""
 
 from dataclasses import dataclass
 from pathlib import Path

@@ -59,10 +59,7 @@ def claim_domain(explicit: int | None = None) -> tuple[int, TextIO | None]:
 
 
 class ReadyFile:
-    """The world's signal that time has started, its `ready_file`, as a threading.Event would be.
-
-    Once seen it stays set, even after the launch has removed its temporary directory.
-    """
+    """The world's `ready_file` as a threading.Event: set once seen (even after it is removed)."""
 
     def __init__(self, path: Path) -> None:
         self.path = path

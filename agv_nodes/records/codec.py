@@ -1,8 +1,4 @@
-"""The codec: every record schema of a schema directory, by name, and the installed package's.
-
-Each schema lives in its own msg_schemas/<record>.yaml (loaded and checked by loading.py); the
-codec adds what only the set can check: no two records share a data_id or a topic.
-"""
+"""The codec: a directory's schemas by name, no two sharing a data_id or topic; the package's."""
 
 from collections.abc import Iterable, Iterator, Mapping
 import functools

@@ -1,4 +1,4 @@
-"""agv-layout: check layouts before a run (agv_nodes.world.layout_check).
+"""agv-layout: check layouts before a run (agv_nodes/world/layout_check.py).
 
     agv-layout check FILE [FILE...]
 
