@@ -39,11 +39,10 @@ def comms_handshake(spin_once: Callable[[], None], send: Callable[[str], None],
 
 
 def silent_links(links: list[str], accepted: dict[str, dict[str, int]]) -> list[str]:
-    """Return the 'reader:record' links whose reader has accepted no record yet.
+    """Return the 'reader:record' links whose reader has accepted nothing yet (`accepted`).
 
     `accepted` (node -> record -> count) is from the readers' `/diagnostics` inputs rows, which
-    list only the records a node decodes (not the world's pacing readers); a node not heard from
-    yet has every link silent.
+    list only the records a node decodes; a node not heard from yet has every link silent.
     """
     silent = []
     for link in links:

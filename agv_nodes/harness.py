@@ -1,8 +1,7 @@
 """Lock-step harness: the world core and any set of node cores stepped together without DDS.
 
 Deterministic and seeded; records go through `RecordWriter` and `RecordReader` with the schemas'
-ports, as in the graph (docs/architecture.md, "The lock-step harness"). A node core is any object
-with:
+ports, as in the graph (docs/architecture.md, "The lock-step harness"). A node core has:
 
     node: str                     # its name in msg_schemas (writer / readers)
     period: float | None          # seconds between tick() calls; None = only on_record
@@ -10,8 +9,7 @@ with:
     tick(now) -> {record: fields} | None                         # its timer
 
 Records a core returns are delivered at once (breadth first) within the world sample, as the 1983
-boards' pigeon-holes were read on the next loop; timers run after the sample on the simulated
-clock.
+boards' pigeon-holes were read on the next loop; timers run after it on the simulated clock.
 """
 
 from collections import deque
@@ -219,8 +217,8 @@ def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
 
     Settings: the graph's parameter file (config/agv_demo.yaml), what the layout sets
     (`layout_parameters`), then `overrides` ({node: {name: value}}, as agv-launch's `-p
-    NODE:NAME:=VALUE`). `seed` seeds the world and the harness. Like the world node it refuses a
-    layout with a marker the sensor cannot read on the route (unless the world's `layout_check` is
+    NODE:NAME:=VALUE`). `seed` seeds world and harness. Like the world node it refuses a layout
+    with a marker the sensor cannot read on the route (unless the world's `layout_check` is
     'warn').
     """
     from agv_nodes.communications.core import CommunicationsCore

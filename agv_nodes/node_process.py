@@ -48,9 +48,8 @@ class _StopRequest:
 
     rclpy's own handlers shut the context down at once from a signal thread and raise
     KeyboardInterrupt wherever the main thread is: a publishing callback then fails with 'context
-    is invalid', logged FATAL by the EventsExecutor, on every Ctrl-C on the wall clock (hardware),
-    where timers and inputs keep running. A second signal raises KeyboardInterrupt for a node stuck
-    in a callback.
+    is invalid', logged FATAL by the EventsExecutor, on each wall-clock Ctrl-C (timers and inputs
+    keep running). A second signal raises KeyboardInterrupt for a node stuck in a callback.
     """
 
     def __init__(self) -> None:
@@ -126,9 +125,8 @@ def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
               run: Callable[[Any, Any], int] | None = None) -> int:
     """Run the rclpy main() idiom for one node: init, spin, clean shutdown, exit status.
 
-    A bad parameter file or value ends start-up with one line and status 2; SIGINT and SIGTERM end
-    the spin between two callbacks (_StopRequest). `run(node, executor)` replaces the plain spin
-    for a node with a loop of its own (the world), which checks running().
+    `run(node, executor)` replaces the plain spin for a node with a loop of its own (the world),
+    which checks running().
     """
     try:  # before rclpy reads them: its own error names neither the file nor the line
         for path in params_files(sys.argv if args is None else args):

@@ -2,8 +2,7 @@
 
 wheel_odometry carries each driven wheel's travel as a wrapping 16-bit mm counter. Counting it,
 rather than integrating the speed over a nominal loop period, is exact however the ticks fall:
-under sim time a timer fires at most once per /clock step, so ticks are skipped and speed x period
-loses distance.
+under sim time a timer fires at most once per /clock step, and skipped ticks lose distance.
 """
 
 

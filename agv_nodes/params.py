@@ -1,8 +1,7 @@
 """Node parameters: declared from settings dataclasses (agv_nodes/settings.py), checked once.
 
-Each field becomes a parameter with a descriptor (description, range, read-only for values read at
-start-up). A bad value, an unknown name or an unreadable parameter file stops start-up with one
-line naming the file(s), the node, the key and the value.
+Each field becomes a parameter with a descriptor (description, range, read-only if read at
+start-up); a bad value, unknown name or unreadable file stops start-up with one line.
 """
 
 from collections.abc import Sequence

@@ -94,8 +94,7 @@ def final_stops(events: list[dict[str, Any]], merge_s: float = 5.0) -> list[dict
     """One entry per stop from the world's `stopped` events: where the truck finally rested.
 
     An overshooting controlled stop (thesis 8.5) rests, backs up and rests again: rests at one
-    marker under `merge_s` apart, no load moved between, are one stop (`rests`, approach
-    `speed_mm_s`).
+    marker under `merge_s` apart, no load moved between, are one stop (`rests`, `speed_mm_s`).
     """
     stops: list[dict[str, Any]] = []
     merge = False  # a rest may join the previous one

@@ -22,8 +22,7 @@ from collections import deque
 class SentTimeline:
     """(source wall time, sim time) samples of the world's clock, oldest first, `keep` s of them.
 
-    A record sent before the oldest kept sample gets its sim time less the wall time between (it is
-    stale long before that matters).
+    Before the oldest: its sim time less the wall time between (stale long before that matters).
     """
 
     def __init__(self, keep: float = 5.0) -> None:

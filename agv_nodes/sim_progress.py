@@ -1,8 +1,8 @@
 """The simulation channel: how far each node has got in sim time (ROS-free constants).
 
-Each node publishes on `sim/progress/<node>` (rosgraph_msgs/Clock) the latest /clock it has fully
-handled, at most once per PERIOD of sim time; the world (agv_nodes.world.pacing) waits while a node
-lags. Never in the 16-byte records; see docs/architecture.md, "Time and pacing".
+Each node publishes on `sim/progress/<node>` (rosgraph_msgs/Clock) the latest /clock it has
+handled, at most once per PERIOD; the world (agv_nodes.world.pacing) waits while one lags. See
+docs/architecture.md, "Time and pacing".
 """
 
 PERIOD = 0.02  # s of sim time between a node's progress messages

@@ -1,6 +1,4 @@
-"""The node graph and how it is launched: one process per node, as `ros2 launch` would start it.
+"""The node graph and its launch, one process per node: model, parameters, supervisor, child, cli.
 
-`model` (config/graph.yaml), `parameters` (what the launch sets, for agv-launch and
-launch/agv_demo.launch.py), `supervisor` (the running graph), `child` (each node's wrapper), `cli`
-(agv-launch). Nothing is imported here: the launch file needs `model` and `parameters` only.
+Nothing is imported here: the launch file needs `model` and `parameters` only.
 """

@@ -1,8 +1,7 @@
 """agv-launch: start the graph one process per node, as `ros2 launch` would on a ROS install.
 
-Every node of config/graph.yaml runs as its own process (agv_nodes.graph.supervisor) with the
-parameter file plus agv_nodes.graph.parameters; SIGINT/SIGTERM shut the graph down in order. The
-world moves only once every link has matched at both ends (docs/architecture.md, "Start-up").
+Each node of config/graph.yaml with the parameter file plus agv_nodes.graph.parameters (via
+agv_nodes.graph.supervisor); SIGINT/SIGTERM stop the graph in order (docs/architecture.md).
 """
 
 import argparse

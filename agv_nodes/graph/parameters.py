@@ -1,8 +1,7 @@
 """What the launch sets for each node on top of the parameter file.
 
-The one source for agv-launch (agv_nodes.graph.supervisor) and launch/agv_demo.launch.py, so the
-two cannot drift (test/test_launch_file.py compares them): sim time, record integrity, injected
-faults, the simulation channel, the links the world waits for and the real-time priority.
+The one source for agv-launch and launch/agv_demo.launch.py (test_launch_file.py compares them):
+sim time, record integrity, faults, the simulation channel, links to wait for, priority.
 """
 
 from collections.abc import Iterable
@@ -163,10 +162,9 @@ def override_parameters(graph: Graph, spec: NodeSpec, options: Options,
 
 
 def realtime_priority(spec: NodeSpec, options: Options) -> int:
-    """Return one node's SCHED_FIFO priority: `--realtime N` for `realtime` nodes, else 0.
+    """Return a node's SCHED_FIFO priority: `--realtime N` for `realtime` nodes, else 0.
 
-    The sensor-to-traction chain and the world that feeds it, as a robot's control processes would
-    run (each 1983 sub-system had a Z-80 of its own).
+    As a robot's control processes run (each 1983 sub-system had a Z-80 of its own).
     """
     return options.realtime if spec.realtime else 0
 

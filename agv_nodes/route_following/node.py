@@ -1,8 +1,4 @@
-"""route_following: guide wire, SRMs and binary-camera guidance (`agv_nodes.route_following.core`).
-
-Run it with `ros2 run agv_nodes route_following`; besides its records it reads hw/camera/front
-(sensor_msgs/Image, mono8, tape dark).
-"""
+"""route_following (ros2 run agv_nodes route_following); hw/camera/front: mono8, dark tape."""
 
 import sys
 

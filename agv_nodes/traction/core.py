@@ -201,8 +201,7 @@ class TractionCore(SubsystemCore):
     def _field_wait(self, now: float, forward_at_start: bool) -> bool:
         """Run BEGIN/INIT's and FLIP's timed field waits; True when this pass was one.
 
-        Both controls; INIT leaves the field reversed in the listing, the closed loop starts it
-        forward.
+        INIT leaves the field reversed in the listing; the closed loop starts it forward.
         """
         if self.state == 'start':
             self.field_off, self.armature_off, self.state = False, True, 'run'

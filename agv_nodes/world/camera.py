@@ -3,8 +3,7 @@
 The window is 50 mm along travel by 250 mm across, thresholded by the optic-RAM itself (dark tape =
 1); row 0 is its leading edge, column 0 its left edge (4.2). A pixel is dark within half the tape
 width of a tape centreline; random specks (dark runs shorter than the noise filter) model dirt and
-pixel differences. The rear camera is the same window at -L_c, facing backwards (its image rotated
-180 degrees).
+pixel differences. The rear camera is the same window at -L_c, facing backwards.
 """
 
 import math

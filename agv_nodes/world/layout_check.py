@@ -194,8 +194,8 @@ class _Drive:
               start: tuple[str, float, float, float], distance: float, route_map: bool) -> None:
         """Drive the Electruk `distance` m from `start` (path, at, lateral, heading).
 
-        Its speed is held (cruise; the SRM speed from an SRM to the next landmark); the steering is
-        the route-following core's, from the pickup's coils, as the harness wires them.
+        Speed held (cruise; SRM speed from an SRM to the next landmark), steered by the
+        route-following core from the pickup's coils, as the harness wires them.
         """
         lay = self.layout
         truck = Electruk(world.electruk)

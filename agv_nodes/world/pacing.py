@@ -1,13 +1,12 @@
 """Pacing: the simulated world waits for the slowest node (ROS-free).
 
 Nine Python processes share two cores; a node starved of CPU would see the truck move on without it
-(a missed marker, a stop 30 mm late, a steering loop acting on 100 ms old wire samples). Gazebo
-calls the remedy lock-step: `GraphPacer` keeps each node's latest word on the simulation channel
+(a missed marker, a stop 30 mm late, steering on 100 ms old wire samples). Gazebo calls the remedy
+lock-step: `GraphPacer` keeps each node's latest word on the simulation channel
 (agv_nodes.sim_progress) and says which nodes lag by more than `max_lag` beyond the progress period
 and the /clock step. The world waits for them (real time only) at most `lag_patience` real seconds,
 then carries on: a node that died must not stop the world, the rest of the graph has to see the
-truck stop. A node given up is waited for again once heard from. See docs/architecture.md, "Time
-and pacing".
+truck stop. A node given up is waited for again once heard from (docs/architecture.md).
 """
 
 from dataclasses import dataclass, field
