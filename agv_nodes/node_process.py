@@ -125,8 +125,7 @@ def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
               run: Callable[[Any, Any], int] | None = None) -> int:
     """Run the rclpy main() idiom for one node: init, spin, clean shutdown, exit status.
 
-    `run(node, executor)` replaces the plain spin for a node with a loop of its own (the world),
-    which checks running().
+    `run(node, executor)` replaces the spin for a node with a loop of its own (the world).
     """
     try:  # before rclpy reads them: its own error names neither the file nor the line
         for path in params_files(sys.argv if args is None else args):

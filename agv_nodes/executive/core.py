@@ -1,8 +1,7 @@
 """The Vehicle Executive: tasks into commands for every sub-system, and the truck's health.
 
 It talks to the sub-systems only through their command and status records (thesis 3.5.3). A task
-from communications becomes an itinerary (fig 3.1, level 2) of steps, each run through the
-sub-systems' records (level 3):
+becomes an itinerary (fig 3.1, level 2) of steps, each run through the records (level 3):
 
     goto(n, edge)   navigation_command {n, edge}; cruise until navigation reports 0BH at n
     next_marker(n)  navigation_command {n, 1} (byte 2 alone changes): position to the next marker
@@ -20,9 +19,8 @@ stop (traction byte 2 = 00H) and fail the task naming cause and sub-system until
 
 A status is stale when older than `status_timeout` *and* `stale_confirm` records from the others
 have arrived since (or twice that old): after a stall a starved executive's /clock jumps ahead at
-once while its queued records are taken one per topic per turn, and the count keeps it from blaming
-a record still queued. `status_age: sent` ages each status from its send (agv_nodes.sent_time), so
-it blames nobody.
+once while its queued records are taken one per topic per turn; the count keeps it from blaming a
+record still queued. `status_age: sent` ages a status from its send (agv_nodes.sent_time).
 """
 
 from typing import Any

@@ -1,10 +1,9 @@
 """agv-diag: the maintenance display in a terminal - a live table of /diagnostics.
 
-One row per sub-system (the executive's view) and one per node's record inputs (each node's own
-`<node>/inputs` status): level, the reason, record rate, age and rejects; `--detail NAME` adds
-the 32 bytes in and out (hex and decoded) of one sub-system, the "key in the sub-system number"
-display of thesis 8.2.2. Statuses from every publisher are merged by name. `--once` prints one
-table and exits (scripts and tests).
+One row per sub-system (the executive's view) and per node's record inputs (`<node>/inputs`):
+level, reason, rate, age and rejects; `--detail NAME` adds one sub-system's 32 bytes in and out
+(hex and decoded), the "key in the sub-system number" display of thesis 8.2.2. Rows from every
+publisher are merged by name; `--once` prints one table and exits.
 """
 
 import argparse

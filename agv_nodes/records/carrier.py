@@ -4,9 +4,8 @@ Records travel as std_msgs/UInt8MultiArray with an empty layout, the clock as ro
 nodes and report take both serialized (`raw=True`): rclpy 7.1.6 spends more making a Python message
 than taking it (a 340 Hz reader took 7.7-9.1 % of a core, raw 4.3-4.9 %, bench/rclpy_bench.py
 --message record; rosbags' deserializer took 6.8 of a report's 18.6 s). Only the shapes this
-package sends (CDR little endian, every DDS's default on x86 and ARM) are read; anything else
-returns None for the caller's general deserializer, so a foreign writer's valid message is never
-refused for its form.
+package sends (CDR little endian, every DDS's default on x86 and ARM) are read; anything else is
+None, for the caller's general deserializer.
 """
 
 import struct

@@ -290,9 +290,8 @@ def compile_fast_paths(schema: RecordSchema) -> tuple[Callable, Callable]:
     checked bytes; for records whose every value is a valid int (a bool for a flag, a name for an
     enum). Anything else - a bool elsewhere, an enum code, a special value's name, a value out of
     range - returns None, and the general path (`_encode_fields`, `_decode_fields`) decides and
-    names the error, so the two differ only in speed (test_records checks they agree). The loop
-    over the plan cost ~1 us a field, on ~7 records a world sample in the harness and every record
-    a node sends and takes.
+    names the error, so the two differ only in speed (test_records checks it). The loop over the
+    plan cost ~1 us a field, on every record a node or the harness sends and takes.
     """
     env: dict[str, Any] = {}
     pack = ['def pack(values):', '    get = values.get']

@@ -4,9 +4,8 @@ Guide wire (Baker 1983, 3.5.3, 6.2.1, 7.2): the coil amplitudes give the wire's 
 the sensor point (`wire_offset`), and a PI law with a derivative term for damping steers the
 Ackermann front wheels. A signal below `lost_level` for `lost_samples` samples, or no pickup sample
 for that long, reports LOST at once (the executive stops the truck) until the truck is at rest with
-the wire present again. An SRM (mode srm, a new `manoeuvre` value) leaves the wire at the
-programmed steering angle until the signal has dropped and a wire is found again, then follows it
-(Baker 1983, 7.2 task 7).
+the wire present again. An SRM (mode srm, a new `manoeuvre`) leaves the wire at the programmed
+steering angle until the signal drops and a wire is found again, then follows it (7.2 task 7).
 
 Camera (Rajagopalan 1991, mode camera, the differential-drive CONCIC-II): each frame is analysed
 (agv_nodes.route_following.camera_guidance), the P or PI law gives the caster angle, and Eq

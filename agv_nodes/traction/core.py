@@ -26,9 +26,8 @@ command with byte 2 = 00H, then one non-zero, clears it.
 
 `closed_loop` (the default; beyond 1983: B.2's skeleton with a speed sensor): REF is a speed demand
 through the open-loop map v = (|REF| - 5) / 75 m/s (6.3.2), shaped by acceleration and jerk limits,
-and a PI loop on wheel odometry sets the duty. Navigation's controlled stop (8.5) needs it, and it
-holds the speed under load (bench/traction_bench.py: 0.200 m/s at 20 % loaded or not; open loop
-0.195 / 0.161).
+and a PI loop on wheel odometry sets the duty. Navigation's controlled stop (8.5) needs it; it
+holds 0.200 m/s at 20 % loaded or not (open loop: 0.195/0.161; bench/traction_bench.py).
 """
 
 from typing import Any

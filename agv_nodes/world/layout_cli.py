@@ -2,9 +2,8 @@
 
     agv-layout check FILE [FILE...]
 
-Exit 0: every marker is readable; 1: one line per marker that is not (stderr); 2: a file that is no
-valid layout. A FILE may be a layout's name (config/layouts/<name>.yaml). See docs/architecture.md,
-"Layout check".
+Exit 0: every marker readable; 1: one line per marker that is not (stderr); 2: a file that is no
+valid layout. FILE may be a layout's name (config/layouts/<name>.yaml); see docs/architecture.md.
 """
 
 import argparse

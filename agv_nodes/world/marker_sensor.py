@@ -238,8 +238,7 @@ def _belt_runs(params_key: tuple) -> tuple:
 
     Location-2's alternating pattern at 1 m/s, 256 samples at 340 Hz a run, 280-320 mm in 5 mm
     steps: per range and detector the mean over peaks and troughs of the x4 running sum of the
-    black part X = illum (1 - cover) and the white part Y = illum cover; any detector (A X + B Y)
-    follows by linearity.
+    black part X = illum (1 - cover) and the white part Y = illum cover (a detector: A X + B Y).
     """
     model = MarkerSensorModel.__new__(MarkerSensorModel)
     model.p = SensorParams(**dict(params_key))
@@ -270,9 +269,9 @@ def calibrate(params: SensorParams) -> tuple[tuple[float, ...], tuple[float, ...
     With threshold = trough + {0.2, 0.8} x amplitude (Baker 1983, 7.1.3), Table 7.1 gives each
     detector's worst-case mean trough and peak of the x4 running sum over 28 +- 2 cm. The model is
     linear in A = gain x black and B = gain, so the simulated threshold experiment fixes both. A is
-    kept >= 0 (a detector cannot see less than no light): where the optics cannot reach the table's
-    contrast, the black level is 0 and the simulated worst trough lies above the table's, still
-    below the black threshold.
+    kept >= 0 (no detector sees less than no light): where the optics cannot reach the table's
+    contrast, the black level is 0 and the worst trough lies above the table's, still below the
+    black threshold.
     """
     key = tuple(sorted((k, v) for k, v in vars(params).items()
                        if k not in ('gains', 'blacks', 'unit', 'noise', 'ambient',
