@@ -215,7 +215,7 @@ def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
           params_file: Path | str | None = None, integrity: str = 'e2e') -> Harness:
     """Build the world and all seven node cores in lock step, set as a launched graph's nodes are.
 
-    Settings: the graph's parameter file (config/agv_demo.yaml), what the layout sets
+    Settings: the graph's parameter file (config/agv_demo.yaml), the layout's
     (`layout_parameters`), then `overrides` ({node: {name: value}}, as agv-launch's `-p
     NODE:NAME:=VALUE`). `seed` seeds world and harness. Like the world node it refuses a layout
     with a marker the sensor cannot read on the route (unless the world's `layout_check` is

@@ -244,7 +244,12 @@ class ExecutiveCore(SubsystemCore):
             return
         arrived = nav.get('at_location') == 1 and nav.get('lost') == 1 and \
             nav.get('last_marker') == step.location
-        if step.kind == 'goto':
+        if step.kind in ('goto', 'next_marker') and self.phase in ('positioning', 'settling'):
+            if self.phase == 'settling':
+                self._settle(now)
+            elif arrived:
+                self.phase, self.phase_time = 'settling', now
+        elif step.kind == 'goto':
             if self.phase == 'release':
                 if now - self.phase_time >= 2 * self.p.period:
                     self.nav = (step.location, step.edge)
@@ -258,18 +263,9 @@ class ExecutiveCore(SubsystemCore):
                     self.positioning_distance = 0.0
                 elif arrived:
                     self.phase, self.phase_time = 'settling', now
-            elif self.phase == 'positioning' and arrived:
-                self.phase, self.phase_time = 'settling', now
-            elif self.phase == 'settling':
-                self._settle(now)
         elif step.kind == 'next_marker':
             if self.phase == 'wait_positioning' and nav.get('lost') == 0:
-                self.phase = 'positioning'
-                self.positioning_distance = 0.0
-            elif self.phase == 'positioning' and arrived:
-                self.phase, self.phase_time = 'settling', now
-            elif self.phase == 'settling':
-                self._settle(now)
+                self.phase, self.positioning_distance = 'positioning', 0.0
         elif step.kind in ('load', 'unload'):
             load = self.status.get('load') or {}
             if load.get('job') == self.load['job']:

@@ -270,8 +270,8 @@ def calibrate(params: SensorParams) -> tuple[tuple[float, ...], tuple[float, ...
     detector's worst-case mean trough and peak of the x4 running sum over 28 +- 2 cm. The model is
     linear in A = gain x black and B = gain, so the simulated threshold experiment fixes both. A is
     kept >= 0 (no detector sees less than no light): where the optics cannot reach the table's
-    contrast, the black level is 0 and the worst trough lies above the table's, still below the
-    black threshold.
+    contrast, the black level is 0 and the worst trough lies above the table's (below the black
+    threshold).
     """
     key = tuple(sorted((k, v) for k, v in vars(params).items()
                        if k not in ('gains', 'blacks', 'unit', 'noise', 'ambient',
