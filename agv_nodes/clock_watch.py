@@ -1,7 +1,5 @@
 """ClockWatch: a node's word, on the wall clock, that sim time has stopped (the world is gone)."""
 
-from __future__ import annotations
-
 import time
 from typing import Any
 

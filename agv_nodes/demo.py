@@ -1,13 +1,10 @@
 """agv-demo: the closed-loop demonstration (the README's first command).
 
-Starts the whole graph - one process per node over real DDS, sim time, the demo_1983 room -
-with the recorder, hands the demonstration programme (thesis 7.2 tasks 1-7 and the fig 3.1
-transfer) to communications on comms/task, shows the reports as they come, then stops the graph,
-writes the report (agv-report: report.json, summary.md, PNG plots) and prints a summary table.
-`--quick` runs the short variant CI uses (tasks 1 and 2).
+Starts the whole graph (one process per node over real DDS, sim time, the demo_1983 room) with the
+recorder, sends the demonstration programme (thesis 7.2 tasks 1-7 and the fig 3.1 transfer) on
+comms/task, shows the reports, stops the graph, writes the report (agv-report) and prints a summary
+table. `--quick` runs the CI variant (tasks 1 and 2).
 """
-
-from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
@@ -30,15 +27,8 @@ STATUS_REPLY = 'comms: status:'
 def comms_handshake(spin_once: Callable[[], None], send: Callable[[str], None],
                     reports: list[str], timeout: float = 60.0,
                     alive: Callable[[], bool] = lambda: True) -> None:
-    """Ask communications `status` until it answers on comms/report.
-
-    A reliable writer that has matched a reader may still lose what it sends before the reader
-    has matched it back (a volatile reader drops it): a slow start-up can lose the whole
-    programme that way. An answer proves both directions; `status` changes nothing, so asking
-    again while waiting is harmless (docs/tasks.md).
-    """
-    deadline = time.monotonic() + timeout
-    asked = 0.0
+    """Ask communications `status` until it answers on comms/report (why: docs/tasks.md)."""
+    deadline, asked = time.monotonic() + timeout, 0.0
     while not any(line.startswith(STATUS_REPLY) for line in reports):
         if not alive() or time.monotonic() > deadline:
             raise RuntimeError('communications did not answer a status query on comms/task')
@@ -49,11 +39,10 @@ def comms_handshake(spin_once: Callable[[], None], send: Callable[[str], None],
 
 
 def silent_links(links: list[str], accepted: dict[str, dict[str, int]]) -> list[str]:
-    """Return the 'reader:record' links of `links` whose reader has accepted no record yet.
+    """Return the 'reader:record' links whose reader has accepted nothing yet (`accepted`).
 
-    They come from the readers' `/diagnostics` inputs rows (`accepted`: node -> record ->
-    count). A node's row lists only the records it decodes (the world's pacing readers are not
-    in it), and a node not heard from yet has every link silent.
+    `accepted` (node -> record -> count) is from the readers' `/diagnostics` inputs rows, which
+    list only the records a node decodes; a node not heard from yet has every link silent.
     """
     silent = []
     for link in links:
@@ -107,9 +96,8 @@ def run(args: argparse.Namespace) -> int:
           f'ROS_DOMAIN_ID={launch.domain}, time_factor {args.time_factor:g}; output in {out}')
     rclpy.init()
     node = rclpy.create_node('demo')
-    # One executor for the whole run, not rclpy.spin_once(node), which adds the node to the
-    # global executor and takes it out again on every call: at the /clock rate (116 Hz) this
-    # process took 14.5 % of a core from the graph it watches (6.2 % with one executor).
+    # One executor for the run, not rclpy.spin_once(node), which adds the node to the global
+    # executor and takes it out on every call: 14.5 % of a core at 116 Hz, against 6.2 %.
     executor = make_executor('events')
     executor.add_node(node)
     state = {'sim': 0.0, 'results': {}, 'reports': [], 'lines': []}
@@ -118,8 +106,7 @@ def run(args: argparse.Namespace) -> int:
         state['sim'] = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
 
     def on_report(msg: String) -> None:
-        line = msg.data
-        state['reports'].append((state['sim'], line))
+        state['reports'].append((state['sim'], line := msg.data))
         state['lines'].append(line)
         if line.startswith(STATUS_REPLY):
             return
@@ -146,8 +133,7 @@ def run(args: argparse.Namespace) -> int:
         while not launch.moving.is_set() or task_pub.get_subscription_count() == 0:
             executor.spin_once(timeout_sec=0.1)
             if launch.poll() or time.monotonic() > deadline:
-                raise RuntimeError('the graph did not come up (see the logs in '
-                                   f'{out / "logs"})')
+                raise RuntimeError(f'the graph did not come up (see the logs in {out / "logs"})')
         comms_handshake(lambda: executor.spin_once(timeout_sec=0.05),
                         lambda text: task_pub.publish(String(data=text)), state['lines'],
                         alive=lambda: not launch.poll())
@@ -173,18 +159,15 @@ def run(args: argparse.Namespace) -> int:
                 raise RuntimeError(f'node(s) died: {", ".join(launch.failed)}')
             if state['sim'] - sim0 > limit:
                 raise RuntimeError(f'programme not finished after {limit:.0f} simulated s')
-        sim_elapsed = state['sim'] - sim0
-        wall_elapsed = time.monotonic() - moving_wall
-        # A second for the recorder to take what was sent last (the final report): without it
-        # the graph can stop before the recorder has taken it, and the bag lacks it.
+        sim_elapsed, wall_elapsed = state['sim'] - sim0, time.monotonic() - moving_wall
+        # A second for the recorder to take what was sent last (the final report), or the bag
+        # may lack it.
         settle = time.monotonic() + 1.0
         while time.monotonic() < settle:
             executor.spin_once(timeout_sec=0.1)
     except (RuntimeError, KeyboardInterrupt) as exc:
         print(f'agv-demo: {exc}', file=sys.stderr)
-        code = 1
-        sim_elapsed = state['sim']
-        wall_elapsed = time.monotonic() - wall0
+        code, sim_elapsed, wall_elapsed = 1, state['sim'], time.monotonic() - wall0
     finally:
         executor.remove_node(node)
         node.destroy_node()
@@ -221,8 +204,7 @@ def print_summary(summary: dict, report: dict | None, out: Path) -> None:
               '|---|---|---|---|')
         for i, s in enumerate(report['stops'], 1):
             print(f'| {i} | {s["marker"]} | {s["error_mm"]:+d} | {s["speed_mm_s"]} |')
-        faults = report['faults'] or ['none']
-        print(f'\nfaults: {"; ".join(faults)}')
+        print(f'\nfaults: {"; ".join(report["faults"] or ["none"])}')
     print(f'\nsimulated {summary["sim_seconds"]:.1f} s in {summary["wall_seconds"]:.1f} s wall '
           f'= real-time factor {summary["real_time_factor"]:.2f} '
           f'({summary["processes"]} processes)')
@@ -235,10 +217,9 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of agv-demo."""
     ap = argparse.ArgumentParser(prog='agv-demo', description=__doc__.splitlines()[0])
     ap.add_argument('--quick', action='store_true', help='tasks 1-2 only (the CI variant)')
-    # 0 = as fast as the machine holds. Safe because the world paces itself on the slowest
-    # node (world/pacing.py): unpaced, a fixed 1.25x saturates the 2-core reference machine,
-    # the position sensor falls behind the 340 Hz stream and markers are seen late (stops at
-    # +54/+70 mm) or missed. Paced, the programme runs at ~1.2x with stops as in lock step.
+    # 0 is safe because the world paces itself on the slowest node (world/pacing.py): unpaced,
+    # a fixed 1.25x saturates the 2-core reference machine and markers are seen late (stops at
+    # +54/+70 mm) or missed; paced, the programme runs at ~1.2x with stops as in lock step.
     ap.add_argument('--time-factor', type=float, default=0.0,
                     help='simulated seconds per real second the world aims for (default 0: as '
                     'fast as the slowest node keeps up)')

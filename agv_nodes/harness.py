@@ -1,24 +1,16 @@
 """Lock-step harness: the world core and any set of node cores stepped together without DDS.
 
-Deterministic and seeded, as fast as the CPU allows. Every record goes through the same path as
-in the ROS graph: the writer's `RecordWriter` packs the core's fields into 16 bytes (E2E counter
-and CRC included) and each reader's `RecordReader` validates them before the reading core sees
-them. Which core reads and writes which record comes from the schemas' writer/readers (the same
-port declarations the nodes use), so the harness and the nodes cannot drift apart.
-
-A node core is any object with:
+Deterministic and seeded; records go through `RecordWriter` and `RecordReader` with the schemas'
+ports, as in the graph (docs/architecture.md, "The lock-step harness"). A node core has:
 
     node: str                     # its name in msg_schemas (writer / readers)
     period: float | None          # seconds between tick() calls; None = only on_record
     on_record(record, fields, now) -> {record: fields} | None   # an accepted input
     tick(now) -> {record: fields} | None                         # its timer
 
-Records a core returns are delivered at once (breadth first) within the same world sample, the
-way the 1983 boards' pigeon-holes were read on the next loop; timer ticks run after the world's
-sample at their own rate on the simulated clock.
+Records a core returns are delivered at once (breadth first) within the world sample, as the 1983
+boards' pigeon-holes were read on the next loop; timers run after it on the simulated clock.
 """
-
-from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping
@@ -87,13 +79,10 @@ class Harness:
     def add(self, core: NodeCore) -> None:
         """Plug a node core in (its ports come from the schemas)."""
         reads, writes = self.codec.for_node(core.node)
-        member = _Member(core)
-        for s in reads:
-            member.readers[s.name] = RecordReader(s, self.integrity if s.protected else 'none')
-        for s in writes:
-            member.writers[s.name] = RecordWriter(s, self.integrity if s.protected else 'none')
-        member.next_tick = self.world.time
-        self.members.append(member)
+        mode = {s.name: self.integrity if s.protected else 'none' for s in (*reads, *writes)}
+        self.members.append(_Member(core, {s.name: RecordReader(s, mode[s.name]) for s in reads},
+                                    {s.name: RecordWriter(s, mode[s.name]) for s in writes},
+                                    self.world.time))
         self._routes.clear()
 
     @property
@@ -118,10 +107,8 @@ class Harness:
         for tap in self.taps:
             tap(record, raw, now)
         now_ns = round(now * 1e9)
-        world_reader = self.world_readers.get(record)
-        if world_reader is not None:
-            fields = world_reader.accept(raw, now_ns)
-            if fields is not None:
+        if (world_reader := self.world_readers.get(record)) is not None:
+            if (fields := world_reader.accept(raw, now_ns)) is not None:
                 self.world.on_record(record, fields, now)
         routes = self._routes.get(record)
         if routes is None:
@@ -179,21 +166,17 @@ class Harness:
                 self._deliver(record, raw)
         for record, fields in out['records'].items():
             self._send('world', record, self.world_writers[record].pack(fields))
-        for event in out['events']:
-            self.events.append(event)
+        self.events.extend(out['events'])
         if out['frames']:
             self.frames = out['frames']
-            front = out['frames'].get('front')
-            if front is not None:  # hw/camera/front (sensor_msgs/Image in the graph)
+            # hw/camera/front (sensor_msgs/Image in the graph)
+            if (front := out['frames'].get('front')) is not None:
                 for m in self.members:
                     if hasattr(m.core, 'on_frame'):
                         self._publish(m, m.core.on_frame(front, now))
         for m in self.members:
-            period = m.core.period
-            if period is None:
-                continue
-            while m.next_tick <= now + 1e-12:
-                m.next_tick += period
+            while m.core.period is not None and m.next_tick <= now + 1e-12:
+                m.next_tick += m.core.period
                 self._publish(m, m.core.tick(now))
         return out
 
@@ -230,13 +213,13 @@ DEMO_PROGRAMME = (  # thesis 7.2 tasks 1-7 and fig 3.1 on demo_1983, in an order
 def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
           overrides: Mapping[str, Mapping[str, Any]] | None = None,
           params_file: Path | str | None = None, integrity: str = 'e2e') -> Harness:
-    """Build the world and all seven node cores in lock step.
+    """Build the world and all seven node cores in lock step, set as a launched graph's nodes are.
 
-    Each core has the settings a launched node of the graph gets: the graph's parameter file
-    (config/agv_demo.yaml), what the layout sets (`layout_parameters`), then `overrides`
-    ({node: {name: value}}, as agv-launch's `-p NODE:NAME:=VALUE`). `seed` seeds the world and
-    the harness. As the world node does, it refuses a layout with a marker its sensor cannot
-    read as the truck drives the route (unless the world's `layout_check` is 'warn').
+    Settings: the graph's parameter file (config/agv_demo.yaml), the layout's
+    (`layout_parameters`), then `overrides` ({node: {name: value}}, as agv-launch's `-p
+    NODE:NAME:=VALUE`). `seed` seeds world and harness. Like the world node it refuses a layout
+    with a marker the sensor cannot read on the route (unless the world's `layout_check` is
+    'warn').
     """
     from agv_nodes.communications.core import CommunicationsCore
     from agv_nodes.executive.core import ExecutiveCore
@@ -258,8 +241,7 @@ def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
     def settings(node: str, cls: type, also: type | None = None, **fixed: Any) -> Any:
         values = {**from_layout.get(node, {}), **fixed, **given.get(node, {})}
         known = frozenset(p.name for p in parameters(also)) if also else frozenset()
-        unknown = set(values) - {p.name for p in parameters(cls)} - known
-        if unknown:
+        if unknown := set(values) - {p.name for p in parameters(cls)} - known:
             raise ValueError(f'truck: node {node}: unknown parameter {sorted(unknown)[0]!r}')
         ours = {name: value for name, value in values.items() if name not in known}
         return settings_from_file(cls, params_file, node, ours, also_known=known)
@@ -280,10 +262,7 @@ _CHECKED: dict[tuple[str, str, str], list[str]] = {}  # each layout's check, by 
 
 
 def _check(layout: Any, world_params: Any) -> None:
-    """Refuse a layout with an unreadable marker, as the world node does.
-
-    Once per process for each layout and truck: the drives take a second or two.
-    """
+    """Refuse a layout with an unreadable marker (the drives, a second or two, once per layout)."""
     p = world_params
     key = (str(layout.file), layout.file.read_text(), repr((
         p.electruk, p.pickup, p.sample_rate, p.substeps, p.guide_wire_rate, p.odometry_rate)))

@@ -1,13 +1,10 @@
 """The marker facts of Baker (1983): patterns, templates and the detector threshold tables.
 
-Shared by the world (which draws the cards and calibrates its photodiode model) and the
-position sensor (which thresholds and matches). Everything is in CODE space (Baker 1983,
-5.3.5.2): the high nibble is image row R1, the low nibble row R2, and bit 3 of a nibble is
-column C1, the column that sees a feature first during forward travel; detector d = 1..8 (ADC
-address d-1) is row R1 column C_d for d <= 4 and row R2 column C_(d-4) otherwise.
+Shared by the world (cards, photodiode calibration) and the position sensor (thresholds, matching).
+All in CODE space (5.3.5.2): the high nibble is image row R1, the low nibble R2, and bit 3 of a
+nibble column C1, the one that sees a feature first in forward travel; detector d = 1..8 (ADC
+address d-1) is row R1 column C_d for d <= 4, else row R2 column C_(d-4).
 """
-
-from __future__ import annotations
 
 # The adc_snapshot record's fields for detectors 1..8, lit (IREDs on) and dark (off).
 LIT_FIELDS = tuple(f'lit_{d}' for d in range(1, 9))
@@ -15,12 +12,8 @@ DARK_FIELDS = tuple(f'dark_{d}' for d in range(1, 9))
 SNAPSHOT_FIELDS = LIT_FIELDS + DARK_FIELDS
 
 # Location markers (Baker 1983, 4.3, fig 4.6; templates of UCTAB): rows R1/R2, columns C1..C4.
-LOCATION_PATTERNS: dict[int, tuple[str, str]] = {
-    0: ('BWWW', 'WBBB'),  # 78H
-    1: ('BBWW', 'WWBB'),  # 3CH
-    2: ('BWBW', 'WBWB'),  # 5AH
-    3: ('BBBW', 'WWWB'),  # 1EH
-}
+LOCATION_PATTERNS: dict[int, tuple[str, str]] = {  # CODE 78H, 3CH, 5AH, 1EH
+    0: ('BWWW', 'WBBB'), 1: ('BBWW', 'WWBB'), 2: ('BWBW', 'WBWB'), 3: ('BBBW', 'WWWB')}
 # The 200 x 80 mm stop strip S1..S10 reconstructed from the EDGE table (Baker 1983, 4.3,
 # fig 4.4): view k is columns S(8-k)..S(11-k); the centre view 4 is S4..S7.
 STOP_STRIP: tuple[str, str] = ('BBBWBWBBBB', 'BBBBBWWBBB')
@@ -65,12 +58,12 @@ def stop_view_columns(view: int) -> int:
     return 7 - view
 
 
-def trough_and_peak(unit: str, fraction: tuple[float, float] = (0.2, 0.8)) -> list[tuple[float,
-                                                                                       float]]:
-    """Per detector (trough, peak) in x4 units implied by threshold = trough + p * amplitude.
+def trough_and_peak(unit: str, fraction: tuple[float, float] = (0.2, 0.8)
+                    ) -> list[tuple[float, float]]:
+    """Per detector (trough, peak) in x4 units, threshold = trough + p * amplitude (7.1.3).
 
-    The thesis set WHITE at 80 % and BLACK at 20 % of the worst-case amplitude (7.1.3); reading
-    the percentages from the trough fits Table 7.1 (Baker 1983, 7.1.3, Table 7.1).
+    The thesis set WHITE at 80 % and BLACK at 20 % of the worst-case amplitude; reading the
+    percentages from the trough fits Table 7.1.
     """
     lo, hi = fraction
     out = []

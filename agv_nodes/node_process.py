@@ -1,14 +1,8 @@
 """The life of one node process: rclpy's main() idiom, clean stops, a bounded teardown.
 
-`spin_main` is what every console script's main() calls: init, make the node, spin on the
-executor the node asks for (never MultiThreadedExecutor), and end with the right exit status.
-A bad parameter file or value ends start-up with one line and status 2; SIGINT and SIGTERM end
-the spin between two callbacks; the DDS teardown is bounded (`_teardown`). Every node process
-dies with the process that started it (`die_with_parent`): a launcher killed without a goodbye
-(agv-launch, ros2 launch, ros2 run) leaves no truck node running on its ROS domain.
+Every console script's main() calls `spin_main`. Every node process dies with the process that
+started it (`die_with_parent`).
 """
-
-from __future__ import annotations
 
 from collections.abc import Callable
 import ctypes
@@ -31,15 +25,13 @@ from agv_nodes.settings import ParameterFileError, read_parameter_file
 
 
 def make_executor(kind: str = 'single') -> Any:
-    """Return the executor for one node process.
+    """Return the executor for one node process (docs/architecture.md, "Time and pacing").
 
     Never MultiThreadedExecutor: it drops messages at these rates. `events` is rclpy's
-    EventsExecutor (rclpy.experimental in Jazzy): measured on the demo graph it halves each node's
-    CPU (bench/graph_bench.py), which is what lets the full programme run faster than real time on
-    two cores. It also takes every input in the order it arrived, /clock included, so a record is
-    handled at the sim time it came in even when the process falls behind (the
-    SingleThreadedExecutor takes one sample per ready topic per turn, and its keep-last-1 clock
-    runs ahead of the records still queued). Two limits of the PyPI rclpy 7.1.6 shape the nodes:
+    EventsExecutor (rclpy.experimental in Jazzy): it halves each node's CPU (bench/graph_bench.py),
+    which lets the full programme outrun real time on two cores, and takes every input in arrival
+    order, /clock included (the SingleThreadedExecutor takes one sample per ready topic per turn,
+    its keep-last-1 clock running ahead of the records queued). Limits of the PyPI rclpy 7.1.6:
     (msg, info) callbacks raise SystemError (so only a SingleThreadedExecutor reader asks for
     source timestamps) and spin() misses the shutdown (spin_main loops on spin_once).
     """
@@ -56,14 +48,10 @@ def make_executor(kind: str = 'single') -> Any:
 class _StopRequest:
     """SIGINT / SIGTERM as a request the spin loop takes between callbacks.
 
-    rclpy's own handlers shut the context down from a signal thread at once and raise
-    KeyboardInterrupt wherever the main thread is: a callback that is publishing then fails
-    with 'context is invalid' and the EventsExecutor logs it FATAL. Under sim time the nodes
-    sit idle once the world has stopped, but on the wall clock (the hardware configuration)
-    their timers and inputs keep running and every Ctrl-C printed those errors. So the node
-    processes install these handlers instead (rclpy.init without its own) and the loop ends
-    after the callback in hand; a second signal raises KeyboardInterrupt for a node stuck in
-    one.
+    rclpy's own handlers shut the context down at once from a signal thread and raise
+    KeyboardInterrupt wherever the main thread is: a publishing callback then fails with 'context
+    is invalid', logged FATAL by the EventsExecutor, on each wall-clock Ctrl-C (timers and inputs
+    keep running). A second signal raises KeyboardInterrupt for a node stuck in a callback.
     """
 
     def __init__(self) -> None:
@@ -84,21 +72,12 @@ _stop = _StopRequest()
 
 
 def running() -> bool:
-    """Return True while the node process should keep spinning.
-
-    That is while the context is up and no SIGINT or SIGTERM has come (spin_main's handlers).
-    """
+    """Return True while the context is up and no SIGINT or SIGTERM has come."""
     return not _stop.requested and rclpy.ok()
 
 
 def _shutting_down(wait: float = 0.5) -> bool:
-    """Return True when SIGINT is shutting the context down.
-
-    rclpy's signal thread does it a moment after the signal. Meanwhile rclpy 7.1 can raise from
-    inside the executor - RCLError 'context is not valid' between two waits, RuntimeError from
-    take_message - instead of ExternalShutdownException; both are a clean exit, any other error is
-    not.
-    """
+    """Return True when SIGINT shuts the context down (rclpy 7.1 may raise meanwhile: clean)."""
     deadline = time.monotonic() + wait
     while rclpy.ok():
         if time.monotonic() > deadline:
@@ -111,16 +90,13 @@ TEARDOWN_LIMIT = 2.0  # s: a node's DDS teardown normally takes well under 0.5 s
 
 
 def _teardown(node: Node | None, spinner: Any, code: int, limit: float = TEARDOWN_LIMIT) -> None:
-    """Let go of the node, the DDS part bounded by `limit`.
+    """Let go of the node: `finish()`, then executor, entities and context, bounded by `limit`.
 
-    First the node's own last words (`finish()`: the recorder closes its bag), then the
-    executor, the node's entities and the context, the last three bounded by `limit`. The
-    executor goes first: destroying entities while the EventsExecutor still takes their DDS
-    callbacks can hang the shutdown. Even so a wall-clock shutdown can leave a node in Fast
-    DDS's entity deletion (seen in `delete_datareader`, py-spy), deaf to SIGINT and SIGTERM
-    until the launcher's SIGKILL: a Fast DDS entity-deletion deadlock. Everything the node owes
-    is done by then, so past `limit` it says so, with every thread's stack, and exits with its
-    status rather than wait for a SIGKILL.
+    The executor goes first: destroying entities while the EventsExecutor still takes their DDS
+    callbacks can hang. Even so a wall-clock shutdown can deadlock in Fast DDS's entity deletion
+    (`delete_datareader`, py-spy), deaf to SIGINT and SIGTERM; everything the node owes is done by
+    then, so past `limit` it says so, with every thread's stack, and exits with its status rather
+    than wait for the launcher's SIGKILL.
     """
     if node is not None and hasattr(node, 'finish'):
         node.finish()
@@ -170,10 +146,7 @@ def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
               run: Callable[[Any, Any], int] | None = None) -> int:
     """Run the rclpy main() idiom for one node: init, spin, clean shutdown, exit status.
 
-    A ParameterError (bad value or parameter file) ends start-up with its one-line message
-    and exit status 2; SIGINT and SIGTERM end the spin cleanly, between two callbacks
-    (_StopRequest), and the teardown is bounded (_teardown). `run(node, executor)` replaces
-    the plain spin for a node with a loop of its own (the world), which checks running().
+    `run(node, executor)` replaces the spin for a node with a loop of its own (the world).
     """
     die_with_parent()
     try:  # before rclpy reads them: its own error names neither the file nor the line
@@ -191,10 +164,8 @@ def spin_main(make_node: Callable[[], Node], args: list[str] | None = None,
         spinner = executor() if executor is not None else \
             make_executor(getattr(node, 'executor_kind', 'single'))
         spinner.add_node(node)
-        # Start-up objects (rclpy, the codec, the node: ~34,000) out of the collector's reach.
-        # A full collection over them took 14 ms (measured, navigation), a pause that lands on
-        # whatever record is in flight: the worst sensor-to-traction times were of that size.
-        # Frozen, a full collection scans only what the run itself keeps (~0 ms).
+        # Start-up objects (~34,000) out of the collector's reach: a full collection over them
+        # took 14 ms, the size of the worst sensor-to-traction times; frozen, ~0 ms.
         gc.collect()
         gc.freeze()
         if run is not None:

@@ -1,12 +1,9 @@
 """The wheel encoders' distance, as traction and navigation both count it.
 
-wheel_odometry carries each driven wheel's travel as a wrapping 16-bit mm counter (signed
-travel, modulo 65536). Counting the counters, rather than integrating the speed over a nominal
-loop period, is exact however the loop's ticks fall: under sim time over DDS a timer fires at
-most once per /clock step, so ticks are skipped and speed x period loses distance.
+wheel_odometry carries each driven wheel's travel as a wrapping 16-bit mm counter. Counting it,
+rather than integrating the speed over a nominal loop period, is exact however the ticks fall:
+under sim time a timer fires at most once per /clock step, and skipped ticks lose distance.
 """
-
-from __future__ import annotations
 
 
 def counter_step(before: int, after: int) -> int:

@@ -1,17 +1,18 @@
-"""Where the package's shared files (msg_schemas/, config/, launch/) live.
+"""Where the package's shared files (msg_schemas/, config/, launch/) live, and reading them.
 
-Three installs must work: a colcon workspace or a ROS install (found through ament_index, i.e.
-`share/agv_nodes` under an AMENT_PREFIX_PATH entry), a source checkout or `pip install -e`
-(the files sit next to the `agv_nodes` package), and a plain `pip install` (setup.py's
-data_files land in `<prefix>/share/agv_nodes`).
+Three installs must work: a colcon workspace or ROS install (ament_index: `share/agv_nodes` under
+AMENT_PREFIX_PATH), a source checkout or `pip install -e` (next to the package), and a plain `pip
+install` (setup.py's data_files in `<prefix>/share/agv_nodes`).
 """
 
-from __future__ import annotations
-
+from collections.abc import Collection
 import functools
 import os
 from pathlib import Path
 import sys
+from typing import Any
+
+import yaml
 
 PACKAGE = 'agv_nodes'
 _MARKER = 'msg_schemas'
@@ -20,13 +21,11 @@ _MARKER = 'msg_schemas'
 @functools.cache
 def share_dir() -> Path:
     """Return the directory holding msg_schemas/, config/ and launch/ for this install."""
-    override = os.environ.get('AGV_NODES_SHARE')
-    if override:
+    if override := os.environ.get('AGV_NODES_SHARE'):
         return Path(override)
-    candidates: list[Path] = []
     # A source checkout / editable install first: the files next to this very module belong to
     # the code that is running, whatever else is on AMENT_PREFIX_PATH.
-    candidates.append(Path(__file__).resolve().parent.parent)
+    candidates = [Path(__file__).resolve().parent.parent]
     try:
         from ament_index_python.packages import get_package_share_directory
 
@@ -49,3 +48,18 @@ def schema_dir() -> Path:
 def config_dir() -> Path:
     """Directory of the ROS-format parameter files and world layouts."""
     return share_dir() / 'config'
+
+
+def read_mapping(path: Path, error: type[Exception],
+                 keys: Collection[str] | None = None) -> dict[str, Any]:
+    """Read a YAML file's top-level mapping; `error` names the file and any key not in `keys`."""
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        reason = ' '.join(str(exc).split())  # one line, whatever the YAML parser printed
+        raise error(f'{path}: cannot read: {reason}') from None
+    if not isinstance(doc, dict):
+        raise error(f'{path}: expected a mapping at the top level')
+    if extra := set(doc) - set(keys) if keys is not None else set():
+        raise error(f'{path}: unknown key {sorted(extra)[0]!r}')
+    return doc

@@ -1,23 +1,14 @@
 """Node parameters: declared from settings dataclasses (agv_nodes/settings.py), checked once.
 
-Each field becomes a parameter with a descriptor (description, range, read-only for values
-read at start-up). A bad value, a name the node has no parameter for (in a parameter file
-section that names the node, or given with -p) or an unreadable parameter file stops start-up
-with one line naming the file(s), the node, the key and the value.
+Each field becomes a parameter with a descriptor (description, range, read-only if read at
+start-up); a bad value, unknown name or unreadable file stops start-up with one line.
 """
-
-from __future__ import annotations
 
 from collections.abc import Sequence
 import sys
 from typing import Any
 
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    ParameterType,
-)
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 from rclpy.exceptions import (
     InvalidParameterTypeException,
     InvalidParameterValueException,
@@ -43,8 +34,7 @@ class ParameterError(ValueError):
 
 
 _ARRAYS = {bool: ParameterType.PARAMETER_BOOL_ARRAY, int: ParameterType.PARAMETER_INTEGER_ARRAY,
-           float: ParameterType.PARAMETER_DOUBLE_ARRAY,
-           str: ParameterType.PARAMETER_STRING_ARRAY}
+           float: ParameterType.PARAMETER_DOUBLE_ARRAY, str: ParameterType.PARAMETER_STRING_ARRAY}
 _SCALARS = {bool: ParameterType.PARAMETER_BOOL, int: ParameterType.PARAMETER_INTEGER,
             float: ParameterType.PARAMETER_DOUBLE, str: ParameterType.PARAMETER_STRING}
 
@@ -57,8 +47,7 @@ def params_files(argv: Sequence[str] | None = None) -> list[str]:
 
 def descriptor(p: Parameter) -> ParameterDescriptor:
     """Return the ROS parameter descriptor of one setting."""
-    desc = ParameterDescriptor(name=p.name, description=p.spec.text(),
-                               read_only=p.spec.read_only)
+    desc = ParameterDescriptor(name=p.name, description=p.spec.text(), read_only=p.spec.read_only)
     if p.kind is tuple and not p.default:
         # rclpy types an empty list as a byte array and then refuses any other list: an empty
         # default takes its type from what it is given (build() checks it)
@@ -82,12 +71,8 @@ def descriptor(p: Parameter) -> ParameterDescriptor:
 
 
 def parameter_error(node: Node, name: str, value: Any, reason: str) -> ParameterError:
-    """Return the one-line error that stops a node's start-up.
-
-    It names the node, parameter, value, reason and the parameter files it was given.
-    """
-    return ParameterError(f'{node.get_name()}: parameter {name!r} = {value!r}: {reason}'
-                          f'{_where()}')
+    """Return the one-line start-up error: node, parameter, value, reason and parameter files."""
+    return ParameterError(f'{node.get_name()}: parameter {name!r} = {value!r}: {reason}{_where()}')
 
 
 def _where() -> str:
@@ -99,10 +84,9 @@ def declare(node: Node, cls: type) -> Any:
     """Declare every setting of `cls` on `node` and build it from the values given."""
     values: dict[str, Any] = {}
     for p in parameters(cls):
-        desc = descriptor(p)
         default: Any = list(p.default) if p.kind is tuple else p.default
         try:
-            value = node.declare_parameter(p.name, default, desc).value
+            value = node.declare_parameter(p.name, default, descriptor(p)).value
         except (InvalidParameterTypeException, InvalidParameterValueException,
                 ParameterUninitializedException) as exc:
             given = parameter_overrides(node).get(p.name, '?')
@@ -121,11 +105,7 @@ def declare(node: Node, cls: type) -> Any:
 
 
 def refuse_unknown(node: Node) -> None:
-    """Stop start-up on a parameter the node does not have.
-
-    That is one in a parameter file section that names this node, or given on the command
-    line (-p); an unreadable file stops it too.
-    """
+    """Stop start-up on a bad file or an unknown parameter (in this node's file section, or -p)."""
     declared = set(node.get_parameters_by_prefix(''))
     shared: set[str] = set()
     for path in params_files():

@@ -1,31 +1,16 @@
-"""The one place for QoS profiles.
+"""The one place for QoS profiles (the rule and the table: docs/architecture.md, "QoS").
 
-A record topic is a pigeon-hole (Baker 1983, 8.2.2): the writer offers reliable + transient-
-local keep-last 1 and republishes at a steady rate, so a late joiner gets the current record at
-once and a silent writer is noticed by age. Readers ask for the weakest QoS that does the job
-(reliable + volatile for records; best-effort for the 340 Hz ADC stream and camera frames), because
-a best-effort writer never matches a reliable reader and a volatile writer never matches a
-transient-local reader. Record readers keep 50 records so that every record is seen and judged even
-when a foreign writer floods the topic while the node is busy (the fuzz test counts every
-rejection; with 10 a few were dropped unseen). Stream readers keep 0.3 s of the 340 Hz ADC stream
-(100 samples): a Python node on a loaded two-core machine can stall for tens of milliseconds, and a
-best-effort reader with a 10-deep queue (29 ms) then drops samples, breaking the run-length
-patterns a marker passage is recognised by (a location marker was missed this way in a full-
-programme run on a saturated machine); the 1983 sensor never lost a sample, so neither should we.
-Stream writers keep 100 samples too: to a reliable reader (the recorder, a node's FIFO /clock)
-a sample is lost only when it has left the writer's history before the reader acknowledged it,
-and with 10 that was 11 ms of wall time with the graph at 2.7x real time (the quick demo's bag
-held 323 of 340 snapshots per second on a loaded machine).
+Record readers keep 50 so that every record is seen and judged even when a foreign writer floods
+the topic while the node is busy (with 10 the fuzz test saw a few dropped unseen). Stream readers
+keep 100 (0.3 s of the 340 Hz ADC): a Python node on a loaded two-core machine stalls for tens of
+ms, and a 10-deep best-effort queue (29 ms) then drops samples, breaking the run-length patterns a
+marker passage is recognised by (a location marker was missed so); the 1983 sensor never lost a
+sample. Stream writers keep 100 too: a reliable reader (the recorder, a FIFO /clock) loses a sample
+that leaves the writer's history before it acknowledged it, and with 10 the quick demo's bag held
+323 of 340 snapshots a second on a loaded machine.
 """
 
-from __future__ import annotations
-
-from rclpy.qos import (
-    DurabilityPolicy,
-    HistoryPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
-)
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from agv_nodes.records.schema import RecordSchema
 

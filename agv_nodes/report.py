@@ -1,13 +1,10 @@
 """agv-report BAG: what happened in a recorded run, in numbers and pictures.
 
-Reads the bag with rosbags, decodes every 16-byte record through the codec, and writes into the
-output directory: report.json (every decoded record count, stops, markers, faults, tasks),
-summary.md, and PNG plots - speed against time with the marker events (thesis fig 6.12), the
-path against the route (plan view), the stop errors per stop (fig 7.15 style), a timeline of
-records per sub-system, and the faults.
+Decodes every 16-byte record of the bag (rosbags, the codec) and writes report.json (record counts,
+stops, markers, faults, tasks), summary.md and PNG plots: speed against time with the marker events
+(thesis fig 6.12), the path against the route, the stop errors (fig 7.15 style), records per
+sub-system over time, and the faults.
 """
-
-from __future__ import annotations
 
 import argparse
 from collections import Counter, defaultdict
@@ -96,13 +93,11 @@ def record_integrity(raw: bytes) -> str:
 def final_stops(events: list[dict[str, Any]], merge_s: float = 5.0) -> list[dict[str, Any]]:
     """One entry per stop from the world's `stopped` events: where the truck finally rested.
 
-    A controlled stop (thesis 8.5) that overshoots comes to rest, backs up and rests again
-    on the centre: rests at the same marker less than `merge_s` apart, with no load moved
-    between, are one stop. `speed_mm_s` is the speed of the approach, `rests` how many rests
-    it took.
+    An overshooting controlled stop (thesis 8.5) rests, backs up and rests again: rests at one
+    marker under `merge_s` apart, no load moved between, are one stop (`rests`, `speed_mm_s`).
     """
     stops: list[dict[str, Any]] = []
-    merge = False
+    merge = False  # a rest may join the previous one
     for e in events:
         if e['event'] == 'load_moved':
             merge = False
@@ -190,11 +185,8 @@ def plots(data: dict[str, Any], result: dict[str, Any], out: Path) -> list[str]:
         ax.text(m['time'] - t0, 1.05, m['marker'], fontsize=6, rotation=90, va='bottom')
     for s in result['stops']:
         ax.plot(s['time'] - t0, 0, 'kv', ms=5)
-    ax.set_xlabel('time (s)')
-    ax.set_ylabel('speed (m/s)')
-    ax.set_ylim(-0.05, 1.2)
-    ax.set_title('Speed with marker passages (green: location, red: stop) and stops (thesis '
-                 'fig 6.12)')
+    ax.set(xlabel='time (s)', ylabel='speed (m/s)', ylim=(-0.05, 1.2), title='Speed with marker '
+           'passages (green: location, red: stop) and stops (thesis fig 6.12)')
     ax.legend(loc='upper right')
     save(fig, 'speed.png')
 
@@ -204,23 +196,20 @@ def plots(data: dict[str, Any], result: dict[str, Any], out: Path) -> list[str]:
     if data['pose']:
         ax.plot([p[1] for p in data['pose']], [p[2] for p in data['pose']], lw=0.7,
                 color='tab:blue', label='truck (rear axle)')
-    ax.set_aspect('equal')
-    ax.set_title('Path against the route (plan view)')
-    ax.set_xlabel('x (m)')
-    ax.set_ylabel('y (m)')
+    ax.set(aspect='equal', title='Path against the route (plan view)', xlabel='x (m)',
+           ylabel='y (m)')
     ax.legend(loc='best')
     save(fig, 'path.png')
 
     fig, ax = plt.subplots(figsize=(8, 4))
-    stops = result['stops']
-    if stops:
+    if stops := result['stops']:
         ax.bar(range(1, len(stops) + 1), [s['error_mm'] for s in stops], color='tab:orange')
         ax.set_xticks(range(1, len(stops) + 1), [s['marker'] for s in stops], rotation=45,
                       fontsize=7)
     ax.axhline(0, color='k', lw=0.8)
     ax.axhspan(-40, 40, color='tab:green', alpha=0.1, label='thesis +-4 cm')
-    ax.set_ylabel('stop error (mm, + = past the marker centre)')
-    ax.set_title('Stop errors per stop (fig 7.15 style)')
+    ax.set(ylabel='stop error (mm, + = past the marker centre)',
+           title='Stop errors per stop (fig 7.15 style)')
     ax.legend(loc='best')
     save(fig, 'stops.png')
 
@@ -230,14 +219,13 @@ def plots(data: dict[str, Any], result: dict[str, Any], out: Path) -> list[str]:
         times = [t - t0 for t, _f in data['records'][name]][::5]
         ax.plot(times, [i] * len(times), '|', ms=4)
     ax.set_yticks(range(len(names)), names, fontsize=7)
-    ax.set_xlabel('time (s)')
-    ax.set_title('Records per sub-system over time (every 5th shown)')
+    ax.set(xlabel='time (s)', title='Records per sub-system over time (every 5th shown)')
     save(fig, 'records.png')
 
     fig, ax = plt.subplots(figsize=(10, 3))
-    faults = result['faults'] or ['no faults']
     ax.axis('off')
-    ax.text(0, 1, '\n'.join(faults[:25]), va='top', family='monospace', fontsize=8)
+    ax.text(0, 1, '\n'.join((result['faults'] or ['no faults'])[:25]), va='top',
+            family='monospace', fontsize=8)
     ax.set_title('Faults')
     save(fig, 'faults.png')
     return written

@@ -1,37 +1,28 @@
-"""SentTimeline: the sim time at which a record was sent, from its DDS source timestamp (ROS-free).
+"""SentTimeline: the sim time a record was sent at, from its DDS source timestamp (ROS-free).
 
-A status record's age decides whether a sub-system is alive (thesis 6.3: the monostables). The
-1983 bus measured it where the record arrived; a simulated graph must not. Nine Python
-processes share two cores, so the reader itself is sometimes starved: its `/clock` reader keeps
-only the latest message and jumps ahead at once, while the records sent in the meantime wait
-in their queues, so every record looks old the moment the reader wakes. Measured on the full
-programme: the executive saw statuses up to 0.16 s old with the world pacing every writer to
-within 0.07 s (bench/results: a false `stale status` about one run in three).
+A status record's age decides whether a sub-system is alive (thesis 6.3: the monostables). The 1983
+bus measured it on arrival; a simulated graph must not: a starved reader's `/clock` reader keeps
+only the latest message and jumps ahead at once while the records sent meanwhile wait in their
+queues, so every record looks old when it wakes (the executive saw statuses up to 0.16 s old with
+every writer paced within 0.07 s: a false `stale status` about one run in three, bench/results).
 
-The age that matters is how long ago, in sim time, the writer *sent* its last record. DDS
-stamps every sample with the writer's wall clock (the rmw source timestamp; one host, one
-clock). The reader keeps the world's `/clock` samples in order (a FIFO reader, so that time as
-the reader sees it advances no faster than it takes its inputs) together with their source
-timestamps; `sim_at(sent)` is then the sim time the world had reached when the record was
-sent. The executor takes one sample per ready topic per turn, so after a stall the status queues
-(20-60 Hz) empty before the clock queue (113 Hz): a record taken before the clock samples that
-bracket its send is given the latest sim time known and raised as those samples come in. A
-record waiting in its queue is never blamed; a writer that died is aged exactly, from its last
-send.
+What matters is how long ago, in sim time, the writer *sent* it. DDS stamps every sample with the
+writer's wall clock (one host, one clock); the reader keeps the world's `/clock` samples in order
+(a FIFO reader, so its time advances no faster than it takes its inputs) with their source
+timestamps, and `sim_at(sent)` is the sim time the world had reached at the send. After a stall the
+status queues (20-60 Hz) empty before the clock queue (113 Hz): a record taken before the clock
+samples bracketing its send gets the latest sim time known, raised as they come in. A queued record
+is never blamed; a dead writer is aged exactly.
 """
-
-from __future__ import annotations
 
 from bisect import bisect_right
 from collections import deque
 
 
 class SentTimeline:
-    """(source wall time, sim time) samples of the world's clock, oldest first.
+    """(source wall time, sim time) samples of the world's clock, oldest first, `keep` s of them.
 
-    `keep` is how much wall time of samples to keep (s); a record sent before the oldest kept
-    sample is given the oldest sample's sim time less the wall time between them (it is stale
-    long before that matters).
+    Before the oldest: its sim time less the wall time between (stale long before that matters).
     """
 
     def __init__(self, keep: float = 5.0) -> None:
@@ -44,11 +35,7 @@ class SentTimeline:
         return bool(self._wall)
 
     def clock(self, sent_ns: int, sim: float) -> list[tuple[str, float]]:
-        """Take a /clock sample (its source timestamp, ns; its value, s) from the FIFO.
-
-        Returns (record, sim) for each record taken earlier whose send time this sample
-        raises to `sim` (see `record`).
-        """
+        """Take a /clock sample (source stamp ns, value s); return the (record, sim) it raises."""
         if self._wall and sim < self._sim[-1] - 1.0 and sent_ns > self._wall[-1]:
             self._wall.clear()  # sim time went back: a new (respawned) world, a new timeline
             self._sim.clear()
@@ -68,11 +55,7 @@ class SentTimeline:
         return raised
 
     def record(self, name: str, sent_ns: int) -> float:
-        """Sim time a record taken now was sent at, as far as the samples taken tell.
-
-        A record sent after the latest sample is given that sample's time for now and
-        remembered: `clock` raises it until a sample sent after it arrives.
-        """
+        """Sim time a record taken now was sent at; one sent after the latest sample is kept."""
         if sent_ns >= self.latest_ns():
             self._unplaced[name] = sent_ns
         else:
@@ -88,11 +71,7 @@ class SentTimeline:
         return self._sim[-1] if self._sim else 0.0
 
     def sim_at(self, sent_ns: int) -> float:
-        """Sim time when a record with this source timestamp was sent.
-
-        For a record sent after the latest clock sample taken this is only a lower bound (the
-        reader's clock queue is behind); `record` keeps track of those.
-        """
+        """Sim time at this source timestamp (after the latest sample, a lower bound: `record`)."""
         if not self._wall:
             return 0.0
         i = bisect_right(self._wall, sent_ns)

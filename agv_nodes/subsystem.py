@@ -1,15 +1,47 @@
 """SubsystemCore: what every sub-system core is to its node and to the lock-step harness.
 
-A core is ROS-free: it is told records, rejections and the time, and returns the records to
-send. Its class names the node (the writer/readers of msg_schemas), its settings dataclass
-(agv_nodes/settings.py) and the setting that is its timer's period.
+A core is ROS-free: told records, rejections and the time, it returns the records to send. Its
+class names the node (msg_schemas' writer/readers), its settings dataclass and its timer's period
+setting. What it says in words goes through its `Notes`, which its node takes after each call and
+logs (communications also publishes them on comms/report); both queues are bounded.
 """
 
-from __future__ import annotations
-
+from collections import deque
+from dataclasses import dataclass
 from typing import Any
 
-from agv_nodes.notes import Notes
+
+@dataclass(frozen=True)
+class Note:
+    """One thing a core said."""
+
+    time: float
+    text: str
+    level: str = 'info'  # info | warn
+
+
+class Notes:
+    """A core's notes: new ones until its node takes them, and the most recent ones."""
+
+    def __init__(self, keep: int = 500) -> None:
+        self._new: deque[Note] = deque(maxlen=keep)
+        self.recent: deque[Note] = deque(maxlen=keep)
+
+    def add(self, now: float, text: str, level: str = 'info') -> None:
+        """Say `text` at sim time `now`."""
+        note = Note(now, text, level)
+        self._new.append(note)
+        self.recent.append(note)
+
+    def take(self) -> list[Note]:
+        """Return the notes added since the last take, oldest first."""
+        out = list(self._new)
+        self._new.clear()
+        return out
+
+    def texts(self) -> list[str]:
+        """Return the recent notes' texts, oldest first."""
+        return [n.text for n in self.recent]
 
 
 class SubsystemCore:

@@ -393,7 +393,7 @@ def _random_value(f, rng):
 def test_compiled_fast_paths_agree_with_the_field_by_field_codec():
     """The generated fast paths agree with the general loop and take the common cases.
 
-    Encode / decode try generated straight-line code first (fast_path.compile_fast_paths) and
+    Encode / decode try generated straight-line code first (records.schema.compile_fast_paths) and
     fall back to the general loop on None: whatever the fast path returns must be exactly what
     the general path makes of the same input, and the fast path must take the common cases.
     """

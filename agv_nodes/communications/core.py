@@ -1,30 +1,22 @@
 """Communications: tasks in from people and programs, reports out (Baker 3.3, 3.5.3, 7.2).
 
-It parses the task text (syntax only), queues the tasks, passes the head of the queue to the
-executive as a comms_status record without interpreting it, and turns the executive's
-comms_command records into readable reports. The task language (docs/tasks.md):
-
-    load A at B and take to C          fig 3.1 (A names the load; B, C location markers)
-    load at N [MARKER] [THEN]          task 1: stop, take on a load
-    unload at N [MARKER] [THEN]        task 2: stop, discharge the load
-    wait at N for S [MARKER] [THEN]    task 3: stop and dwell S seconds
-    stop at N [MARKER] [THEN]          tasks 4-6: MARKER = first | second | first then second
-    srm at N [angle A]                 task 7: leave the wire at N by an SRM (A degrees, + left)
-    abort                              stop now, drop the queue
-
-    THEN = then continue | then stay   (default: stay - the truck waits for its next order)
-
-A bad task is rejected with the column and the reason, and changes nothing.
+It parses the task text (syntax only; the task language: docs/tasks.md), queues the tasks, passes
+the head of the queue to the executive as a comms_status record without interpreting it, and turns
+the executive's comms_command records into readable reports. A bad task is rejected with the column
+and the reason, and changes nothing.
 """
-
-from __future__ import annotations
 
 from dataclasses import dataclass, field
 import re
 from typing import Any
 
-from agv_nodes.communications.settings import CommsParams
+from agv_nodes.settings import settings_class
 from agv_nodes.subsystem import SubsystemCore
+
+
+@settings_class
+class CommsParams:
+    """The task queue and its relay to the executive (its parameters.yaml section)."""
 
 
 class TaskError(ValueError):
@@ -65,8 +57,7 @@ class _Tokens:
     i: int = 0
 
     def __post_init__(self) -> None:
-        self.items = [(m.group(0).lower(), m.start() + 1)
-                      for m in re.finditer(r'\S+', self.text)]
+        self.items = [(m.group(0).lower(), m.start() + 1) for m in re.finditer(r'\S+', self.text)]
 
     def peek(self) -> str | None:
         return self.items[self.i][0] if self.i < len(self.items) else None
@@ -135,11 +126,9 @@ def parse_task(text: str, locations: tuple[int, ...] = (0, 1, 2, 3)) -> Task:
             t.take()
             angle = t.number('angle', -45, 45)
         task = Task(text, 'srm', location=n, srm_angle=angle, then='continue')
-    else:
+    else:  # load, unload, wait, stop
         t.take('at')
-        n = location()
-        task = Task(text, {'load': 'load', 'unload': 'unload', 'wait': 'wait',
-                           'stop': 'stop'}[verb], location=n)
+        task = Task(text, verb, location=location())
         if verb == 'wait':
             t.take('for')
             task.dwell = t.number('seconds', 0, 255)
@@ -195,9 +184,8 @@ class CommunicationsCore(SubsystemCore):
         task.task_id = self._next_id
         self._next_id = self._next_id % 255 + 1
         if task.op == 'abort':
-            dropped = len(self.queue)
+            self.notes.add(now, f'task {task.task_id} abort: queue of {len(self.queue)} dropped')
             self.queue = [task]
-            self.notes.add(now, f'task {task.task_id} abort: queue of {dropped} dropped')
         else:
             self.queue.append(task)
             self.notes.add(now, f'task {task.task_id} queued: {text!r} ({len(self.queue)} in '

@@ -1,12 +1,4 @@
-"""communications: tasks in on comms/task, reports out on comms/report.
-
-Run it with `ros2 run agv_nodes communications`. comms/task and comms/report are
-std_msgs/String; the task language is in `agv_nodes.communications.core` and docs/tasks.md.
-Tasks go to the executive as comms/status records; its comms/command records come back as
-reports.
-"""
-
-from __future__ import annotations
+"""communications (ros2 run agv_nodes communications): comms/task in, comms/report out."""
 
 import sys
 

@@ -1,8 +1,7 @@
 """The Vehicle Executive: tasks into commands for every sub-system, and the truck's health.
 
-It talks to the sub-systems only through their command and status records (thesis 3.5.3). A
-task from communications becomes an itinerary (fig 3.1, level 2) of steps, each run through the
-sub-systems' records (level 3):
+It talks to the sub-systems only through their command and status records (thesis 3.5.3). A task
+becomes an itinerary (fig 3.1, level 2) of steps, each run through the records (level 3):
 
     goto(n, edge)   navigation_command {n, edge}; cruise until navigation reports 0BH at n
     next_marker(n)  navigation_command {n, 1} (byte 2 alone changes): position to the next marker
@@ -11,28 +10,18 @@ sub-systems' records (level 3):
     srm(n, angle)   cruise, reporting landmarks, until n is passed, then leave the wire there
     continue        cruise on along the wire (the task is over, the truck keeps going)
 
-At every location marker navigation reports, the route map decides continue or SRM (the demo
-floor needs an SRM at L1 and at L3 on every lap); wire changes run at `srm_demand`, and the
-truck stays slow until the next landmark (so location 0, just after an SRM, is passed slowly,
-thesis 7.2). Traction's byte 2 is kept non-zero while navigation positions the truck.
+At each location marker reported the route map decides continue or SRM (the demo floor needs one at
+L1 and L3 every lap); wire changes run at `srm_demand`, slow until the next landmark (thesis 7.2).
+Traction's byte 2 stays non-zero while navigation positions the truck. Faults - wire or marker
+sensor lost, a stale status, over `reject_limit` rejected records in a second, a sub-system fault
+(traction tripped, radio stop, load failed), a step longer than `route_limit` - give an emergency
+stop (traction byte 2 = 00H) and fail the task naming cause and sub-system until a new task.
 
-Faults - the wire lost, the marker sensor lost, a status record older than `status_timeout`,
-more than `reject_limit` rejected records in a second, a sub-system reporting a fault (traction
-tripped, radio stop, load failed), the distance travelled in one step beyond `route_limit` -
-give an emergency stop (traction byte 2 = 00H), the task is reported failed with the named
-cause and sub-system, and the truck stays stopped until a new task.
-
-A status is stale when it is older than `status_timeout` *and* at least `stale_confirm` status
-records from the other sub-systems have arrived since (or when it is twice that old). The
-executive supervises on every arrival, so a silent sub-system is noticed within a few ms of
-the timeout; the count keeps a starved executive from blaming a sub-system whose record is
-still waiting in its queue: after a stall its clock jumps ahead at once (the /clock reader
-keeps only the latest) while the records queued behind it are taken one per topic per turn.
-The `status_age` setting `sent` goes further and ages each status from the sim
-time it was sent (agv_nodes.sent_time), so a starved executive blames nobody.
+A status is stale when older than `status_timeout` *and* `stale_confirm` records from the others
+have arrived since (or twice that old): after a stall a starved executive's /clock jumps ahead at
+once while its queued records are taken one per topic per turn; the count keeps it from blaming a
+record still queued. `status_age: sent` ages a status from its send (agv_nodes.sent_time).
 """
-
-from __future__ import annotations
 
 from typing import Any
 
@@ -72,7 +61,6 @@ class ExecutiveCore(SubsystemCore):
         self.report = {'state': 'idle', 'cause': 'none', 'subsystem': 'none'}
         self.fault: tuple[str, str] | None = None
         self.demand = 0
-        self.executive_priority = 0
         self.nav = (NO_TASK, 0)
         self.route = {'mode': 'follow_wire', 'srm_angle': 0, 'junction': 'straight',
                       'manoeuvre': 0}
@@ -93,14 +81,9 @@ class ExecutiveCore(SubsystemCore):
     # -- inputs -----------------------------------------------------------------------------
     def on_record(self, record: str, fields: dict[str, Any], now: float,
                   sent: float | None = None) -> dict | None:
-        """Take a status record from a sub-system (or a task from communications).
-
-        `sent` is the sim time the record was sent (status_age `sent`, agv_nodes.sent_time);
-        without it the record's age runs from its arrival, `now`.
-        """
+        """Take a status record or a task, aged from `sent` (agv_nodes.sent_time) or else `now`."""
         sub = SUBSYSTEM_OF.get(record)
         if sub is not None:
-            previous = self.status.get(sub)
             self.status[sub] = fields
             self.status_time[sub] = now if sent is None else min(sent, now)
             self.arrivals += 1
@@ -108,22 +91,17 @@ class ExecutiveCore(SubsystemCore):
             if sub == 'communications':
                 self._task_record(fields, now)
             elif sub == 'navigation':
-                self._navigation(previous, fields, now)
+                self._navigation(fields, now)
         if self.mode in ('running', 'cruising'):
-            # Supervise on every arrival too, not only at the 50 ms tick: a silent sub-system
-            # is then noticed within ~10 ms of its status_timeout (the other sub-systems'
-            # records keep arriving), and the e-stop goes out at once (the fault budget: drive off
-            # within 200 ms of a fault).
+            # Not only at the tick: a silent sub-system is noticed within ~10 ms of its timeout
+            # and the e-stop goes out at once (fault budget: drive off within 200 ms).
             self._supervise(now)
             if self.mode == 'failed':
                 return self._commands(now)
         return None
 
     def sent_later(self, record: str, sent: float) -> None:
-        """Age an earlier status from `sent`, the sim time it was sent at (agv_nodes.sent_time).
-
-        The status was taken before the executive knew that time (its clock queue was behind).
-        """
+        """Age a status from `sent`, learnt after it was taken (the clock queue was behind)."""
         sub = SUBSYSTEM_OF.get(record)
         if sub in self.status_time:
             self.status_time[sub] = max(self.status_time[sub], sent)
@@ -144,13 +122,11 @@ class ExecutiveCore(SubsystemCore):
             self.report = {'state': 'completed', 'cause': 'none', 'subsystem': 'none'}
             self._log(now, f'task {self.task_id}: abort')
             return
-        steps = itinerary(fields)
-        if not steps:
+        if not (steps := itinerary(fields)):
             self.report = {'state': 'rejected', 'cause': 'bad_task', 'subsystem': 'none'}
             self._log(now, f'task {self.task_id}: rejected (no itinerary)')
             return
-        self.steps, self.index, self.mode = steps, 0, 'running'
-        self.fault = None
+        self.steps, self.index, self.mode, self.fault = steps, 0, 'running', None
         self.task_start = now
         traction = self.status.get('traction')
         if traction is None or traction.get('tripped'):
@@ -163,7 +139,7 @@ class ExecutiveCore(SubsystemCore):
                   + '; '.join(s.name for s in steps))
         self._enter(now)
 
-    def _navigation(self, previous: dict | None, fields: dict[str, Any], now: float) -> None:
+    def _navigation(self, fields: dict[str, Any], now: float) -> None:
         """Landmarks: every change of the last marker while navigating is a decision point."""
         marker = fields['last_marker']
         if fields['at_location']:  # OUTFO[1] = the task location: not a landmark report
@@ -194,21 +170,19 @@ class ExecutiveCore(SubsystemCore):
     @property
     def step(self) -> Step | None:
         """The step being run."""
-        return self.steps[self.index] if self.mode == 'running' and self.index < len(
-            self.steps) else None
+        running = self.mode == 'running' and self.index < len(self.steps)
+        return self.steps[self.index] if running else None
 
     def _enter(self, now: float) -> None:
         step = self.step
-        self.phase, self.phase_time = 'start', now
-        self.distance = 0.0
+        self.phase, self.phase_time, self.distance = 'start', now, 0.0
         if step is None:
             return
         self._log(now, f'step {self.index + 1}/{len(self.steps)}: {step.name}')
         self.report = {'state': 'running', 'cause': 'none', 'subsystem': 'none'}
         if step.kind in ('goto', 'srm', 'continue'):
             self.demand = self.p.cruise_demand
-            departing = self.stopped_at
-            self.stopped_at = None
+            departing, self.stopped_at = self.stopped_at, None
             if departing is not None and (departing in self.srm_map or (
                     step.kind == 'srm' and step.location == departing)):
                 # Stopped at an SRM location's workstation: the manoeuvre starts on departure.
@@ -270,7 +244,12 @@ class ExecutiveCore(SubsystemCore):
             return
         arrived = nav.get('at_location') == 1 and nav.get('lost') == 1 and \
             nav.get('last_marker') == step.location
-        if step.kind == 'goto':
+        if step.kind in ('goto', 'next_marker') and self.phase in ('positioning', 'settling'):
+            if self.phase == 'settling':
+                self._settle(now)
+            elif arrived:
+                self.phase, self.phase_time = 'settling', now
+        elif step.kind == 'goto':
             if self.phase == 'release':
                 if now - self.phase_time >= 2 * self.p.period:
                     self.nav = (step.location, step.edge)
@@ -284,18 +263,9 @@ class ExecutiveCore(SubsystemCore):
                     self.positioning_distance = 0.0
                 elif arrived:
                     self.phase, self.phase_time = 'settling', now
-            elif self.phase == 'positioning' and arrived:
-                self.phase, self.phase_time = 'settling', now
-            elif self.phase == 'settling':
-                self._settle(now)
         elif step.kind == 'next_marker':
             if self.phase == 'wait_positioning' and nav.get('lost') == 0:
-                self.phase = 'positioning'
-                self.positioning_distance = 0.0
-            elif self.phase == 'positioning' and arrived:
-                self.phase, self.phase_time = 'settling', now
-            elif self.phase == 'settling':
-                self._settle(now)
+                self.phase, self.positioning_distance = 'positioning', 0.0
         elif step.kind in ('load', 'unload'):
             load = self.status.get('load') or {}
             if load.get('job') == self.load['job']:
@@ -428,19 +398,16 @@ class ExecutiveCore(SubsystemCore):
             priority = 1
             if not request & 0x40:  # navigation asks for control: forward its request
                 speed = request & 0x1F
-                demand = -speed if request & 0x20 else speed
-                demand = demand or 0
-                if demand == 0:
-                    demand = 1  # 0 would be an emergency stop; 1 % is below breakaway
+                # 0 would be an emergency stop; 1 % is below breakaway
+                demand = (-speed if request & 0x20 else speed) or 1
         return {
-            'traction_command': {'manual': 0, 'manual_speed': 0, 'reverse': 0,
-                                 'demand': demand, 'executive_priority': priority},
+            'traction_command': {'manual': 0, 'manual_speed': 0, 'reverse': 0, 'demand': demand,
+                                 'executive_priority': priority},
             'navigation_command': {'task_location': self.nav[0], 'stop_marker': self.nav[1]},
             'route_command': dict(self.route),
             'load_command': dict(self.load),
             'comms_command': {'task_id': self.task_id, 'state': self.report['state'],
                               'step': self.index if self.mode == 'running' else 0,
-                              'cause': self.report['cause'],
-                              'subsystem': self.report['subsystem'],
+                              'cause': self.report['cause'], 'subsystem': self.report['subsystem'],
                               'location': self.last_marker if self.last_marker <= 31 else 0xFF},
         }

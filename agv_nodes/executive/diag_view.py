@@ -1,16 +1,14 @@
 """agv-diag: the maintenance display in a terminal - a live table of /diagnostics.
 
-One row per sub-system (the executive's view) and one per node's record inputs (each node's own
-`<node>/inputs` status): level, the reason, record rate, age and rejects; `--detail NAME` adds
-the 32 bytes in and out (hex and decoded) of one sub-system, the "key in the sub-system number"
-display of thesis 8.2.2. Statuses from every publisher are merged by name. `--once` prints one
-table and exits (scripts and tests).
+One row per sub-system (the executive's view) and per node's record inputs (`<node>/inputs`):
+level, reason, rate, age and rejects; `--detail NAME` adds one sub-system's 32 bytes in and out
+(hex and decoded), the "key in the sub-system number" display of thesis 8.2.2. Rows from every
+publisher are merged by name; `--once` prints one table and exits.
 """
-
-from __future__ import annotations
 
 import argparse
 import sys
+import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 import rclpy
@@ -29,8 +27,7 @@ def level_of(status) -> int:
 
 def label(status) -> str:
     """Return a row's name: the status name without its 'agv/' prefix (e.g. traction/inputs)."""
-    name = status.name
-    return name.split('/', 1)[1] if name.startswith('agv/') else status.hardware_id
+    return status.name.split('/', 1)[1] if status.name.startswith('agv/') else status.hardware_id
 
 
 class Merged:
@@ -64,10 +61,8 @@ def render(msg: DiagnosticArray, detail: str | None = None, colour: bool = True)
                      f'{values.get("age (s)", "-"):>7s} {values.get("rejected", "-"):>8s}  '
                      f'{st.message}')
         if detail and detail in (st.hardware_id, label(st)):
-            for key in ('in (hex)', 'in', 'out (hex)', 'out', 'rejects by reason',
-                        'last rejection'):
-                if key in values:
-                    lines.append(f'    {key:18s} {values[key]}')
+            lines += [f'    {key:18s} {values[key]}' for key in ('in (hex)', 'in', 'out (hex)',
+                      'out', 'rejects by reason', 'last rejection') if key in values]
     return '\n'.join(lines)
 
 
@@ -87,8 +82,6 @@ def main(argv: list[str] | None = None) -> int:
     code = 0
     try:
         if args.once:
-            import time
-
             deadline = time.monotonic() + args.timeout
             while not got.fresh and time.monotonic() < deadline:
                 executor.spin_once(timeout_sec=0.1)

@@ -1,13 +1,10 @@
 """The executive's maintenance display (Baker 1983, 8.2.2, 7.2), ROS-free.
 
-One status per sub-system: the last 16 bytes in (its status record) and out (its command
-record) in hex and decoded, the record rate, the age of the last good record, the rejected
-records by reason, and OK / WARN / ERROR with the reason - "level 2" of the thesis: name the
-sub-system at fault. The executive node turns these into a diagnostic_msgs/DiagnosticArray on
-/diagnostics; agv-diag shows the same as a live table.
+One status per sub-system: the last 16 bytes in (status record) and out (command record), hex and
+decoded, the record rate, the age of the last good record, rejections by reason, and OK / WARN /
+ERROR with the reason - the thesis's "level 2": name the sub-system at fault. The executive node
+publishes it on /diagnostics; agv-diag shows it as a live table.
 """
-
-from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Any
@@ -18,8 +15,7 @@ OK, WARN, ERROR = 0, 1, 2
 SUBSYSTEMS = {  # name: (status record in, command record out)
     'navigation': ('navigation_status', 'navigation_command'),
     'traction': ('traction_status', 'traction_command'),
-    'route': ('route_status', 'route_command'),
-    'load': ('load_status', 'load_command'),
+    'route': ('route_status', 'route_command'), 'load': ('load_status', 'load_command'),
     'communications': ('comms_status', 'comms_command'),
 }
 
@@ -34,10 +30,8 @@ class SubsystemHealth:
     values: dict[str, str]
 
 
-def _decoded(reader_or_writer: Any, fields: dict[str, Any] | None) -> str:
-    if not fields:
-        return '-'
-    return ', '.join(f'{k}={v}' for k, v in fields.items())
+def _decoded(fields: dict[str, Any] | None) -> str:
+    return ', '.join(f'{k}={v}' for k, v in fields.items()) if fields else '-'
 
 
 class HealthMonitor:
@@ -58,8 +52,7 @@ class HealthMonitor:
         for name, (in_record, out_record) in SUBSYSTEMS.items():
             reader, writer = readers.get(in_record), writers.get(out_record)
             row = self._row(now, name, reader, writer, fault)
-            max_age = getattr(executive, 'max_age', {}).get(name)
-            if max_age is not None:
+            if (max_age := getattr(executive, 'max_age', {}).get(name)) is not None:
                 row.values['max age while supervising (s)'] = f'{max_age:.3f}'
             rows.append(row)
         rows.append(self._executive_row(executive))
@@ -70,12 +63,12 @@ class HealthMonitor:
         values: dict[str, str] = {}
         if writer is not None:
             values['out (hex)'] = writer.last_raw.hex().upper() if writer.last_raw else '-'
-            values['out'] = _decoded(writer, writer.last_fields)
+            values['out'] = _decoded(writer.last_fields)
         level, reasons = OK, []
         if reader is None:
             return SubsystemHealth(name, WARN, 'no status record', values)
         values['in (hex)'] = reader.raw.hex().upper() if reader.raw else '-'
-        values['in'] = _decoded(reader, reader.fields)
+        values['in'] = _decoded(reader.fields)
         t0, acc0, rej0 = self._last.get(name, (now, reader.accepted, reader.rejected))
         if now - t0 >= 0.5:
             self._rates[name] = (reader.accepted - acc0) / (now - t0)
@@ -118,8 +111,7 @@ class HealthMonitor:
                     fields.get('trip_cause') == 'startup'
                 level = max(level, WARN if key == 'input_fault' or startup else ERROR)
                 reasons.append(text)
-        recent = self._recent_rejects.get(name, 0)
-        if recent:
+        if recent := self._recent_rejects.get(name, 0):
             level = max(level, WARN)
             reasons.append(f'{recent} records rejected recently')
         if fault and fault[1] == name:
@@ -131,8 +123,7 @@ class HealthMonitor:
     def _executive_row(executive: Any) -> SubsystemHealth:
         step = executive.step
         values = {'mode': executive.mode, 'task': str(executive.task_id),
-                  'step': step.name if step else '-',
-                  'report': executive.report['state']}
+                  'step': step.name if step else '-', 'report': executive.report['state']}
         if executive.fault:
             cause, sub = executive.fault
             return SubsystemHealth('executive', ERROR, f'{cause.replace("_", " ")} ({sub})',

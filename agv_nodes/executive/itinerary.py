@@ -1,7 +1,5 @@
 """The itinerary: a task record into steps (Baker 1983, fig 3.1, level 2), ROS-free."""
 
-from __future__ import annotations
-
 from dataclasses import dataclass
 from typing import Any
 

@@ -1,11 +1,4 @@
-"""executive: the Vehicle Executive (ros2 run agv_nodes executive).
-
-Reads every sub-system's status record and comms/status; writes every command record and
-comms/command; publishes /diagnostics (diagnostic_msgs/DiagnosticArray) once a second, with the
-32-byte display of each sub-system (thesis 8.2.2). Behaviour: `agv_nodes.executive.core`.
-"""
-
-from __future__ import annotations
+"""executive (ros2 run agv_nodes executive); also /diagnostics, the 32-byte display (8.2.2)."""
 
 import sys
 from typing import Any
@@ -24,11 +17,10 @@ from agv_nodes.sent_time import SentTimeline
 class ExecutiveNode(CoreNode):
     """ExecutiveCore on its ports, plus /diagnostics and the age of statuses.
 
-    `status_age: sent` (a departure from the 1983 receiver-side monostables, thesis 6.3) ages a
-    status from when it was sent, not from when this process got round to it. With the
-    EventsExecutor every input, /clock included, is taken in arrival order (core_node
-    ClockTimers), so that needs nothing more; with the SingleThreadedExecutor it needs the DDS
-    source timestamps (agv_nodes.sent_time) and a FIFO /clock reader of its own.
+    `status_age: sent` (a departure from thesis 6.3's receiver-side monostables) ages a status from
+    its send. The EventsExecutor takes /clock in arrival order with the rest (core_node
+    ClockTimers), so that needs nothing more; the SingleThreadedExecutor needs DDS source
+    timestamps (agv_nodes.sent_time) and a FIFO /clock reader.
     """
 
     @property
@@ -46,9 +38,8 @@ class ExecutiveNode(CoreNode):
         self.periodic(1.0, self._diagnostics)
 
     def _on_clock(self, msg: Clock, info: dict[str, Any]) -> None:
-        raised = self.timeline.clock(info.get('source_timestamp') or 0,
-                                     msg.clock.sec + msg.clock.nanosec * 1e-9)
-        for name, sent in raised:
+        sim = msg.clock.sec + msg.clock.nanosec * 1e-9
+        for name, sent in self.timeline.clock(info.get('source_timestamp') or 0, sim):
             self.core.sent_later(name, sent)
 
     def now_s(self) -> float:

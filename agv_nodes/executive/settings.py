@@ -1,7 +1,5 @@
 """Executive settings: the classes its parameters.yaml declares the parameters of."""
 
-from __future__ import annotations
-
 from collections.abc import Iterable
 from typing import Any
 
@@ -9,10 +7,7 @@ from agv_nodes.settings import settings_class
 
 
 def parse_srm_map(entries: Iterable[str]) -> dict[int, int]:
-    """('1:15', '3:15') -> {1: 15, 3: 15} (location: SRM angle in degrees, + = left).
-
-    ValueError names the first entry that is not location:angle, 0-31 and -45..45.
-    """
+    """('1:15', '3:15') -> {1: 15, 3: 15} (deg, + = left); ValueError: entry not 0-31:-45..45."""
     out = {}
     for entry in entries:
         location, _, angle = entry.partition(':')

@@ -1,15 +1,11 @@
 """Start one node process that dies with its launcher (agv-launch's child wrapper).
 
-`python -m agv_nodes.graph.child PARENT_PID [--sched-fifo N] COMMAND...` asks Linux to send
-this process SIGTERM when the thread that started it exits (prctl PR_SET_PDEATHSIG, kept across
-exec), optionally takes SCHED_FIFO priority N (also kept across exec, and inherited by every
-thread the node starts: its DDS threads too), then execs COMMAND in its place (same pid).
-A launcher that is SIGKILLed therefore leaves no graph running on its ROS domain, where a
-later graph would cross-talk with it. Doing this in Popen's preexec_fn is not safe once the
-launcher has threads; a fresh interpreter is.
+`python -m agv_nodes.graph.child PARENT_PID [--sched-fifo N] COMMAND...` asks Linux for SIGTERM
+when the thread that started it exits (prctl PR_SET_PDEATHSIG, kept across exec), optionally takes
+SCHED_FIFO priority N (kept across exec and inherited by every thread, DDS's too), then execs
+COMMAND (same pid). So a SIGKILLed launcher leaves no graph to cross-talk with a later one on its
+ROS domain. Popen's preexec_fn is not safe once the launcher has threads; a fresh interpreter is.
 """
-
-from __future__ import annotations
 
 import ctypes
 import os

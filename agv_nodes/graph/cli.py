@@ -1,14 +1,8 @@
 """agv-launch: start the graph one process per node, as `ros2 launch` would on a ROS install.
 
-It reads the graph description (config/graph.yaml) and the parameter file, and starts every
-node as its own process (agv_nodes.graph.supervisor) with what the launch sets on top of the
-file (agv_nodes.graph.parameters: the same values launch/agv_demo.launch.py passes).
-SIGINT/SIGTERM shut the graph down in order. The world waits before it moves until every link
-of the graph has matched at both ends (and, on sim time, every node's progress writer has
-matched its reader): the graph is complete before time starts.
+Each node of config/graph.yaml with the parameter file plus agv_nodes.graph.parameters (via
+agv_nodes.graph.supervisor); SIGINT/SIGTERM stop the graph in order (docs/architecture.md).
 """
-
-from __future__ import annotations
 
 import argparse
 from pathlib import Path
@@ -64,10 +58,9 @@ def options_from(args: argparse.Namespace) -> Options:
     faults = dict(parse_fault(text, graph) for text in args.fault)
     return Options(faults=faults, graph=args.graph, params=args.params, namespace=args.namespace,
                    use_sim_time=args.use_sim_time == 'true', time_factor=args.time_factor,
-                   record_integrity=args.record_integrity, world=args.world,
+                   record_integrity=args.record_integrity, world=args.world, extra=extra,
                    domain_id=args.domain_id, bag=args.bag, respawn=args.respawn,
-                   layout=args.layout, extra=extra, log_dir=args.log_dir,
-                   realtime=args.realtime)
+                   layout=args.layout, log_dir=args.log_dir, realtime=args.realtime)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,17 +1,9 @@
-"""The graph description: which nodes the graph has, how each is started, and its role.
-
-config/graph.yaml names each node, its console script and module, its role (`node`: a
-sub-system; `world`: the simulated world; `recorder`: the bag writer), whether it is on the
-sensor-to-traction chain (`realtime`), and the ROS parameter file of the graph.
-"""
-
-from __future__ import annotations
+"""The graph description (config/graph.yaml): each node's script, module, role and realtime."""
 
 from dataclasses import dataclass
 from pathlib import Path
 
-from agv_nodes.package_share import config_dir
-from agv_nodes.yaml_files import read_mapping
+from agv_nodes.package_share import config_dir, read_mapping
 
 NODE_KEYS = frozenset({'name', 'executable', 'module', 'role', 'realtime'})
 ROLES = ('node', 'world', 'recorder')
@@ -56,19 +48,15 @@ def load_graph(file: Path | None = None) -> Graph:
     for i, spec in enumerate(doc['nodes']):
         if not isinstance(spec, dict):
             raise GraphError(f'{file}: key nodes[{i}]: {spec!r} must be a mapping')
-        extra = set(spec) - NODE_KEYS
-        if extra:
+        if extra := set(spec) - NODE_KEYS:
             raise GraphError(f'{file}: key nodes[{i}].{sorted(extra)[0]}: unknown key')
         for key in ('name', 'executable', 'module'):
             if not isinstance(spec.get(key), str) or not spec[key]:
                 raise GraphError(f'{file}: key nodes[{i}].{key}: {spec.get(key)!r} missing')
-        role = spec.get('role', 'node')
-        if role not in ROLES:
+        if (role := spec.get('role', 'node')) not in ROLES:
             raise GraphError(f'{file}: key nodes[{i}].role: {role!r} not one of {ROLES}')
-        realtime = spec.get('realtime', False)
-        if not isinstance(realtime, bool):
+        if not isinstance(realtime := spec.get('realtime', False), bool):
             raise GraphError(f'{file}: key nodes[{i}].realtime: {realtime!r} is not true/false')
-        nodes.append(NodeSpec(spec['name'], spec['executable'], spec['module'], role,
-                              realtime))
+        nodes.append(NodeSpec(spec['name'], spec['executable'], spec['module'], role, realtime))
     params = file.parent / str(doc.get('parameters', 'agv_demo.yaml'))
     return Graph(str(doc.get('graph', 'agv')), nodes, params, file)

@@ -1,13 +1,8 @@
 """What the launch sets for each node on top of the parameter file.
 
-The one source for both agv-launch (agv_nodes.graph.supervisor) and
-launch/agv_demo.launch.py, so the two cannot drift (test/test_launch_file.py compares them):
-sim time, record integrity, injected faults, the simulation channel (each node's
-`sim_progress`, the world's `pace_nodes`), the links the world waits for before it moves
-(`wait_for_links`), and the real-time priority of the sensor-to-traction chain.
+The one source for agv-launch and launch/agv_demo.launch.py (test_launch_file.py compares them):
+sim time, record integrity, faults, the simulation channel, links to wait for, priority.
 """
-
-from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -48,52 +43,30 @@ class Options:
 
 
 def record_readers(graph: Graph, world: bool, recording: bool) -> dict[str, int]:
-    """Each record whose writer and at least one reader run -> its number of readers.
-
-    The readers are the schema's readers that run (the world among them only where the schema
-    lists it), plus the recorder when recording.
-    """
+    """Each record whose writer and a reader run -> its running readers (+1 for the recorder)."""
     running = {n.name for n in graph.nodes if n.role == 'node' or (n.role == 'world' and world)}
-    out = {}
-    for s in codec():
-        if s.kind == 'ground_truth':
-            continue
-        readers_up = [r for r in s.readers if r in running]
-        if s.writer in running and readers_up:
-            out[s.name] = len(readers_up) + recording
-    return out
+    counts = {s.name: sum(r in running for r in s.readers) for s in codec()
+              if s.kind != 'ground_truth' and s.writer in running}
+    return {name: n + recording for name, n in counts.items() if n}
 
 
 def paced_nodes(graph: Graph, options: Options) -> list[str]:
-    """Return the nodes the world paces on (its `pace_nodes`).
-
-    Every sub-system node of the graph when the graph runs on sim time, none on wall time
-    (there is no clock to hold back).
-    """
-    if not options.use_sim_time:
-        return []
-    return sorted(n.name for n in graph.nodes if n.role == 'node')
+    """Return the world's `pace_nodes`: every sub-system node on sim time, none on wall time."""
+    return sorted(n.name for n in graph.nodes if n.role == 'node' and options.use_sim_time)
 
 
 def wait_links(graph: Graph, recording: bool = False, paced: Iterable[str] = ()) -> list[str]:
     """Return the world's `wait_for_links`: both ends of every link of the graph.
 
-    'reader:record' - the reader's node has matched the record's writer - for each reader of
-    each record (both ends launched); 'writer>record:N' - the writer has matched all N readers
-    (record_readers); and 'node>progress:1' for each paced node - its `sim/progress` writer has
-    matched the world's reader. Discovery is two-sided and either side may lag: a writer that
-    has not matched a reader sends it nothing (a volatile reader never sees what went before),
-    and a reader that has not matched the writer drops what comes. Either would leave a node
-    without its first records (navigation would call a silent sensor lost), and an unmatched
-    progress writer would leave the world pacing on a node it cannot hear.
+    'reader:record' for each reader of each record (both ends launched); 'writer>record:N', the
+    writer has matched all N readers (record_readers); 'node>progress:1' for each paced node. An
+    unmatched end loses what is sent (docs/architecture.md, "Start-up"): navigation would call a
+    silent sensor lost, and the world would pace on a node it cannot hear.
     """
     running = {n.name for n in graph.nodes if n.role in ('node', 'world')}
     progress = {n.name for n in graph.nodes if n.role == 'node'}  # the world has no progress
-    links = set()
-    for s in codec():
-        if s.kind == 'ground_truth' or s.writer not in running:
-            continue
-        links.update(f'{r}:{s.name}' for r in s.readers if r in running)
+    links = {f'{r}:{s.name}' for s in codec() if s.kind != 'ground_truth'
+             and s.writer in running for r in s.readers if r in running}
     for name, n in record_readers(graph, 'world' in running, recording).items():
         links.add(f'{codec()[name].writer}>{name}:{n}')
     links.update(f'{node}>{PROGRESS}:1' for node in paced if node in progress)
@@ -137,10 +110,7 @@ def layout_name(graph: Graph, options: Options) -> str:
 
 
 def from_layout(graph: Graph, options: Options) -> dict[str, dict[str, object]]:
-    """Return what the layout sets in the nodes (route map, route following's vehicle).
-
-    That is agv_nodes.world.layout.layout_parameters, as the lock-step harness applies it.
-    """
+    """Return what the layout sets in the nodes (layout_parameters, as the harness applies it)."""
     name = layout_name(graph, options)
     try:
         return layout_parameters(load_layout(layout_path(name)))
@@ -150,12 +120,7 @@ def from_layout(graph: Graph, options: Options) -> dict[str, dict[str, object]]:
 
 def node_parameters(graph: Graph, spec: NodeSpec, options: Options,
                     ready_file: Path | None = None) -> dict[str, object]:
-    """Return the parameters the launch sets for one node on top of the parameter file.
-
-    The one source for both agv-launch and launch/agv_demo.launch.py (a test compares them).
-    `ready_file` is the file the world writes when it starts moving: agv-launch watches for
-    it; the launch file passes none (the world then writes no file).
-    """
+    """Return what the launch sets on one node over the file (`ready_file`: the world's signal)."""
     out: dict[str, object] = {'use_sim_time': options.use_sim_time}
     if spec.role == 'node':
         out.update(from_layout(graph, options).get(spec.name, {}))
@@ -197,12 +162,9 @@ def override_parameters(graph: Graph, spec: NodeSpec, options: Options,
 
 
 def realtime_priority(spec: NodeSpec, options: Options) -> int:
-    """Return the SCHED_FIFO priority one node runs at (0 = the normal scheduler).
+    """Return a node's SCHED_FIFO priority: `--realtime N` for `realtime` nodes, else 0.
 
-    With `--realtime N` (launch file: realtime:=N) the nodes marked `realtime` in the graph
-    description - the sensor-to-traction chain and the world that feeds it - run at real-time
-    priority N, as a robot's control processes would; each of the 1983 sub-systems had a Z-80
-    of its own. The one source for agv-launch and the launch file (a test compares them).
+    As a robot's control processes run (each 1983 sub-system had a Z-80 of its own).
     """
     return options.realtime if spec.realtime else 0
 

@@ -1,19 +1,15 @@
 """The running graph: one process per node, started, watched and stopped in order.
 
-Each node starts as its own process with the venv's python, through `agv_nodes.graph.child`
-(so that it dies with its launcher): `--ros-args -r __ns:=<namespace> --params-file <file>
---params-file <overrides>`, where the second file holds what the launch sets on top
-(agv_nodes.graph.parameters, and `-p NODE:NAME:=VALUE`). A second file, not `-p`: whether a
-plain `-p` beats the file's node-specific entry (`/**/executive:`) depends on where it stands on
-the command line, while a later file's entry for the same node always does, and a file is how
-`ros2 launch` passes dict parameters too (test_launch_file.py checks it with rcl's parser).
-Output is prefixed with the node's name; the graph is shut down in order (world first, so time
-stops, recorder last, so the bag sees the end); a node that dies is reported with its exit
-status and ends the launch with a non-zero status (or is restarted with --respawn).
-Discovery is localhost-only, on a ROS domain of this graph's own (never 0).
+Each node runs the venv's python through `agv_nodes.graph.child` (so it dies with its launcher)
+with `--ros-args -r __ns:=<namespace> --params-file <file> --params-file <overrides>`, the second
+file holding what the launch sets on top (agv_nodes.graph.parameters, and `-p NODE:NAME:=VALUE`). A
+file, not `-p`: whether a plain `-p` beats the file's node-specific entry (`/**/executive:`)
+depends on where it stands on the command line, a later file's entry always does, and a file is how
+`ros2 launch` passes dict parameters too (test_launch_file.py checks it with rcl's parser). Output
+is prefixed with the node's name; shutdown goes in order (world first, so time stops; recorder
+last, so the bag sees the end); a node that dies ends the launch with a non-zero status (or is
+restarted, --respawn). Discovery is localhost-only, on a ROS domain of the graph's own (never 0).
 """
-
-from __future__ import annotations
 
 import atexit
 import fcntl
@@ -63,11 +59,7 @@ def claim_domain(explicit: int | None = None) -> tuple[int, TextIO | None]:
 
 
 class ReadyFile:
-    """The world's signal that time has started: the file it writes (its `ready_file`).
-
-    Offers what a threading.Event would (is_set, wait). Once seen it stays set, even after
-    the launch has removed its temporary directory.
-    """
+    """The world's `ready_file` as a threading.Event: set once seen (even after it is removed)."""
 
     def __init__(self, path: Path) -> None:
         self.path = path
@@ -117,14 +109,8 @@ class Launch:
 
     def specs(self) -> list[NodeSpec]:
         """Nodes to start, in order."""
-        out = []
-        for n in self.graph.nodes:
-            if n.role == 'world' and self.o.world == 'none':
-                continue
-            if n.role == 'recorder' and self.o.bag is None:
-                continue
-            out.append(n)
-        return out
+        return [n for n in self.graph.nodes if not (n.role == 'world' and self.o.world == 'none')
+                and not (n.role == 'recorder' and self.o.bag is None)]
 
     def command(self, spec: NodeSpec) -> list[str]:
         """Return the command line of one node."""
@@ -150,20 +136,14 @@ class Launch:
                 print(f'[{name:{width}s}] {line}', flush=True)
 
     def child_command(self, spec: NodeSpec) -> list[str]:
-        """Return command() through the child wrapper.
-
-        The node gets SIGTERM if this launcher dies (even by SIGKILL), and takes its real-time
-        priority (if any) before it execs.
-        """
+        """Return command() through the child wrapper (SIGTERM if the launcher dies; priority)."""
         command = [sys.executable, '-m', CHILD, str(os.getpid())]
-        priority = realtime_priority(spec, self.o)
-        if priority:
+        if priority := realtime_priority(spec, self.o):
             command += ['--sched-fifo', str(priority)]
         return command + self.command(spec)
 
     def _start(self, spec: NodeSpec) -> None:
-        command = self.child_command(spec)
-        proc = subprocess.Popen(command, env=self.env, stdout=subprocess.PIPE,
+        proc = subprocess.Popen(self.child_command(spec), env=self.env, stdout=subprocess.PIPE,
                                 stderr=subprocess.STDOUT, text=True, bufsize=1,
                                 start_new_session=True)
         self.procs[spec.name] = proc
@@ -227,8 +207,7 @@ class Launch:
             names = [n for n in self.procs if self.graph.node(n).role == group]
             for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 3.0),
                               (signal.SIGKILL, 3.0)):
-                alive = [n for n in names if self.procs[n].poll() is None]
-                if not alive:
+                if not (alive := [n for n in names if self.procs[n].poll() is None]):
                     break
                 if sig != signal.SIGINT:
                     print(f'agv-launch: {", ".join(alive)} still running: sending '

@@ -1,41 +1,32 @@
 """Navigation: PC6/1's navigating and positioning loops (Baker 6.2, App. B.1).
 
-Records in: navigation_command (the executive's INFO), position_sensor_status (recognitions),
-wheel_odometry (controlled stopping only). Records out: navigation_status (OUTFO), traction_link
-(the direct Position -> Traction port), position_sensor_command (SAMIC/EDGIC).
+INFO is navigation_command, OUTFO navigation_status, the link traction_link (Position -> Traction),
+SAMIC/EDGIC position_sensor_command; wheel_odometry serves the controlled stop only.
 
-* INSTRS (idle): a new INFO[0] starts navigating (OPLOP) to that location with FLAG.4 :=
-  INFO[1].0; a change of INFO[1] alone means "position to the next stop marker" (CLOP).
+* INSTRS (idle): a new INFO[0] starts navigating (OPLOP) to that location with FLAG.4 := INFO[1].0;
+  a change of INFO[1] alone means "position to the next stop marker" (CLOP).
 * CHK (moving): only INFO[0] is compared; a change abandons the loop and re-enters OPLOP.
 * OPLOP: link 40H (the executive has speed control), OUTFO = 00H / LOCN, filter cleared with the
-  location table. Every other location marker recognised is reported (OUTFO[1] := identity, then
-  52 ms "move clear of it"); stop-marker centres (0EH) never are. At the task location: CLOP at
-  once (first stop marker), or, for the second, wait for the first stop marker's centre view and
-  position from there.
-* CLOP: link 14H (Position priority, forward, 20 %), OUTFO = 03H / INFO[0], stop-view table.
-  Each view sets the link to its EDGE speed byte (14H creep, 00H at the centre); at the centre
-  OUTFO = 0BH and the loop ends (the truck coasts to rest on friction).
+  location table. Every other location marker recognised is reported (OUTFO[1] := identity, then 52
+  ms "move clear of it"); stop-marker centres (0EH) never are. At the task location: CLOP at once
+  (first stop marker), or for the second, from the first one's centre view.
+* CLOP: link 14H (Position priority, forward, 20 %), OUTFO = 03H / INFO[0], stop-view table. Each
+  view sets the link to its EDGE speed byte (14H creep, 00H at the centre); at the centre OUTFO =
+  0BH and the loop ends (the truck coasts to rest).
 
-`variant = as_listed` keeps PC6/1's quirks: LOCN starts at 00H (the first OPLOP reports marker
-00H, Baker 1983, App. B.1), and a centre view still in sight when positioning starts is
-accepted at once (the second-stop-marker hazard of Baker 1983, App. B.1). `intended` (default)
-starts LOCN at FFH and, on entering CLOP, ignores the centre view until another stop view has
-been seen.
+`variant = as_listed` keeps PC6/1's quirks (App. B.1): LOCN starts at 00H (the first OPLOP reports
+marker 00H), and a centre view in sight when positioning starts is accepted at once (the
+second-stop-marker hazard). `intended` (default) starts LOCN at FFH and, entering CLOP, ignores the
+centre view until another stop view is seen.
 
-`stopping = controlled` (Baker 1983, 8.5: controlled braking, reverse correction; the default,
-since it beats `friction_1983` in bench/stop_bench.py: within +-3 mm against +34..+55 mm):
-every stop view gives the distance still to go (+60 ... -60 mm, Baker 1983, 4.3, fig 4.4);
-wheel odometry carries it between views and the link asks closed-loop traction to stop in that
-distance (traction_link.stop_in); an overshoot reverses slowly back onto the centre.
-
-`speed_request_path = via_executive` (Baker 1983, 8.2.2): no direct link is published; the
-request travels in navigation_status.speed_request and the executive forwards it.
-
-A sensor that goes quiet (no status for `sensor_timeout`, or it reports its ADC stale or
-saturated) makes navigation report LOST and request speed 0.
+`stopping = controlled` (Baker 1983, 8.5; the default: +-3 mm against friction_1983's +34..+55 mm,
+bench/stop_bench.py): each stop view gives the distance to go (+60 ... -60 mm, 4.3, fig 4.4),
+carried between views by wheel odometry; the link asks closed-loop traction to stop in it
+(traction_link.stop_in); an overshoot reverses slowly onto the centre. `speed_request_path =
+via_executive` (8.2.2): the request rides in navigation_status.speed_request for the executive to
+forward. A quiet sensor (no status for `sensor_timeout`, or its ADC stale or saturated) makes
+navigation report LOST and request speed 0.
 """
-
-from __future__ import annotations
 
 from typing import Any
 
@@ -63,31 +54,23 @@ class NavigationCore(SubsystemCore):
         self.mode = 'idle'  # idle (INSTRS) | navigating (OPLOP/SAM) | positioning (CLOP)
         # OUTFO[0] bits and OUTFO[1]: power-up record 0AH / FFH.
         self.at_location, self.slow, self.lost = 0, 1, 1
-        self.last_marker = 0xFF
+        self.last_marker, self.locstp, self.flag4 = 0xFF, NO_TASK, 0
         self.locn = 0x00 if self.p.variant == 'as_listed' else 0xFF
-        self.locstp = NO_TASK
-        self.flag4 = 0
-        self.inchk = (NO_TASK, 0)  # the last INFO pair acted on
-        self.info = (NO_TASK, 0)
+        self.inchk = self.info = (NO_TASK, 0)  # inchk: the last INFO pair acted on
         self.link = {'executive_priority': 0, 'reverse': 0, 'speed': 0, 'stop_in': 0}
-        self.table = 'navigating'
-        self.epoch = 0
-        self.stop_view = 0
-        self.sensor_lost = False
-        self.input_fault = False
+        self.table, self.epoch, self.stop_view = 'navigating', 0, 0
+        self.sensor_lost = self.input_fault = False
         self._sensor_time: float | None = None
         self._task_since: float | None = None  # first tick of a task before any sensor status
         self._seen_recognitions: int | None = None
-        self._blind_until = 0.0
         self._guard = False  # ignore the centre view until another view is seen
         self._next = {'status': 0.0, 'link': 0.0, 'command': 0.0}
         self._pending: dict[str, dict[str, Any]] = {}
         # controlled stopping
-        self._odometer = 0.0  # m travelled, from the wheel distance counters
+        self._odometer = self._speed = self._blind_until = 0.0  # _odometer: m, wheel counters
         self._wheels = Odometer()
         self._target: float | None = None  # odometer reading of the stop point
         self._rest_since: float | None = None
-        self._speed = 0.0
 
     # -- records out ------------------------------------------------------------------------
     def status(self) -> dict[str, Any]:
@@ -115,8 +98,7 @@ class NavigationCore(SubsystemCore):
 
     def _select_table(self, table: str) -> None:
         """SAMIC / EDGIC: new table, filter cleared (a new epoch)."""
-        self.table = table
-        self.epoch = (self.epoch + 1) & 0xFF
+        self.table, self.epoch = table, (self.epoch + 1) & 0xFF
         self._pending['position_sensor_command'] = {'table': table, 'epoch': self.epoch}
 
     # -- the two loops ----------------------------------------------------------------------
@@ -127,8 +109,7 @@ class NavigationCore(SubsystemCore):
         self.at_location, self.slow, self.lost = 0, 0, 0  # OUTFO[0] := 00H
         if self.locn != EDIM:
             self.last_marker = self.locn
-        self.stop_view = 0
-        self._target = None
+        self.stop_view, self._target = 0, None
         self._locup()
 
     def _clop(self, guard: bool) -> None:
@@ -139,30 +120,27 @@ class NavigationCore(SubsystemCore):
         self._locup()
         self._select_table('positioning')
         self._guard = guard and self.p.variant == 'intended'
-        self._target = None
-        self._rest_since = None
+        self._target = self._rest_since = None
 
     def _arrived(self) -> None:
         """Centre view (or a controlled stop at rest): 0BH, then INSTRS."""
         self._set_link(speed=0)  # 00H
         self.at_location, self.slow, self.lost = 1, 1, 1  # OUTFO[0] := 0BH
         self._locup()
-        self.mode = 'idle'
-        self._target = None
+        self.mode, self._target = 'idle', None
 
     def _instrs(self) -> None:
         """INSTRS: act on a changed INFO pair while idle."""
         if self.info == self.inchk:
             return
         location, edge = self.info
+        same_place = location == self.inchk[0]
+        self.inchk = self.info
         if location == NO_TASK:
-            self.inchk = self.info
             return
-        if location == self.inchk[0]:  # same place, byte 2 changed: the next stop marker
-            self.inchk = self.info
+        if same_place:  # byte 2 changed: the next stop marker
             self._clop(guard=True)
             return
-        self.inchk = self.info
         self.locstp, self.flag4 = location, edge
         self._oplop()
 
@@ -194,8 +172,7 @@ class NavigationCore(SubsystemCore):
         elif record == 'wheel_odometry':
             self._speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
             # the encoders' own distance, not speed x tick (agv_nodes.odometry)
-            self._odometer = self._wheels.update(fields['left_distance'],
-                                                 fields['right_distance'])
+            self._odometer = self._wheels.update(fields['left_distance'], fields['right_distance'])
         return self._flush()
 
     def on_reject(self, record: str, reason: str, now: float) -> dict | None:
@@ -212,8 +189,7 @@ class NavigationCore(SubsystemCore):
         self._set_lost(lost)
         count = fields['recognitions']
         if self._seen_recognitions is None:
-            # Recognitions made before we listened are history; a recognition record itself
-            # is news.
+            # Recognitions made before we listened are history; a recognition record is news.
             self._seen_recognitions = (count - fields['recognised']) & 0xFF
         if count == self._seen_recognitions:
             return
@@ -255,14 +231,11 @@ class NavigationCore(SubsystemCore):
         if self.p.stopping == 'controlled':
             _code, _speed, to_go = STOP_VIEWS[view - 1]
             # A view is first matched centre_lead mm before it is aligned (the snapshot turns
-            # valid ~6 mm early), so the stop point is that much further on - in the direction
-            # of travel: a view met while backing up after an overshoot is matched
-            # centre_lead mm *past* its alignment, so the centre is that much nearer. (Taking
-            # the forward lead there would put every overshooting stop 2 x 5 mm past the centre.)
-            # At rest (AT_REST) the way the truck is about to go is the way the link asks: the
-            # overshoot reverse. Taking the measured speed there (0, so forward) would send a
-            # truck that came to rest 6 mm past the centre and is about to back up 5 mm further
-            # on instead, to +11 mm (the view turns valid at the turn-round).
+            # valid ~6 mm early), so the stop point is that much further on in the direction of
+            # travel: backing up after an overshoot, centre_lead mm nearer (the forward lead
+            # would put every overshooting stop 2 x 5 mm past the centre). At rest (AT_REST)
+            # the way is the link's, the overshoot reverse: the measured speed (0, forward)
+            # would send a truck resting 6 mm past the centre on to +11 mm.
             moving = abs(self._speed) >= AT_REST
             backing = self._speed < 0 if moving else self.link['reverse'] == 1
             lead = -self.p.centre_lead if backing else self.p.centre_lead
@@ -300,9 +273,8 @@ class NavigationCore(SubsystemCore):
         self.sensor_lost = lost
         if lost:
             self.lost = 1  # OUTFO bit 3: LOST
-            if self.mode != 'idle':
-                self.mode = 'idle'
-                self.inchk = (NO_TASK, 0)  # a new task is needed after this
+            if self.mode != 'idle':  # a new task is needed after this
+                self.mode, self.inchk = 'idle', (NO_TASK, 0)
             self._set_link(speed=0)  # request speed 0
             self._locup()
 
@@ -310,9 +282,8 @@ class NavigationCore(SubsystemCore):
     def tick(self, now: float) -> dict | None:
         """CHK rate: sensor watchdog, controlled stop, and the steady heartbeats."""
         if self._sensor_time is None:
-            # A task, and no sensor has ever reported: lost once it has been quiet for
-            # sensor_timeout since the task came (not at once: its first status may be on
-            # its way).
+            # A task and no sensor status ever: lost once quiet for sensor_timeout since the
+            # task came (not at once: its first status may be on its way).
             if self.mode == 'idle':
                 self._task_since = None
             elif self._task_since is None:

@@ -1,11 +1,4 @@
-"""navigation: PC6/1's navigating and positioning loops (ros2 run agv_nodes navigation).
-
-Reads navigation/command, position_sensor/status and hw/wheel_odometry; writes
-navigation/status, traction/link and position_sensor/command. Behaviour:
-`agv_nodes.navigation.core`; parameters: `agv_nodes.navigation.settings`.
-"""
-
-from __future__ import annotations
+"""navigation: PC6/1's navigating and positioning loops (ros2 run agv_nodes navigation)."""
 
 import sys
 

@@ -1,7 +1,5 @@
 """Navigation settings: the classes its parameters.yaml declares the parameters of."""
 
-from __future__ import annotations
-
 from agv_nodes.settings import settings_class
 
 

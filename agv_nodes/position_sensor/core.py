@@ -2,37 +2,28 @@
 
 Per snapshot (Baker 1983, 5.2-5.3, 7.1.4):
 1. d.c. removal: x = lit - dark, clamped at 0 (SUBT);
-2. running-sum filter of run length 4 per detector, TOTAL = x_k + ... + x_(k-3) (no division;
-   thresholds are in x4 units), cleared on every table change (SAMIC/EDGIC), so the first three
-   snapshots after a change read dark;
-3. THRESH per detector: WHITE if TOTAL > THRON, BLACK if TOTAL <= THROFF, otherwise the
-   snapshot is INVALID (all eight are still processed);
-4. CODE: each valid decision shifts a bit in, detector 1 ending in bit 7 (Baker 1983, 5.3.5.2);
+2. running sum of run length 4 per detector, TOTAL = x_k + ... + x_(k-3) (thresholds in x4 units),
+   cleared on every table change (SAMIC/EDGIC): three snapshots after one read dark;
+3. THRESH: WHITE if TOTAL > THRON, BLACK if TOTAL <= THROFF, otherwise the snapshot is INVALID;
+4. CODE: each valid decision shifts a bit in, detector 1 ending in bit 7 (5.3.5.2);
 5. TARGET: a valid CODE is looked up in the active table (navigating: UCTAB, the four location
    markers and the stop-marker centre; positioning: EDGE, the seven stop views);
-6. a recognition is reported only after `min_consecutive_matches` equal matches in successive
-   snapshots (thesis 7.1.4; 1 = the printed listing). An invalid or different snapshot resets
-   the count.
+6. a recognition is reported after `min_consecutive_matches` equal matches in a row (7.1.4; 1 = the
+   printed listing).
 
-`invalid_band = hold` (a modern option, default `invalid`): a detector inside its band keeps its
-last decision instead of invalidating the snapshot, so a blurred card (standoff off focus, fast
-passes) yields more matching snapshots; a recognition still needs one snapshot of the streak
-with every detector decided, which keeps the held codes from making misreads.
+`invalid_band = hold` (modern; default `invalid`): a detector inside its band keeps its last
+decision, so a blurred card yields more matching snapshots; one snapshot of the streak must still
+have every detector decided, which keeps held codes from misreading.
 
-`decoder = sequence` (a modern option, the default; `snapshot` is the thesis's rule above): in
-the navigating table each detector column reads the passing card's four elements in time
-(`sequence.SequenceDecoder`), so no single snapshot needs all eight detectors decided at once;
-the positioning table (stop views at creep speed, each view's timing drives the stop) always
-uses the snapshot rule. The snapshot CODE and `invalid` are still worked out for the status
-record either way.
+`decoder = sequence` (modern, the default; `snapshot` is the thesis rule): in the navigating table
+each detector column reads the passing card in time (agv_nodes.position_sensor.sequence);
+positioning (creep speed, each view's timing drives the stop) always uses the snapshot rule, whose
+CODE and `invalid` the status record carries either way.
 
-`variant = as_listed` keeps the listing's defects (Baker 1983, 5.2.3, App. B.1, register items
-1 and 14): the black test compares only the high bytes of TOTAL and THROFF, and the EDGE search
-covers LEN = 5 entries, so stop views 6 and 7 never match. The default `intended` is the design
-as described.
+`variant = as_listed` keeps the listing's defects (5.2.3, App. B.1, register items 1 and 14): the
+black test compares only the high bytes of TOTAL and THROFF, and EDGE is searched over LEN = 5
+entries, so stop views 6 and 7 never match; `intended` (default) is the design as described.
 """
-
-from __future__ import annotations
 
 from typing import Any
 
@@ -53,18 +44,15 @@ class PositionSensorCore(SubsystemCore):
         n = self.p.run_length
         self._white = [w * n // 4 for w in self.white]  # THRON in run_length units
         self._black = [b * n // 4 for b in self.black]  # THROFF
-        self.table = 'navigating'
-        self.epoch = 0
+        self.table, self.epoch = 'navigating', 0
         self._oldest = [[0] * 8 for _ in range(self.p.run_length)]  # OLDEST rows
         self._total = [0] * 8  # TOTAL
         self._row = 0  # run counter
         self.code = 0  # CODE of the last valid snapshot
         self.invalid = self.saturated = False
         self.identity, self.stop_view = 0xFF, 0  # the last recognition, as reported
-        self.recognitions = 0
-        self.samples = 0
+        self.recognitions = self.samples = self._streak = 0
         self._streak_key: int | None = None
-        self._streak = 0
         self._streak_decisive = False  # a snapshot of the streak had no detector in the band
         self._reported = False  # this streak has been reported
         self._held: list[int | None] = [None] * 8  # each detector's last WHITE/BLACK decision
@@ -94,8 +82,7 @@ class PositionSensorCore(SubsystemCore):
     def _reset_filter(self) -> None:
         """SAMIC / EDGIC: clear OLDEST, TOTAL and the counter; CODE := 0."""
         self._oldest = [[0] * 8 for _ in range(self.p.run_length)]
-        self._total = [0] * 8
-        self._row = 0
+        self._total, self._row = [0] * 8, 0
         self._streak_key, self._streak = None, 0
         self._held = [None] * 8
         self._sequence.templates = self._templates
@@ -105,8 +92,7 @@ class PositionSensorCore(SubsystemCore):
     def _clear_sequence_sum(self) -> None:
         """Clear the sequence decoder's running sum, with THRESH's (SAMIC / EDGIC)."""
         self._seq_oldest = [[0] * 8 for _ in range(self.p.sequence_run_length)]
-        self._seq_total = [0] * 8
-        self._seq_row = 0
+        self._seq_total, self._seq_row = [0] * 8, 0
 
     @property
     def _reads_sequence(self) -> bool:
@@ -117,15 +103,12 @@ class PositionSensorCore(SubsystemCore):
         """adc_snapshot (340 Hz) or position_sensor_command (from navigation)."""
         if record == 'position_sensor_command':
             if fields['epoch'] != self.epoch or fields['table'] != self.table:
-                self.epoch = fields['epoch']
-                self.table = fields['table']
+                self.epoch, self.table = fields['epoch'], fields['table']
                 self._templates = self._table()
                 self._reset_filter()
             return None
-        lit = [fields[k] for k in LIT_FIELDS]
-        dark = [fields[k] for k in DARK_FIELDS]
         self._last_adc = now
-        return self.sample(lit, dark, now)
+        return self.sample([fields[k] for k in LIT_FIELDS], [fields[k] for k in DARK_FIELDS], now)
 
     def sample(self, lit: list[int], dark: list[int], now: float) -> dict | None:
         """One SAMPLE + DECODE; returns a status record when a recognition is made."""
@@ -137,18 +120,14 @@ class PositionSensorCore(SubsystemCore):
         as_listed = p.variant == 'as_listed'
         hold, held = p.invalid_band == 'hold', self._held
         for d in range(8):
-            x = lit[d] - dark[d]
-            if x < 0:
-                x = 0  # SUBT clamp
+            x = max(lit[d] - dark[d], 0)  # SUBT clamp
             self._total[d] += x - row[d]
             row[d] = x
             total = self._total[d]
             if total > self._white[d]:
-                code = code << 1 | 1
-                held[d] = 1
+                code, held[d] = code << 1 | 1, 1
             elif (total >> 8 <= self._black[d] >> 8) if as_listed else (total <= self._black[d]):
-                code <<= 1
-                held[d] = 0
+                code, held[d] = code << 1, 0
             elif hold and held[d] is not None:
                 code = code << 1 | held[d]  # in the band: the detector's last decision
                 decisive = False
@@ -167,8 +146,7 @@ class PositionSensorCore(SubsystemCore):
         if self._sequence.passage != self._passage:
             self._passage, self._passage_found = self._sequence.passage, set()
         if match is None and read is not None:
-            match = self._templates[read]
-            self.code = read
+            match, self.code = self._templates[read], read
         if match is None or match in self._passage_found:
             return None
         self._passage_found.add(match)
@@ -176,11 +154,7 @@ class PositionSensorCore(SubsystemCore):
 
     def _snapshot_rule(self, code: int, valid: bool, decisive: bool) -> int | None:
         """TARGET and the consecutive-match count (thesis 7.1.4): a match to report, or None."""
-        p = self.p
-        if not valid:
-            self._streak_key, self._streak = None, 0
-            return None
-        match = self._templates.get(code)
+        match = self._templates.get(code) if valid else None
         if match is None:
             self._streak_key, self._streak = None, 0
             return None
@@ -192,17 +166,14 @@ class PositionSensorCore(SubsystemCore):
         # A held code only extends a streak: one snapshot of it must be decisive throughout
         # (with 'invalid', every counted snapshot is)
         self._streak_decisive = self._streak_decisive or decisive
-        if self._reported or self._streak < p.min_consecutive_matches \
+        if self._reported or self._streak < self.p.min_consecutive_matches \
                 or not self._streak_decisive:
             return None  # not yet, or already reported for this streak
         self._reported = True
         return match
 
     def _sequence_levels(self, x: list[int]) -> list[float]:
-        """Return the sequence decoder's running sum of this snapshot's d.c.-removed `x`.
-
-        `x` is as SUBT made it for THRESH; the sum is in band units (0 = THROFF, 1 = THRON).
-        """
+        """Sum SUBT's `x` over the sequence decoder's run, in band units (0 THROFF, 1 THRON)."""
         row, total = self._seq_oldest[self._seq_row], self._seq_total
         self._seq_row = (self._seq_row + 1) % self.p.sequence_run_length
         z = []
@@ -227,23 +198,15 @@ class PositionSensorCore(SubsystemCore):
         self._last_status = now
         if self._first_now is None:
             self._first_now = now
-        # Stale: no snapshot for adc_timeout - counted from the first time this node kept
-        # time when none has come yet (else a heartbeat due before the first snapshot of a
-        # run would call a healthy sensor stale, and navigation LOST, at every start-up).
+        # Stale: no snapshot for adc_timeout, from the first status if none came yet (else a
+        # heartbeat before the first snapshot would call a healthy sensor stale at start-up).
         last = self._last_adc if self._last_adc is not None else self._first_now
         stale = now - last > self.p.adc_timeout
         return {
-            'recognised': int(recognised),
-            'invalid': int(self.invalid),
-            'adc_stale': int(stale),
-            'table': self.table,
-            'saturated': int(self.saturated),
-            'code': self.code,
-            'identity': self.identity,
-            'stop_view': self.stop_view,
-            'recognitions': self.recognitions,
-            'sample_count': self.samples,
-            'epoch': self.epoch,
+            'recognised': int(recognised), 'invalid': int(self.invalid), 'adc_stale': int(stale),
+            'table': self.table, 'saturated': int(self.saturated), 'code': self.code,
+            'identity': self.identity, 'stop_view': self.stop_view,
+            'recognitions': self.recognitions, 'sample_count': self.samples, 'epoch': self.epoch,
         }
 
     def tick(self, now: float) -> dict | None:

@@ -1,11 +1,4 @@
-"""position_sensor: marker recognition from ADC snapshots (ros2 run agv_nodes position_sensor).
-
-Reads hw/position_sensor/adc (340 Hz, best effort) and position_sensor/command; writes
-position_sensor/status on every recognition and as a heartbeat. Behaviour:
-`agv_nodes.position_sensor.core`; parameters: `agv_nodes.position_sensor.settings`.
-"""
-
-from __future__ import annotations
+"""position_sensor: marker recognition from ADC snapshots (ros2 run agv_nodes position_sensor)."""
 
 import sys
 

@@ -1,30 +1,24 @@
 """Sequence decoding of the navigating table: each detector column reads a passing card in time.
 
-The thesis decides a card from one snapshot in which all eight detectors are outside their
-invalid band at once (Baker 1983, 5.2.3). Off focus (blur), with the detectors' along-track
-skew (thesis 7.1.3: +-1 sample) and at speed (a 20 mm element lasts 6.8 snapshots at 1 m/s,
-3.4 at 2 m/s), such a snapshot is rare or absent: across 280-320 mm standoff and +-10 mm
-height the thesis rule missed 974 of 10,020 passes at 1 m/s (bench/recognition_bench.py).
+The thesis needs one snapshot with all eight detectors outside their invalid band (Baker 1983,
+5.2.3); off focus, with the along-track skew (7.1.3: +-1 sample) and at speed (a 20 mm element
+lasts 6.8 snapshots at 1 m/s) that is rare: over 280-320 mm standoff and +-10 mm height the thesis
+rule missed 974 of 10,020 passes at 1 m/s (bench/recognition_bench.py).
 
-Yet every column sees every element of its row go by. Each card of the navigating table, the
-four location markers (Baker 1983, 4.3, fig 4.6) and the stop marker's centre view (Baker 1983,
-4.3, fig 4.4), is four elements long with white, in one row or the other, in its first and last
-element. So each column sees one white-bounded window four elements long; read at the middle of
-each quarter of that window, the column's two detectors give the card's whole CODE by
-themselves, at their own time (skew cannot split them), and the four columns give four reads of
-the same card. A card is recognised when `agree` columns have read the same template of the
-table, no column that read the card cleanly read anything else, and every such window is as
-long as four elements at the speed the columns' start times give (a 20 mm column pitch apart):
-a truck that stops, reverses or changes speed over a card stretches its windows out of step
-with that, and without this check misreads L1 as L3 (bench/recognition_bench.py --motion).
+Yet every column sees every element of its row go by. Each navigating card (location markers, 4.3,
+fig 4.6; the stop centre view, fig 4.4) is four elements long, white in its first and last, so each
+column sees one white-bounded window four elements long, and read at the middle of each quarter its
+two detectors give the whole CODE at their own time (skew cannot split them). A card is recognised
+when `agree` columns read the same template, no clean column read another, and every window is as
+long as four elements at the speed the columns' start times (20 mm apart) give: a truck that stops,
+reverses or changes speed over a card stretches its windows out of step, and would misread L1 as L3
+(recognition_bench --motion).
 
-Time order: a card passing in forward travel crosses the image from C1 to C4 (world
-marker_sensor), so every column sees the card's C4 element first. In reverse the read is
-mirrored, and no mirrored navigating card is a template (78H -> E1H, 3CH -> C3H, 5AH -> A5H,
-1EH -> 87H, A3H -> C5H): a reversing truck recognises nothing (it only reverses positioning).
+In forward travel a card crosses the image from C1 to C4 (world marker_sensor), so a column sees
+its C4 element first. In reverse the read is mirrored, and no mirrored navigating card is a
+template (78H -> E1H, 3CH -> C3H, 5AH -> A5H, 1EH -> 87H, A3H -> C5H): a reversing truck recognises
+nothing (it only reverses positioning).
 """
-
-from __future__ import annotations
 
 from dataclasses import dataclass, field
 
@@ -55,8 +49,7 @@ class SequenceDecoder:
     def __init__(self, templates: dict[int, int], agree: int = 3, margin: float = 0.25,
                  stretch: float = 1.5) -> None:
         self.templates = templates  # CODE -> identity
-        self.agree = agree
-        self.margin = margin
+        self.agree, self.margin = agree, margin
         # A window may be up to `stretch` times longer or shorter than four column delays (in
         # 24,000 clean reads at 1 and 2 m/s across 280-320 mm: 0.83-1.30; the misreads: 2.5).
         self.stretch = stretch
@@ -68,8 +61,7 @@ class SequenceDecoder:
         self._columns = [_Column() for _ in range(4)]
         self._sample = -1
         self._before: list[float] | None = None  # the previous snapshot
-        self._open = 0  # columns with a window open
-        self._all_armed = False
+        self._open, self._all_armed = 0, False  # _open: columns with a window open
         self._new_passage()
 
     def _new_passage(self) -> None:
@@ -79,10 +71,7 @@ class SequenceDecoder:
         self._reported = False
 
     def sample(self, z: list[float]) -> int | None:
-        """One snapshot: z[d] = (TOTAL - THROFF) / (THRON - THROFF) per detector 1-8.
-
-        Returns a CODE of the table when this snapshot completes a recognition.
-        """
+        """Take a snapshot, z[d] = (TOTAL - THROFF) / (THRON - THROFF); a CODE when one is read."""
         self._sample += 1
         before, self._before = self._before, z
         if self._open == 0 and max(z) <= LEVEL:  # nothing white in view: the usual case
@@ -91,8 +80,7 @@ class SequenceDecoder:
                     col.armed = True
                 self._all_armed = True
             return None
-        i = self._sample
-        out = None
+        i, out = self._sample, None
         for c, col in enumerate(self._columns):
             pair = (z[c], z[c + 4])
             p = pair[0] if pair[0] > pair[1] else pair[1]  # white in either row
@@ -115,9 +103,8 @@ class SequenceDecoder:
             if p > LEVEL:
                 col.fall, col.low = None, 0
                 if len(col.rows) > LONGEST:  # at rest on a card: give the window up
-                    col.rise, col.armed = None, False
+                    col.rise, col.armed, self._all_armed = None, False, False
                     self._open -= 1
-                    self._all_armed = False
                 continue
             if col.fall is None:
                 col.fall = i - 1 + (last - LEVEL) / (last - p)
@@ -141,20 +128,15 @@ class SequenceDecoder:
     def _element(self, col: _Column) -> float:
         """Snapshots per element: the column delay, or a quarter of this window so far."""
         delay = self._column_delay()
-        if delay is not None:
-            return delay
-        return ((col.fall if col.fall is not None else col.rise) - col.rise) / ELEMENTS
+        return delay if delay is not None else \
+            ((col.fall if col.fall is not None else col.rise) - col.rise) / ELEMENTS
 
     def _read(self, col: _Column) -> int | None:
-        """Return the CODE one column read (C1 in bit 3 of each nibble).
-
-        None if any element is inside `margin` of the band's middle.
-        """
+        """Return one column's CODE (C1 in each nibble's bit 3); None if unsure (`margin`)."""
         length = col.fall - col.rise
         if length < 2.0:
             return None
-        element = length / ELEMENTS
-        code = 0
+        element, code = length / ELEMENTS, 0
         for row in (0, 1):
             bits = 0
             for j in range(ELEMENTS):  # time order: C4's element first
@@ -174,9 +156,8 @@ class SequenceDecoder:
         if self._reported:
             return None
         clean = [(code, n) for code, n in self._reads if code is not None]
-        if len(clean) < self.agree or any(code != clean[0][0] for code, _n in clean):
-            return None
-        if clean[0][0] not in self.templates:
+        if len(clean) < self.agree or any(code != clean[0][0] for code, _n in clean) \
+                or clean[0][0] not in self.templates:
             return None
         delay = self._column_delay()
         r = self._rises

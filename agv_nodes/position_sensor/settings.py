@@ -1,7 +1,5 @@
 """Position sensor settings: the classes its parameters.yaml declares the parameters of."""
 
-from __future__ import annotations
-
 from typing import Any
 
 from agv_nodes.markers import THRESHOLDS
@@ -18,10 +16,7 @@ class SensorProcessing:
         return tuple(self.white) or table['white'], tuple(self.black) or table['black']
 
     def problems(self) -> list[tuple[str, Any, str]]:
-        """Make the checks `build` needs beyond each field's own.
-
-        Each black threshold must be below its white one.
-        """
+        """Check what `build` cannot field by field: each black threshold below its white."""
         white, black = self.thresholds()
         low = [d for d, (w, b) in enumerate(zip(white, black, strict=True), 1) if b >= w]
         if not low:

@@ -1,18 +1,12 @@
 """The carriers of the records on the wire, in their serialized CDR form (ROS-free).
 
-Every record travels as a std_msgs/UInt8MultiArray with an empty layout; the world's clock is
-rosgraph_msgs/Clock. The nodes publish and take both serialized (rclpy's `raw=True`), and the
-report reads bags the same way: rclpy 7.1.6 spends more turning a UInt8MultiArray into a Python
-message than taking it at all. A bare 340 Hz reader of 16-byte records took 7.7-9.1 % of a
-core, raw 4.3-4.9 % (bench/rclpy_bench.py --message record); rosbags' general deserializer
-took 6.8 of the 18.6 s a profiled report of the whole programme spent.
-
-Only the shapes this package sends are read here (CDR little endian, as every DDS on x86 and
-ARM writes by default); anything else returns None and the caller falls back to a general
-deserializer, so a foreign writer's valid message is never refused for its form.
+Records travel as std_msgs/UInt8MultiArray with an empty layout, the clock as rosgraph_msgs/Clock;
+nodes and report take both serialized (`raw=True`): rclpy 7.1.6 spends more making a Python message
+than taking it (a 340 Hz reader took 7.7-9.1 % of a core, raw 4.3-4.9 %, bench/rclpy_bench.py
+--message record; rosbags' deserializer took 6.8 of a report's 18.6 s). Only the shapes this
+package sends (CDR little endian, every DDS's default on x86 and ARM) are read; anything else is
+None, for the caller's general deserializer.
 """
-
-from __future__ import annotations
 
 import struct
 
@@ -22,10 +16,7 @@ _CLOCK = struct.Struct('<iI')  # builtin_interfaces/Time: int32 sec, uint32 nano
 
 
 def uint8_array_data(raw: bytes | memoryview) -> bytes | None:
-    """Return the `data` of a serialized std_msgs/UInt8MultiArray with an empty layout.
-
-    It is read straight from the CDR; None for any other shape.
-    """
+    """Return the `data` of a serialized std_msgs/UInt8MultiArray, empty layout; else None."""
     if len(raw) < 16 or bytes(raw[:12]) != _EMPTY_LAYOUT_LE:
         return None
     n = int.from_bytes(raw[12:16], 'little')
@@ -33,10 +24,7 @@ def uint8_array_data(raw: bytes | memoryview) -> bytes | None:
 
 
 def uint8_array_cdr(data: bytes) -> bytes:
-    """Serialize `data` as a std_msgs/UInt8MultiArray with an empty layout.
-
-    The bytes are what rclpy's serializer writes for UInt8MultiArray(data=data).
-    """
+    """Serialize `data` as UInt8MultiArray(data=data) with an empty layout, as rclpy would."""
     return _EMPTY_LAYOUT_LE + len(data).to_bytes(4, 'little') + data
 
 

@@ -3,8 +3,6 @@
 Bad input exits with status 2 and a one-line reason on stderr, never a traceback.
 """
 
-from __future__ import annotations
-
 import argparse
 from pathlib import Path
 import sys
@@ -13,6 +11,7 @@ from typing import Any
 import yaml
 
 from agv_nodes.records.codec import Codec, load_codec
+from agv_nodes.records.codec import codec as installed_codec
 from agv_nodes.records.errors import RecordError, SchemaError
 from agv_nodes.records.tables import record_table, render_markdown
 
@@ -34,8 +33,7 @@ def _parse_value(text: str) -> Any:
 
 def _parse_hex(text: str) -> bytes:
     t = ''.join(text.split()).replace(':', '')
-    if t.lower().startswith('0x'):
-        t = t[2:]
+    t = t[2:] if t.lower().startswith('0x') else t
     try:
         return bytes.fromhex(t)
     except ValueError:
@@ -59,8 +57,8 @@ def _cmd_encode(codec: Codec, args: argparse.Namespace) -> None:
         if not sep or not name:
             raise UsageError(f'expected field=value, got {item!r}')
         values[name] = _parse_value(value)
-    raw = codec.encode(args.record, values, integrity=args.integrity, counter=args.counter)
-    print(raw.hex().upper())
+    print(codec.encode(args.record, values, integrity=args.integrity,
+                       counter=args.counter).hex().upper())
 
 
 def _cmd_decode(codec: Codec, args: argparse.Namespace) -> None:
@@ -116,16 +114,11 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse already printed its one-line usage error
         return 2 if exc.code else 0
-    handlers = {'list': _cmd_list, 'show': _cmd_show, 'encode': _cmd_encode,
-                'decode': _cmd_decode, 'doc': _cmd_doc}
+    handlers = {'list': _cmd_list, 'show': _cmd_show, 'encode': _cmd_encode, 'decode': _cmd_decode,
+                'doc': _cmd_doc}
     try:
-        if args.schemas:
-            codec = load_codec(args.schemas)
-        else:
-            from agv_nodes.records.codec import codec as installed
-
-            codec = installed()
-        handlers[args.command](codec, args)
+        handlers[args.command](load_codec(args.schemas) if args.schemas else installed_codec(),
+                               args)
     except (RecordError, SchemaError, UsageError, OSError) as exc:
         print(f'agv-records: {exc}', file=sys.stderr)
         return 2

@@ -1,16 +1,11 @@
-"""The codec: every record schema of a schema directory, by name, and the installed package's.
-
-Each schema lives in its own msg_schemas/<record>.yaml (loaded and checked by loading.py); the
-codec adds what only the set can check: no two records share a data_id or a topic.
-"""
-
-from __future__ import annotations
+"""The codec: a directory's schemas by name, no two sharing a data_id or topic; the package's."""
 
 from collections.abc import Iterable, Iterator, Mapping
 import functools
 from pathlib import Path
 from typing import Any
 
+from agv_nodes.package_share import schema_dir
 from agv_nodes.records.errors import RecordError, Reject, SchemaError
 from agv_nodes.records.loading import load_schema
 from agv_nodes.records.schema import RecordSchema
@@ -30,8 +25,7 @@ class Codec:
             if s.topic in topics:
                 raise SchemaError(f"{s.path}: key 'topic': {s.topic!r} already used by "
                                   f'{topics[s.topic]}')
-            ids[s.data_id] = s.name
-            topics[s.topic] = s.name
+            ids[s.data_id] = topics[s.topic] = s.name
             self._schemas[s.name] = s
 
     def __getitem__(self, name: str) -> RecordSchema:
@@ -63,16 +57,13 @@ class Codec:
 
     def for_node(self, node: str) -> tuple[list[RecordSchema], list[RecordSchema]]:
         """Return the port declarations of `node`: (records it reads, records it writes)."""
-        reads = [s for s in self if node in s.readers]
-        writes = [s for s in self if s.writer == node]
-        return reads, writes
+        return [s for s in self if node in s.readers], [s for s in self if s.writer == node]
 
 
 def load_codec(directory: Path | str) -> Codec:
     """Load every `*.yaml` schema of `directory`."""
     directory = Path(directory)
-    files = sorted(directory.glob('*.yaml'))
-    if not files:
+    if not (files := sorted(directory.glob('*.yaml'))):
         raise SchemaError(f'{directory}: no record schemas (*.yaml) found')
     return Codec(load_schema(p) for p in files)
 
@@ -80,6 +71,4 @@ def load_codec(directory: Path | str) -> Codec:
 @functools.cache
 def codec() -> Codec:
     """Return the installed package's codec (schemas loaded once per process)."""
-    from agv_nodes.package_share import schema_dir
-
     return load_codec(schema_dir())

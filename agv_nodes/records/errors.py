@@ -1,11 +1,8 @@
 """What can go wrong with a record or a schema file, and why a record was refused.
 
-`RecordError` is the only exception encoding and decoding raise; its `code` (a `Reject`) says
-why in one word, so a receiving port can count rejections by reason without reading the
-message, and the message names the record, byte, field and value for a person.
+`RecordError`'s `code` (a `Reject`) says why in one word, for ports to count rejections by reason;
+its message names the record, byte, field and value for a person.
 """
-
-from __future__ import annotations
 
 import enum
 from typing import Any

@@ -1,15 +1,10 @@
-"""Loading one record schema file (msg_schemas/*.yaml) and checking every key of it.
-
-A file that cannot be used raises SchemaError naming the file, the key and the value, so a
-typo in a schema is found when the codec loads, never as a wrong byte on the wire.
-"""
-
-from __future__ import annotations
+"""Loading one schema file (msg_schemas/*.yaml), every key checked: a typo fails at load."""
 
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from agv_nodes.package_share import read_mapping
 from agv_nodes.records.errors import SchemaError
 from agv_nodes.records.schema import (
     ENCODINGS,
@@ -19,7 +14,6 @@ from agv_nodes.records.schema import (
     Field,
     RecordSchema,
 )
-from agv_nodes.yaml_files import read_mapping
 
 _RECORD_KEYS = {'record', 'data_id', 'kind', 'topic', 'writer', 'readers', 'period_ms', 'qos',
                 'thesis', 'summary', 'fields'}
@@ -49,8 +43,7 @@ def _load_field(spec: Any, index: int, file: Path, last_byte: int) -> Field:
     where = f'fields[{index}]: '
     if not isinstance(spec, dict):
         raise SchemaError(f'{file}: {where}expected a mapping, got {spec!r}')
-    extra = set(spec) - _FIELD_KEYS
-    if extra:
+    if extra := set(spec) - _FIELD_KEYS:
         raise SchemaError(f'{file}: {where}unknown key {sorted(extra)[0]!r}')
     name = _need(spec, 'name', file, where)
     where = f'field {name!r}: '
@@ -92,8 +85,7 @@ def _load_field(spec: Any, index: int, file: Path, last_byte: int) -> Field:
             if not isinstance(code, int) or not full_lo <= code <= full_hi:
                 raise SchemaError(f"{file}: {where}key 'values.{vname}': {code!r} does not fit "
                                   f'{width} bits')
-    lo = spec.get('min', full_lo)
-    hi = spec.get('max', full_hi)
+    lo, hi = spec.get('min', full_lo), spec.get('max', full_hi)
     if not (isinstance(lo, int) and isinstance(hi, int) and full_lo <= lo <= hi <= full_hi):
         raise SchemaError(f"{file}: {where}keys 'min'/'max': {lo!r}..{hi!r} do not fit "
                           f'{width} bits ({full_lo}..{full_hi})')

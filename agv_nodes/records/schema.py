@@ -2,11 +2,10 @@
 
 Byte numbers follow the thesis (1-16). Inter-processor records keep bytes 15-16 for end-to-end
 protection (`integrity='e2e'`: counter and CRC-8, see e2e.py) or require them to be 00H
-(`integrity='none'`: a legacy peer sending plain thesis records). Hardware-side records use all
-16 bytes and carry no protection. Every bit that no field claims is spare and must be 0.
+(`integrity='none'`: a legacy peer sending plain thesis records). Hardware-side records use all 16
+bytes and carry no protection. Every bit that no field claims is spare and must be 0. Each schema
+also generates a straight-line fast path for its fields once (`compile_fast_paths`).
 """
-
-from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
@@ -128,12 +127,9 @@ class RecordSchema:
     # (a frozen dataclass still has an instance __dict__ for cached_property).
     @functools.cached_property
     def _plan(self) -> tuple[tuple, ...]:
-        plan = []
-        for f in self.fields:
-            plan.append((f, f.name, f.byte - 1, f.n_bytes == 2, f.lo_bit, (1 << f.width) - 1,
-                         f.width, f.encoding, f.lo, f.hi, frozenset(f.special), f.names,
-                         f.values))
-        return tuple(plan)
+        return tuple((f, f.name, f.byte - 1, f.n_bytes == 2, f.lo_bit, (1 << f.width) - 1,
+                      f.width, f.encoding, f.lo, f.hi, frozenset(f.special), f.names, f.values)
+                     for f in self.fields)
 
     @functools.cached_property
     def _names(self) -> frozenset[str]:
@@ -149,18 +145,13 @@ class RecordSchema:
     def encode(self, values: Mapping[str, Any] | None = None, *, integrity: str = 'e2e',
                counter: int = 0) -> bytes:
         """Pack `values` (missing fields take their defaults) into 16 bytes."""
-        if values is None:
-            values = {}
-        names = self._names
-        for key in values:
-            if key not in names:
-                raise RecordError(self.name, 'no such field', code=Reject.UNKNOWN_FIELD,
-                                  field=sorted(set(values) - names)[0])
-        if integrity not in INTEGRITY_MODES:
-            _check_integrity(self.name, integrity)
-        out = self._compiled[0](values)  # None: something the general path must judge
-        if out is None:
-            out = self._encode_fields(values)
+        values = {} if values is None else values
+        if not self._names.issuperset(values):
+            raise RecordError(self.name, 'no such field', code=Reject.UNKNOWN_FIELD,
+                              field=sorted(set(values) - self._names)[0])
+        _check_integrity(self.name, integrity)
+        # None from the fast path: something the general path must judge
+        out = self._compiled[0](values) or self._encode_fields(values)
         if self.protected and integrity == 'e2e':
             if not 0 <= counter <= 255:
                 raise RecordError(self.name, 'e2e counter must be 0-255', code=Reject.BAD_VALUE,
@@ -191,13 +182,11 @@ class RecordSchema:
         return out
 
     def _to_raw(self, f: Field, value: Any) -> int:
-        if f.encoding == 'enum':
-            if isinstance(value, str):
-                if value not in f.values:
-                    raise RecordError(self.name, f'unknown enum name (one of {list(f.values)})',
-                                      code=Reject.BAD_VALUE, byte=f.byte, field=f.name,
-                                      value=value)
-                return f.values[value]
+        if f.encoding == 'enum' and isinstance(value, str):
+            if value not in f.values:
+                raise RecordError(self.name, f'unknown enum name (one of {list(f.values)})',
+                                  code=Reject.BAD_VALUE, byte=f.byte, field=f.name, value=value)
+            return f.values[value]
         if isinstance(value, bool):
             value = int(value)
         if not isinstance(value, int):
@@ -228,8 +217,7 @@ class RecordSchema:
         if len(data) != RECORD_LENGTH:
             raise RecordError(self.name, f'length {len(data)}, expected {RECORD_LENGTH} bytes',
                               code=Reject.WRONG_LENGTH)
-        if integrity not in INTEGRITY_MODES:
-            _check_integrity(self.name, integrity)
+        _check_integrity(self.name, integrity)
         check_spare = RECORD_LENGTH
         if self.protected:
             check_spare = 14
@@ -248,8 +236,7 @@ class RecordSchema:
         spare = self._spare_masks[0 if check_spare == 14 else 1]
         if int.from_bytes(data[:check_spare], 'big') & spare:
             for i in range(check_spare):
-                stray = data[i] & ~self.used[i] & 0xFF
-                if stray:
+                if stray := data[i] & ~self.used[i] & 0xFF:
                     raise RecordError(self.name, f'spare bits set (mask {stray:02X}H), must be '
                                       '0', code=Reject.SPARE_SET, byte=i + 1, value=data[i])
         out = self._compiled[1](data)  # None: a value the general path must name
@@ -282,9 +269,6 @@ class RecordSchema:
 
     @functools.cached_property
     def _compiled(self) -> tuple[Callable, Callable]:
-        # fast_path.py reads this module's constants, so it is imported on first use
-        from agv_nodes.records.fast_path import compile_fast_paths
-
         return compile_fast_paths(self)
 
 
@@ -297,3 +281,68 @@ def _check_integrity(record: str, integrity: str) -> None:
 def e2e_counter(data: bytes | bytearray) -> int:
     """Return the sequence counter (byte 15) of a protected record."""
     return data[COUNTER_BYTE - 1]
+
+
+def compile_fast_paths(schema: RecordSchema) -> tuple[Callable, Callable]:
+    """(pack, unpack): straight-line Python for one schema's fields, generated once.
+
+    `pack(values)` -> bytearray(16), bytes 15-16 zero; `unpack(data)` -> the field dict of 16
+    checked bytes; for records whose every value is a valid int (a bool for a flag, a name for an
+    enum). Anything else - a bool elsewhere, an enum code, a special value's name, a value out of
+    range - returns None, and the general path (`_encode_fields`, `_decode_fields`) decides and
+    names the error, so the two differ only in speed (test_records checks it). The loop over the
+    plan cost ~1 us a field, on every record a node or the harness sends and takes.
+    """
+    env: dict[str, Any] = {}
+    pack = ['def pack(values):', '    get = values.get']
+    unpack = ['def unpack(data):']
+    byte_parts: list[list[str]] = [[] for _ in range(RECORD_LENGTH)]
+    keys = []
+    for k, f in enumerate(schema.fields):
+        v, index = f'v{k}', f.byte - 1
+        env[f'D{k}'], env[f'S{k}'] = f.default, frozenset(f.special)
+        keys.append(f'{f.name!r}: {v}')
+        # -- pack
+        pack.append(f'    {v} = get({f.name!r}, D{k})')
+        if f.encoding == 'flag':  # cores pass bools; the general path takes them as 0 / 1
+            pack.append(f'    if type({v}) is bool: {v} = int({v})')
+        if f.encoding == 'enum':
+            env[f'C{k}'] = dict(f.values)
+            pack += [f'    if type({v}) is not str: return None',
+                     f'    {v} = C{k}.get({v})', f'    if {v} is None: return None']
+        else:
+            special = f' and {v} not in S{k}' if f.special else ''
+            pack.append(f'    if type({v}) is not int or not {f.lo} <= {v} <= {f.hi}{special}: '
+                        'return None')
+        # -- unpack
+        if f.n_bytes == 2:
+            unpack.append(f'    {v} = data[{index}] | data[{index + 1}] << 8')
+            if f.encoding == 's16le':
+                unpack.append(f'    if {v} & 0x8000: {v} -= 0x10000')
+            possible = (-0x8000, 0x7FFF) if f.encoding == 's16le' else (0, 0xFFFF)
+            byte_parts[index].append(f'({v} & 0xFF)')
+            byte_parts[index + 1].append(f'(({v} & 0xFFFF) >> 8)')
+        else:
+            width, mask = f.width, (1 << f.width) - 1
+            read = f'data[{index}]' if f.lo_bit == 0 else f'(data[{index}] >> {f.lo_bit})'
+            unpack.append(f'    {v} = {read}' if mask == 0xFF and not f.lo_bit else
+                          f'    {v} = {read} & {mask}')
+            if f.encoding == 'twos_complement':
+                unpack.append(f'    if {v} >> {width - 1}: {v} -= {1 << width}')
+                possible = (-(1 << (width - 1)), (1 << (width - 1)) - 1)
+            else:
+                possible = (0, mask)
+            shift = f' << {f.lo_bit}' if f.lo_bit else ''
+            byte_parts[index].append(f'(({v} & {mask}){shift})')
+        if f.encoding == 'enum':
+            env[f'N{k}'] = dict(f.names)
+            unpack += [f'    {v} = N{k}.get({v})', f'    if {v} is None: return None']
+        elif not (f.lo <= possible[0] and possible[1] <= f.hi):
+            special = f' and {v} not in S{k}' if f.special else ''
+            unpack.append(f'    if not {f.lo} <= {v} <= {f.hi}{special}: return None')
+    pack.append('    return bytearray((' + ', '.join(' | '.join(p) or '0' for p in byte_parts)
+                + '))')
+    unpack.append('    return {' + ', '.join(keys) + '}')
+    source = '\n'.join(pack) + '\n\n' + '\n'.join(unpack) + '\n'
+    exec(compile(source, f'<codec {schema.name}>', 'exec'), env)  # noqa: S102
+    return env['pack'], env['unpack']

@@ -1,7 +1,5 @@
 """Human-readable record tables (docs/records.md and `agv-records show`), from the schemas."""
 
-from __future__ import annotations
-
 from agv_nodes.records.codec import Codec
 from agv_nodes.records.schema import Field, RecordSchema
 
@@ -54,20 +52,12 @@ def _default(f: Field) -> str:
 
 def record_table(s: RecordSchema) -> str:
     """Markdown section for one record."""
-    readers = ', '.join(s.readers)
-    lines = [
-        f'## `{s.name}`',
-        '',
-        f'- topic `{s.topic}`; writer `{s.writer}`; readers {readers}',
-        f'- data_id `{s.data_id:02X}H`; kind {s.kind.replace("_", "-")}; '
-        f'QoS class {s.qos}; period {s.period_ms:g} ms',
-        f'- thesis: {s.thesis}',
-        '',
-        s.summary,
-        '',
-        '| byte | bits | field | encoding | meaning / units | default | thesis |',
-        '|---|---|---|---|---|---|---|',
-    ]
+    lines = [f'## `{s.name}`', '', f'- topic `{s.topic}`; writer `{s.writer}`; readers '
+             f'{", ".join(s.readers)}', f'- data_id `{s.data_id:02X}H`; kind '
+             f'{s.kind.replace("_", "-")}; QoS class {s.qos}; period {s.period_ms:g} ms',
+             f'- thesis: {s.thesis}', '', s.summary, '',
+             '| byte | bits | field | encoding | meaning / units | default | thesis |',
+             '|---|---|---|---|---|---|---|']
     for f in s.fields:
         meaning = _meaning(f).replace('|', '/')
         lines.append(f'| {f.bytes_text()} | {f.bits_text()} | `{f.name}` | {f.encoding} | '
@@ -93,7 +83,5 @@ def render_markdown(codec: Codec) -> str:
               'hardware': '# Hardware-side records',
               'ground_truth': '# Ground truth (simulation only)'}
     for kind, title in titles.items():
-        parts.append(title)
-        parts.append('')
-        parts += [record_table(s) for s in codec if s.kind == kind]
+        parts += [title, '', *(record_table(s) for s in codec if s.kind == kind)]
     return '\n'.join(parts).rstrip() + '\n'

@@ -6,8 +6,6 @@ eps_d > 0 when the tape lies to the left of the window centre, eps_theta > 0 whe
 CCW, and the caster angle theta_s > 0 turns the vehicle left.
 """
 
-from __future__ import annotations
-
 from dataclasses import dataclass
 import enum
 import math
@@ -60,21 +58,18 @@ class ImageAnalyser:
 
     def __init__(self, params: ImageParams | None = None) -> None:
         self.p = params or ImageParams()
-        self.mm_row = self.p.depth / 64
-        self.mm_col = self.p.width / 128
+        self.mm_row, self.mm_col = self.p.depth / 64, self.p.width / 128
         self.normal_width = self.p.normal_width
         self._prev_centre: float | None = None
 
     def branch_edge(self, frame: np.ndarray, side: str) -> float | None:
-        """Return how far (m) ahead of the window centre a branch's near edge is.
+        """Return how far (m) ahead of the window centre a branch's near edge is (edge column).
 
-        The branch crosses the window's left or right edge column (None: no branch there, or
-        its near edge is behind the window). The longest dark run down the column is the
-        branch; specks are shorter.
+        The longest dark run down the column is the branch (specks are shorter); None when there is
+        none or its near edge is behind the window.
         """
         column = frame[:, 0 if side == 'left' else -1]
-        runs = [(a, n) for a, n in runs_of(column) if n >= self.p.sign_rows]
-        if not runs:
+        if not (runs := [(a, n) for a, n in runs_of(column) if n >= self.p.sign_rows]):
             return None
         a, n = max(runs, key=lambda k: k[1])
         last = a + n - 1  # rearmost dark row (row 0 is ahead)
@@ -112,8 +107,7 @@ class ImageAnalyser:
         if len(ys) < 2:
             self._prev_centre = None
             return Measurement(0.0, 0.0, Validity.ABSENT, 0.0, len(ys), left, right)
-        # Well-conditioned fit (Rajagopalan 1991, 4.2.2): column on row, in metres from the window
-        # centre.
+        # Well-conditioned fit (Rajagopalan 1991, 4.2.2): column on row, m from the window centre.
         y = (31.5 - np.array(ys, dtype=float)) * self.mm_row  # + ahead
         x = (63.5 - np.array(xs, dtype=float)) * self.mm_col  # + left
         ybar, xbar = y.mean(), x.mean()
@@ -134,16 +128,11 @@ class CameraSteering:
 
     def __init__(self, params: SteeringParams | None = None) -> None:
         self.p = params or SteeringParams()
-        self.integral = 0.0
-        self.theta_s = 0.0
+        self.integral = self.theta_s = 0.0
         self.absent = 0
 
     def update(self, m: Measurement, dt: float, speed: float = 0.0) -> float | None:
-        """Return the new caster angle theta_s, or None when the vehicle must stop.
-
-        None means the track is absent. `speed` is the cruise asked for (only the gain
-        schedule uses it).
-        """
+        """Return the caster angle theta_s at cruise `speed`; None (stop): the track is absent."""
         p = self.p
         gain_d = p.gain_d
         if p.schedule_speed > 0 and speed > p.schedule_speed:

@@ -1,27 +1,21 @@
 """Route following: guide-wire steering, software-resident manoeuvres, binary-camera guidance.
 
-Guide wire (Baker 1983, 3.5.3, 6.2.1, 7.2): the two coil amplitudes give the wire's lateral
-offset from the sensor point (inverting the straight-line-current model of the pickup), and a
-PI law on it, with a derivative term on the offset for damping, steers the Ackermann front
-wheels. A signal below `lost_level` for `lost_samples` samples, or no pickup sample for that
-long, reports LOST at once; the executive stops the truck. LOST holds until the truck is at
-rest with the wire present again. An SRM (route_command mode = srm, a new `manoeuvre` value)
-leaves the wire at the pre-programmed steering angle until the signal has dropped and a wire is
-detected again, then wire following resumes (Baker 1983, 7.2 task 7).
+Guide wire (Baker 1983, 3.5.3, 6.2.1, 7.2): the coil amplitudes give the wire's lateral offset from
+the sensor point (`wire_offset`), and a PI law with a derivative term for damping steers the
+Ackermann front wheels. A signal below `lost_level` for `lost_samples` samples, or no pickup sample
+for that long, reports LOST at once (the executive stops the truck) until the truck is at rest with
+the wire present again. An SRM (mode srm, a new `manoeuvre`) leaves the wire at the programmed
+steering angle until the signal drops and a wire is found again, then follows it (7.2 task 7).
 
-Camera (Rajagopalan 1991, mode = camera, the differential-drive CONCIC-II): each frame is
-analysed (run-length noise filter, least-squares line fit, validity, road-sign edges), the P or
-PI law gives the caster angle, and Eq 5.15/5.16 the wheel speeds. Four absent frames stop the
-vehicle (motor off); a saturated frame keeps the last command. At a road sign the branch flags
-are collected, and the junction choice of route_command is taken (Rajagopalan 1991, App. F.6):
-once the chosen branch shows at the window's edge column the vehicle slows, stops with its axle
-centre over the crossing (judged by wheel odometry: the camera's distance ahead of the axle),
-spins in place a quarter turn toward the branch and follows it. A branch chosen that the sign
-does not offer stops the vehicle ("no_branch"; Rajagopalan 1991: "the vehicle stops with a
-message"); a straight choice where the track ends stops it by the four absent frames.
+Camera (Rajagopalan 1991, mode camera, the differential-drive CONCIC-II): each frame is analysed
+(agv_nodes.route_following.camera_guidance), the P or PI law gives the caster angle, and Eq
+5.15/5.16 the wheel speeds. Four absent frames stop the vehicle (motor off); a saturated frame
+keeps the last command. At a road sign the junction choice of route_command is taken (App. F.6):
+once the chosen branch shows at the window's edge column the vehicle stops with its axle centre
+over the crossing (by wheel odometry), spins a quarter turn toward the branch and follows it. A
+chosen branch the sign does not offer stops it ("no_branch": "the vehicle stops with a message"); a
+straight choice where the track ends stops it by the four absent frames.
 """
-
-from __future__ import annotations
 
 import math
 from typing import Any
@@ -34,16 +28,14 @@ from agv_nodes.route_following.settings import RouteParams
 from agv_nodes.subsystem import SubsystemCore
 
 
-def wire_offset(left: float, right: float, spacing: float, height: float,
-                nominal: float) -> float:
+def wire_offset(left: float, right: float, spacing: float, height: float, nominal: float) -> float:
     """Lateral offset (m, + = wire left of the sensor point) from the two coil amplitudes.
 
-    A coil at lateral distance y from a long straight wire, height h above it, reads
-    K / (h^2 + y^2) in its horizontal axis, with K fixed by the calibration `nominal` (either
-    coil's reading with the wire midway between them). Each coil therefore gives a distance:
-    y = sqrt(K / reading - h^2); the wire is where the left coil's two candidates (c -+ y_L)
-    meet the right coil's (-c +- y_R). Unlike the ratio L/R, this does not fold back when the
-    wire lies outside the coils, so an SRM can capture a wire from well to one side.
+    A coil at lateral distance y from a long straight wire, height h above it, reads K / (h^2 +
+    y^2), K fixed by the calibration `nominal` (a coil's reading with the wire midway), so each
+    coil gives y = sqrt(K / reading - h^2); the wire is where the left coil's candidates (c -+ y_L)
+    meet the right coil's (-c +- y_R). Unlike the ratio L/R this does not fold back outside the
+    coils, so an SRM can capture a wire from well to one side.
     """
     if left <= 0 or right <= 0:
         return 0.0
@@ -63,40 +55,30 @@ class RouteCore(SubsystemCore):
 
     def __init__(self, params: RouteParams | None = None) -> None:
         super().__init__(params)
-        self.mode = 'idle'
-        self.state = 'idle'
-        self.srm_angle = 0.0
-        self.manoeuvre = 0
-        self.junction = 'straight'
-        self.speed_request = 0.0
-        self.lateral = 0.0
-        self.signal = 0.0
-        self.steer = 0.0
-        self._integral = 0.0
+        self.mode = self.state = 'idle'
+        self.manoeuvre, self.junction = 0, 'straight'
+        self.srm_angle = self.speed_request = self.lateral = self.signal = self.steer = 0.0
+        self._integral = self._srm_start = self._mode_since = 0.0
         self._prev_lateral: float | None = None
         self._weak = 0
         self._strong = 0  # consecutive samples with the wire present
         self._lost_reported = False  # a route_status with state lost has gone out
         self._srm_phase = ''
-        self._srm_start = 0.0
         self._found_at = -1e9
         self._wire_time: float | None = None
-        self._mode_since = 0.0
         self.speed = 0.0  # m/s from wheel odometry
         self.steer_actual = 0.0  # model of the actuator's position
         self.heading_error = 0.0  # SRM: heading relative to the wire left (new wire parallel)
         self._aligned_since: float | None = None
         self._lateral_rate = 0.0  # filtered d(lateral)/dt, m/s
         self._following_heading = 0.0  # heading error relative to the wire, while following
-        self._next_status = 0.0
-        self._last_state = ''
+        self._next_status, self._last_state = 0.0, ''
         # camera
         self.analyser = ImageAnalyser(self.p.image)
         self.camera = CameraSteering(self.p.steering)
         self.wheels = (0.0, 0.0)
-        self.motor_on = False
+        self.motor_on = self._in_sign = False
         self.sign = {'left': 0, 'right': 0, 'straight': 0}
-        self._in_sign = False
         self._frame_time: float | None = None
         self.measurement = None
         self.turn_phase = ''  # '' | 'approach' (to the crossing) | 'spin' | 'settle' (to rest)
@@ -128,29 +110,21 @@ class RouteCore(SubsystemCore):
         new_srm = mode == 'srm' and fields['manoeuvre'] != self.manoeuvre
         self.manoeuvre = fields['manoeuvre']
         if new_srm:
-            self.mode = 'srm'
-            self._mode_since = now
+            self.mode, self.state, self._srm_phase = 'srm', 'srm_running', 'leaving'
+            self._mode_since = self._srm_start = now
             self.srm_angle = math.radians(fields['srm_angle'])
-            self.state = 'srm_running'
-            self._srm_phase = 'leaving'
-            self._srm_start = now
             # The heading error the manoeuvre starts from: the estimate kept while following.
             self.heading_error = self._following_heading
             return self._outputs(now, force_status=True)
         if mode != 'srm' and mode != self.mode:
-            self.mode = mode
-            self._mode_since = now
-            self._integral = 0.0
-            self._prev_lateral = None
-            self.state = {'idle': 'idle', 'follow_wire': 'following',
-                          'camera': 'following'}[mode]
+            self.mode, self._mode_since, self._integral, self._prev_lateral = mode, now, 0.0, None
+            self.state = {'idle': 'idle', 'follow_wire': 'following', 'camera': 'following'}[mode]
             return self._outputs(now, force_status=True)
         return None
 
     # -- guide wire -------------------------------------------------------------------------
     def _wire(self, left: int, right: int, now: float) -> None:
-        w = self.p.wire
-        dt = self.p.period
+        w, dt = self.p.wire, self.p.period
         # Where the steering actuator is (rate-limited toward the last demand), and how far the
         # truck has turned since the SRM began: psi' = v_rear tan(delta) / wheelbase.
         step = max(-w.steer_rate * dt, min(w.steer_rate * dt, self.steer - self.steer_actual))
@@ -172,16 +146,13 @@ class RouteCore(SubsystemCore):
             self._following_heading = -self.steer_actual - math.asin(ratio)
         if self.mode == 'follow_wire':
             if self._weak >= w.lost_samples:
-                self.state = 'lost'
-                self.steer = 0.0
+                self.state, self.steer = 'lost', 0.0
             elif self.state == 'lost':
                 self._rearm()
             elif self.speed < -0.01:
-                # Reversing (the slow overshoot correction of Baker 1983, 8.5): the front-axle
-                # law would steer the wrong way with the front wheels trailing, so hold the
-                # wheels straight for these few centimetres.
-                self.steer = 0.0
-                self._prev_lateral = None
+                # Reversing (the slow overshoot correction of Baker 1983, 8.5): with the front
+                # wheels trailing the law would steer the wrong way; straight for these few cm.
+                self.steer, self._prev_lateral = 0.0, None
             elif self.state != 'lost':
                 self._steer_wire()
         elif self.mode == 'srm':
@@ -190,13 +161,11 @@ class RouteCore(SubsystemCore):
     def _rearm(self) -> None:
         """Leave LOST once the truck is at rest on a wire that is there again.
 
-        A departure from the thesis (Baker 1983, 7.2 stops the truck on a lost wire and says no
-        more): a LOST latched for good would also latch on a pickup stream that merely stalls
-        while the truck stands before a task (a start-up stall of the graph), and fail the next
-        task with the wire under the truck. The executive has already acted on LOST (it
-        supervises on every status arrival), so it comes back only after that record went out,
-        with the truck at rest and the wire present for `lost_samples` samples: the steering
-        law then starts clean.
+        A departure from Baker 1983, 7.2 (which stops the truck on a lost wire and says no more): a
+        LOST latched for good would also latch on a pickup stream that merely stalls before a task
+        (a start-up stall of the graph) and fail the next task with the wire under the truck. It
+        comes back only after the LOST record went out (the executive has acted on it), at rest,
+        with the wire present for `lost_samples` samples: the law then starts clean.
         """
         at_rest = max(abs(v) for v in self._rim_speeds) < 0.005 and abs(self.speed) < 0.005
         if self._lost_reported and at_rest and self._strong >= self.p.wire.lost_samples:
@@ -229,16 +198,13 @@ class RouteCore(SubsystemCore):
         if self._srm_phase == 'leaving' and self.signal < w.lost_level:
             self._srm_phase = 'searching'
         elif self._srm_phase == 'searching' and self.signal >= w.found_level:
-            self._srm_phase = 'capture'
-            self.state = 'wire_found'
-            self._found_at = now
+            self._srm_phase, self.state, self._found_at = 'capture', 'wire_found', now
             self._aligned_since = None
         elif now - self._srm_start > w.srm_timeout:
             self.state, self.mode, self.steer = 'lost', 'follow_wire', 0.0
 
     def _steer_wire(self) -> None:
-        w = self.p.wire
-        dt = self.p.period
+        w, dt = self.p.wire, self.p.period
         rate = 0.0 if self._prev_lateral is None else (self.lateral - self._prev_lateral) / dt
         self._prev_lateral = self.lateral
         self._integral = max(-0.2, min(0.2, self._integral + self.lateral * dt))
@@ -250,8 +216,7 @@ class RouteCore(SubsystemCore):
         """Take a binary camera frame (1 = dark tape)."""
         dt = 0.05 if self._frame_time is None else max(now - self._frame_time, 1e-3)
         self._frame_time = now
-        m = self.analyser.analyse(frame)
-        self.measurement = m
+        m = self.measurement = self.analyser.analyse(frame)
         self._road_sign(m)
         if self.mode != 'camera' or self.state == 'no_branch':
             return None
@@ -269,9 +234,8 @@ class RouteCore(SubsystemCore):
                 self._crossing = self._turned()[0] + self.p.turning.camera_ahead + edge + half
         theta = self.camera.update(m, dt, self.speed_request or self.p.camera_speed)
         if theta is None:
-            self.motor_on = False  # four absent frames: motor-off stop
-            self.state = 'lost'
-            self.wheels = (0.0, 0.0)
+            # four absent frames: motor-off stop
+            self.motor_on, self.state, self.wheels = False, 'lost', (0.0, 0.0)
         else:
             self.motor_on = self.state != 'lost'
             self.steer = theta
@@ -284,12 +248,10 @@ class RouteCore(SubsystemCore):
                     and self.p.steering.set_off_acceleration > 0:
                 self._set_off_at = now
             if self._set_off_at is not None:
-                # Setting off from rest (camera mode starting, or along a branch after a
-                # turn): our own ramp, gentler than the drive's trapezoid, which accelerates
-                # both wheels alike and so cannot steer while it ramps (from 40 deg off the
-                # tape the window loses it before the wheels reach cruise).
-                speed = min(speed, self.p.steering.set_off_acceleration
-                            * (now - self._set_off_at))
+                # Setting off from rest: our own ramp, gentler than the drive's trapezoid, which
+                # accelerates both wheels alike and cannot steer while it ramps (from 40 deg
+                # off the tape the window loses it before the wheels reach cruise).
+                speed = min(speed, self.p.steering.set_off_acceleration * (now - self._set_off_at))
                 if speed >= (self.speed_request or self.p.camera_speed):
                     self._set_off_at = None
             self.wheels = self.camera.wheel_speeds(speed, theta) if self.motor_on else (0, 0)
@@ -355,12 +317,10 @@ class RouteCore(SubsystemCore):
         if max(abs(v) for v in self._rim_speeds) > 0.005:
             return  # still turning
         # On the branch: follow it afresh (the fit takes the widest run, the law starts clean).
-        self.turn_phase, self._turn_began = '', None
-        self._set_off_at = now
+        self.turn_phase, self._turn_began, self._set_off_at = '', None, now
         self.camera.integral = 0.0
         self.analyser.forget_track()
-        self._in_sign = False
-        self.state = 'following'
+        self._in_sign, self.state = False, 'following'
 
     def _road_sign(self, m) -> None:
         """Branch flags while the track is wide (Rajagopalan 1991, 4.3)."""
@@ -384,8 +344,7 @@ class RouteCore(SubsystemCore):
         w = self.p.wire
         last = self._wire_time if self._wire_time is not None else self._mode_since
         if self.mode in ('follow_wire', 'srm') and now - last > w.lost_samples * 0.01 + 0.05:
-            self.state = 'lost'  # the pickup itself has gone quiet
-            self.steer = 0.0
+            self.state, self.steer = 'lost', 0.0  # the pickup itself has gone quiet
         if self.state == 'wire_found' and self.mode == 'follow_wire':
             self.state = 'following'
         if self.turn_phase and self.mode == 'camera':
@@ -395,8 +354,7 @@ class RouteCore(SubsystemCore):
     def _outputs(self, now: float, force_status: bool = False) -> dict:
         out: dict[str, dict[str, Any]] = {'steering_command': self.steering_command()}
         if force_status or now >= self._next_status or self.state != self._last_state:
-            self._next_status = now + self.p.status_period
-            self._last_state = self.state
+            self._next_status, self._last_state = now + self.p.status_period, self.state
             self._lost_reported = self.state == 'lost'
             out['route_status'] = self.status()
         return out
@@ -422,6 +380,5 @@ class RouteCore(SubsystemCore):
             'signal': int(max(0, min(255, round(self.signal * 100)))),
             'steering': int(max(-128, min(127, round(math.degrees(self.steer))))),
             'sign_left': self.sign['left'], 'sign_right': self.sign['right'],
-            'sign_straight': self.sign['straight'],
-            'manoeuvre': self.manoeuvre,
+            'sign_straight': self.sign['straight'], 'manoeuvre': self.manoeuvre,
         }

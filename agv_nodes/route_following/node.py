@@ -1,11 +1,4 @@
-"""route_following: guide wire, SRMs and binary-camera guidance.
-
-Run it with `ros2 run agv_nodes route_following`. Reads route/command, hw/guide_wire,
-hw/wheel_odometry and hw/camera/front (sensor_msgs/Image, mono8, tape dark); writes
-hw/steering/command and route/status. Behaviour: `agv_nodes.route_following.core`.
-"""
-
-from __future__ import annotations
+"""route_following (ros2 run agv_nodes route_following); hw/camera/front: mono8, dark tape."""
 
 import sys
 

@@ -1,10 +1,4 @@
-"""Route following settings: the classes its parameters.yaml declares the parameters of.
-
-The nested groups give dotted names: `wire.kp`, `image.min_run`, `steering.law`,
-`turning.approach_speed`.
-"""
-
-from __future__ import annotations
+"""Route following settings, declared in its parameters.yaml; nested groups give `wire.kp` etc."""
 
 from agv_nodes.settings import settings_class
 
@@ -26,11 +20,7 @@ class SteeringParams:
 
 @settings_class
 class TurningParams:
-    """Taking a branch at a road sign (Rajagopalan 1991, App. F.6).
-
-    The manoeuvre itself is not described there: a spin in place, which the differential drive
-    allows, is assumed.
-    """
+    """Taking a branch at a road sign (App. F.6, which leaves the spin in place assumed here)."""
 
 
 @settings_class

@@ -1,42 +1,34 @@
 """The Traction sub-processor: the 1983 speed-control program, its trips, and a closed loop.
 
-`open_loop_1983` is the listing of Baker 1983, App. B.2 as a state machine on the loop
-clock: START = MONO, GETREF, SENSOR, MONO, SUM, COMP, where the Z-80's blocking waits (the
-"runout" after a limited step, the two FLIP waits, the field build-up after reset) become
-timed states during which MONO keeps retriggering the trip relay. Record for record:
+`open_loop_1983` is the listing of Baker 1983, App. B.2 as a state machine on the loop clock: START
+= MONO, GETREF, SENSOR, MONO, SUM, COMP, the Z-80's blocking waits (the "runout" after a limited
+step, the two FLIP waits, the field build-up after reset) as timed states during which MONO keeps
+retriggering the trip relay:
 
-* GETREF: manual (command byte 1 bit 0) takes byte 1 whole as the signed REF before any other
-  check (it bypasses the emergency stop and the radio stop); auto with byte 2 = 00H gives
-  REF = -5 % (plug braking, "emergency stop"); then the radio stop input (armature off,
-  DCYCLE := 0, re-poll); then the source: the executive (byte 2) or the Position link
-  (A := port & 3FH, NEG if bit 5).
+* GETREF: manual (command byte 1 bit 0) takes byte 1 whole as the signed REF before any other check
+  (bypassing the emergency and the radio stop); auto with byte 2 = 00H gives REF = -5 % (plug
+  braking, "emergency stop"); then the radio stop (armature off, DCYCLE := 0, re-poll); then the
+  source: the executive (byte 2) or the Position link (A := port & 3FH, NEG if bit 5).
 * SENSOR: SPEED := DCYCLE (open loop, SPDTAB is the identity).
-* SUM: ERROR := REF - SPEED limited to +-16 % (`arithmetic`: `saturating`, the intent, is the
-  default; `faithful_8bit` keeps the listing's mod-256 wrap, Baker 1983, App. B.2.2).
-* COMP: DCYCLE := SPEED + ERROR clamped to +-80; a sign that disagrees with the field
-  direction runs FLIP (armature and field off, wait, toggle, field on, wait); armature off when
-  the demand is 0 (coast), else CTC1 := |DCYCLE| and armature on; a limited step waits
-  `runout_wait`.
+* SUM: ERROR := REF - SPEED limited to +-16 % (`arithmetic`: `saturating`, the intent, or
+  `faithful_8bit`, the listing's mod-256 wrap, App. B.2.2).
+* COMP: DCYCLE := SPEED + ERROR clamped to +-80; a sign against the field direction runs FLIP
+  (armature and field off, wait, toggle, field on, wait); armature off at demand 0 (coast), else
+  CTC1 := |DCYCLE| and armature on; a limited step waits `runout_wait`.
 
-Waits: the prose says 200 ms (runout) and 100 ms (FLIP halves, field build-up); B.2.2's delay
-formula gives 100 and 50 ms (Baker 1983, 6.3 against App. B.2.2). Both are parameters; the prose
-is the default.
+Waits: the prose says 200 ms (runout) and 100 ms (FLIP halves, field build-up), B.2.2's delay
+formula 100 and 50 ms (6.3 against App. B.2.2); both are parameters, the prose the default.
 
-Trip relay (modern): traction opens the contactor (drive and field off) and latches
-when its loop stalls, when the executive's command is older than `command_timeout`, when the
-Position link it is obeying is older than `link_timeout`, or when a corrupt command/link record
-arrives; it also starts tripped. The latch clears only on a fresh valid command with byte 2 =
-00H followed by one with byte 2 non-zero.
+Trip relay (modern): traction opens the contactor (drive and field off) and latches when its loop
+stalls, the executive's command is older than `command_timeout`, the Position link it obeys older
+than `link_timeout`, or a command/link record is corrupt; it also starts tripped. Only a valid
+command with byte 2 = 00H, then one non-zero, clears it.
 
-`closed_loop` (beyond 1983, thesis B.2's skeleton with a speed sensor): REF is read as a speed
-demand through the open-loop map v = (|REF| - 5) / 75 m/s (Baker 1983, 6.3.2), shaped by
-acceleration and jerk limits, and a PI loop on wheel odometry sets the armature duty. It is the
-default: the controlled stop of navigation (thesis 8.5, also the default) needs it, and it
-holds the asked speed under load (bench/traction_bench.py: 0.200 m/s at 20 % loaded or not,
-where the open loop gives 0.195 / 0.161). `open_loop_1983` remains one parameter away.
+`closed_loop` (the default; beyond 1983: B.2's skeleton with a speed sensor): REF is a speed demand
+through the open-loop map v = (|REF| - 5) / 75 m/s (6.3.2), shaped by acceleration and jerk limits,
+and a PI loop on wheel odometry sets the duty. Navigation's controlled stop (8.5) needs it; it
+holds 0.200 m/s at 20 % loaded or not (open loop: 0.195/0.161; bench/traction_bench.py).
 """
-
-from __future__ import annotations
 
 from typing import Any
 
@@ -59,18 +51,12 @@ class TractionCore(SubsystemCore):
     def __init__(self, params: TractionParams | None = None) -> None:
         super().__init__(params)
         # ADATA (PIO1-A): bit 7 armature disable, bit 6 field disable, bit 5 field forward.
-        self.armature_off = True
-        self.field_off = True
+        self.armature_off = self.field_off = True
         self.field_forward = False  # INIT leaves bit 5 = 0
-        self.ref = 0
-        self.speed = 0  # SPEED (%)
-        self.error = 0
-        self.dcycle = 0  # signed %
-        self.dcdem = 0  # |duty| loaded into CTC1
+        self.ref = self.speed = self.error = 0  # REF, SPEED, ERROR (%)
+        self.dcycle = self.dcdem = 0  # signed %; |duty| loaded into CTC1
         self.source = 'trip'
-        self.manual = False
-        self.estop = False
-        self.radio = False
+        self.manual = self.estop = self.radio = False
         self.watchdog = 0
         self.state = 'start'  # start | run | flip_decay | flip_build | runout
         self.wait_until = 0.0
@@ -78,17 +64,13 @@ class TractionCore(SubsystemCore):
         self.trip_cause = 'startup'
         self._reset_stage = 0  # 0: wait for byte 2 = 00H; 1: wait for byte 2 != 00H
         self.command: dict[str, Any] | None = None
-        self.command_time = -1e9
+        self.link: dict[str, Any] | None = None
+        self.command_time = self.link_time = -1e9
         self._odometry_count = 0
         self._odometry_at: dict[str, int] = {}
-        self.link: dict[str, Any] | None = None
-        self.link_time = -1e9
         self.measured_speed = 0.0  # m/s from wheel odometry
         self._last_tick: float | None = None
-        self._next_status = 0.0
-        self._v_demand = 0.0
-        self._a_demand = 0.0
-        self._integral = 0.0
+        self._next_status = self._v_demand = self._a_demand = self._integral = 0.0
         self.odometer = 0.0  # m travelled, from the wheel distance counters
         self._wheels = Odometer()
         self._braking = False
@@ -103,16 +85,14 @@ class TractionCore(SubsystemCore):
                 self._advance_reset(fields)
             elif self.p.emergency_stop == 'immediate' and self._estop_demanded() \
                     and not self.armature_off and self.dcdem:
-                # The armature off the moment 00H arrives, not at the next loop pass (up to
-                # two /clock steps later under sim time): the drive record goes out now, and
-                # the next pass brakes (plug braking; the closed loop's hardest braking).
+                # Armature off the moment 00H arrives, not up to two /clock steps later at the
+                # next pass, which brakes (plug braking; the closed loop's hardest braking).
                 self._cut_armature(now)
                 return {'traction_drive': self.drive()}
         elif record == 'traction_link':
             news = fields != self.link
             self.link, self.link_time = fields, now
-            stop_in = fields.get('stop_in', 0)
-            if stop_in:  # a controlled stop: `stop_in` mm from here, in the link's direction
+            if stop_in := fields.get('stop_in', 0):  # a controlled stop, in the link's direction
                 way = -1.0 if fields['reverse'] else 1.0
                 self.stop_target = self.odometer + way * stop_in / 1000.0
             else:
@@ -125,8 +105,7 @@ class TractionCore(SubsystemCore):
             self.measured_speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
             self._odometry_count += 1
             # The encoders' own distance, not speed x tick (agv_nodes.odometry).
-            self.odometer = self._wheels.update(fields['left_distance'],
-                                                fields['right_distance'])
+            self.odometer = self._wheels.update(fields['left_distance'], fields['right_distance'])
         if record in ('traction_command', 'traction_link'):
             self._odometry_at[record] = self._odometry_count
         return None
@@ -151,22 +130,17 @@ class TractionCore(SubsystemCore):
         if fields['demand'] == 0:
             self._reset_stage = 1
         elif self._reset_stage == 1:
-            self.tripped = False
-            self.trip_cause = 'none'
-            self._reset_stage = 0
-            self.state = 'start'  # restart at BEGIN: INIT (field bit 5 = 0), build-up wait
-            self.field_forward = False
-            self.wait_until = 0.0
+            self.tripped, self.trip_cause, self._reset_stage = False, 'none', 0
+            # restart at BEGIN: INIT (field bit 5 = 0), build-up wait
+            self.state, self.field_forward, self.wait_until = 'start', False, 0.0
 
     def _trip(self, cause: str) -> None:
         if not self.tripped:
             self.trip_cause = cause
-        self.tripped = True
-        self._reset_stage = 0
+        self.tripped, self._reset_stage = True, 0
         self.armature_off = self.field_off = True
         self.dcycle = self.dcdem = 0
-        self.source = 'trip'
-        self.state = 'start'
+        self.source, self.state = 'trip', 'start'
         self._v_demand = self._a_demand = self._integral = 0.0
 
     # -- the loop ---------------------------------------------------------------------------
@@ -178,8 +152,7 @@ class TractionCore(SubsystemCore):
         self._last_tick = now
         self.watchdog = (self.watchdog + 1) & 0xFF  # MONO, also inside every WAIT1
         if not self.tripped:
-            if self._stale('traction_command', now - self.command_time,
-                           self.p.command_timeout):
+            if self._stale('traction_command', now - self.command_time, self.p.command_timeout):
                 self._trip('stale_command')
             elif (self._position_has_priority()
                   and self._stale('traction_link', now - self.link_time, self.p.link_timeout)):
@@ -225,20 +198,15 @@ class TractionCore(SubsystemCore):
         return self.link is not None and not self.link['executive_priority']
 
     def _field_wait(self, now: float, forward_at_start: bool) -> bool:
-        """Run the field's timed waits, the same in both controls; True when this pass was one.
+        """Run BEGIN/INIT's and FLIP's timed field waits; True when this pass was one.
 
-        They are BEGIN/INIT (field on, WAIT1 build-up; the listing's INIT leaves the field
-        reversed, the closed loop starts it forward) and the second half of FLIP (toggle, field
-        on, wait).
+        INIT leaves the field reversed in the listing; the closed loop starts it forward.
         """
         if self.state == 'start':
-            self.field_off = False
-            self.armature_off = True
+            self.field_off, self.armature_off, self.state = False, True, 'run'
             self.field_forward = self.field_forward or forward_at_start
-            self.state = 'run'
         elif self.state == 'flip_decay':
-            self.field_forward = not self.field_forward
-            self.field_off = False
+            self.field_forward, self.field_off = not self.field_forward, False
             self.state = 'flip_build'
         else:
             return False
@@ -268,34 +236,21 @@ class TractionCore(SubsystemCore):
         if self.manual:  # byte 1 whole, before any other check
             self.ref = _signed8(cmd['manual'] | cmd['manual_speed'] << 1 | cmd['reverse'] << 7)
             self.source = 'manual'
-            return True
-        if cmd['demand'] == 0:
-            self.ref = self.p.estop_ref
-            self.estop = True
-            self.source = 'emergency_stop'
-            return True
-        if self.radio:
-            self.armature_off = True
-            self.dcycle = 0
-            self.source = 'radio_stop'
+        elif cmd['demand'] == 0:
+            self.ref, self.estop, self.source = self.p.estop_ref, True, 'emergency_stop'
+        elif self.radio:
+            self.armature_off, self.dcycle, self.source = True, 0, 'radio_stop'
             return False
-        link = self.link
-        if cmd['executive_priority'] or link is None or link['executive_priority']:
-            self.ref = cmd['demand']
-            self.source = 'executive'
+        elif cmd['executive_priority'] or self.link is None or self.link['executive_priority']:
+            self.ref, self.source = cmd['demand'], 'executive'
         else:
-            a = link['speed'] | link['reverse'] << 5  # port & 3FH (bit 6 = 0 here)
-            if a & 0x20:
-                a = -(a & 0x1F)
-            self.ref = a
-            self.source = 'position'
+            a = self.link['speed'] | self.link['reverse'] << 5  # port & 3FH (bit 6 = 0 here)
+            self.ref, self.source = -(a & 0x1F) if a & 0x20 else a, 'position'
         return True
 
     def _sum(self) -> None:
-        if self.p.arithmetic == 'faithful_8bit':
-            e = _signed8(self.ref - self.speed)
-        else:
-            e = self.ref - self.speed
+        e = self.ref - self.speed
+        e = _signed8(e) if self.p.arithmetic == 'faithful_8bit' else e
         self.error = max(-self.p.step_limit, min(self.p.step_limit, e))
 
     def _comp(self, now: float) -> None:
@@ -310,9 +265,7 @@ class TractionCore(SubsystemCore):
             flip = self.field_forward
         if flip:  # FLIP: armature and field off, DCYCLE := 0, wait
             self.armature_off = self.field_off = True
-            self.dcycle = 0
-            self.state = 'flip_decay'
-            self.wait_until = now + self.p.field_wait
+            self.dcycle, self.state, self.wait_until = 0, 'flip_decay', now + self.p.field_wait
             return
         self._comp_tail(now)
 
@@ -323,8 +276,7 @@ class TractionCore(SubsystemCore):
             return
         self.armature_off = False  # CTC1 := DCDEM; armature on
         if abs(self.error) == self.p.step_limit:
-            self.state = 'runout'
-            self.wait_until = now + self.p.runout_wait
+            self.state, self.wait_until = 'runout', now + self.p.runout_wait
 
     # -- closed loop (beyond 1983) -------------------------------------------------------------
     def _closed_loop(self, now: float, dt: float) -> None:
@@ -348,8 +300,7 @@ class TractionCore(SubsystemCore):
             speed = abs(self.measured_speed)
             if remaining <= speed * speed / (2.0 * p.coast_decel) or remaining <= 0.0005:
                 self._v_demand = self._a_demand = self._integral = 0.0
-                self.dcycle = self.dcdem = 0
-                self.armature_off = True
+                self.dcycle, self.dcdem, self.armature_off = 0, 0, True
                 return
             profile = (2.0 * p.stop_decel * remaining) ** 0.5
             if profile < abs(target):
@@ -394,11 +345,10 @@ class TractionCore(SubsystemCore):
         if duty != 0 and (duty > 0) != self.field_forward:
             self.armature_off = self.field_off = True
             self.dcycle = self.dcdem = 0
-            self.state = 'flip_decay'
-            self.wait_until = now + p.field_wait
+            self.state, self.wait_until = 'flip_decay', now + p.field_wait
             return
-        self.dcycle, self.dcdem = int(duty), abs(int(duty))
-        self.speed = self.dcycle
+        self.dcycle = self.speed = int(duty)
+        self.dcdem = abs(self.dcycle)
         self.armature_off = self.dcdem == 0
 
     # -- outputs ----------------------------------------------------------------------------
@@ -410,20 +360,16 @@ class TractionCore(SubsystemCore):
             'field_duty': self.p.field_duty if on and not self.field_off else 0,
             'armature_enable': int(on and not self.armature_off),
             'field_enable': int(on and not self.field_off),
-            'field_forward': int(self.field_forward),
-            'contactor': int(on),
+            'field_forward': int(self.field_forward), 'contactor': int(on),
             'watchdog': self.watchdog,
         }
 
     def status(self) -> dict[str, Any]:
         """Return the traction_status record."""
         return {
-            'ref': max(-128, min(127, self.ref)),
-            'duty': self.dcycle,
-            'emergency_stop': int(self.estop and not self.tripped),
-            'radio_stop': int(self.radio),
-            'tripped': int(self.tripped),
-            'manual': int(self.manual),
+            'ref': max(-128, min(127, self.ref)), 'duty': self.dcycle,
+            'emergency_stop': int(self.estop and not self.tripped), 'radio_stop': int(self.radio),
+            'tripped': int(self.tripped), 'manual': int(self.manual),
             'field_forward': int(self.field_forward),
             'armature_on': int(not self.tripped and not self.armature_off),
             'reversing': int(self.state in ('flip_decay', 'flip_build')),

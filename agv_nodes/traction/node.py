@@ -1,11 +1,4 @@
-"""traction: the only node that moves the truck (ros2 run agv_nodes traction).
-
-Reads traction/command (executive), traction/link (navigation's direct link), hw/radio_stop and
-hw/wheel_odometry; writes hw/traction/drive every loop and traction/status. All behaviour is in
-`agv_nodes.traction.core`; see its docstring for the 1983 program and the trips.
-"""
-
-from __future__ import annotations
+"""traction: the only node that moves the truck (ros2 run agv_nodes traction; traction.core)."""
 
 import sys
 

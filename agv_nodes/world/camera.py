@@ -1,14 +1,10 @@
 """Binary camera (Rajagopalan 1991 ch 4, 6.3.4): a 64 x 128 window of the floor.
 
-The window is 50 mm along travel by 250 mm across, thresholded by the optic-RAM itself (dark
-tape = 1, floor = 0). Row 0 is the leading edge of the window, column 0 its left edge
-(Rajagopalan 1991, 4.2). A pixel is dark when its floor point lies within half the tape width
-of a tape centreline; random specks (short dark runs below the noise-filter length) model dirt
-and pixel differences. The rear camera is the same window at -L_c, mounted facing backwards
-(its image is rotated 180 degrees).
+The window is 50 mm along travel by 250 mm across, thresholded by the optic-RAM itself (dark tape =
+1); row 0 is its leading edge, column 0 its left edge (4.2). A pixel is dark within half the tape
+width of a tape centreline; random specks (dark runs shorter than the noise filter) model dirt and
+pixel differences. The rear camera is the same window at -L_c, facing backwards.
 """
-
-from __future__ import annotations
 
 import math
 
@@ -64,10 +60,7 @@ class BinaryCamera:
         return frame
 
     def truth(self, cx: float, cy: float, heading: float) -> tuple[float, float] | None:
-        """Return (eps_d, eps_theta) of the nearest tape at the window centre.
-
-        The signs are those of Rajagopalan 1991, 5.2.
-        """
+        """Return (eps_d, eps_theta) of the nearest tape at the window centre (Rajagopalan 5.2)."""
         best = None
         for tape in self.tapes:
             s, lateral, tangent = tape.project(cx, cy)

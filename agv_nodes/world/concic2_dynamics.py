@@ -60,8 +60,6 @@ uniform block over the rear half of the upper deck, centred at O (App. G.2.1), g
 0.277 m.
 """
 
-from __future__ import annotations
-
 from dataclasses import dataclass
 import math
 
@@ -123,7 +121,7 @@ class Concic2DynamicParams:
     output_shift: int = 14  # [A], see lm628
 
     @classmethod
-    def from_params(cls, p: Concic2Params) -> Concic2DynamicParams:
+    def from_params(cls, p: Concic2Params) -> 'Concic2DynamicParams':
         """Take the shared geometry and acceleration from the world's Concic2Params."""
         return cls(wheel_radius=p.wheel_radius, wheel_span=p.wheel_span,
                    caster_distance=p.caster_distance, caster_trail=p.caster_trail,

@@ -1,13 +1,10 @@
 """Guide-wire pickup: two coils either side of the sensor point, in the field of line currents.
 
-Each wire section is a polyline carrying an a.c. line current. Biot-Savart for a finite straight
-segment gives the field at a coil; each coil's axis is horizontal and square to the truck (the
-lateral axis), so it reads the lateral field component, rectified. Over a straight wire a coil
-at height h and lateral distance y reads ~ h / (h^2 + y^2): equal in both coils when the sensor
-point is over the wire, unequal to one side, and falling off to nothing far from every wire.
+Each wire section is a polyline carrying an a.c. current; Biot-Savart for a finite straight segment
+gives the field at a coil, whose axis is horizontal and square to the truck, so it reads the
+rectified lateral component: over a straight wire ~ h / (h^2 + y^2) at height h and lateral
+distance y, equal in both coils over the wire, falling off to nothing far from every wire.
 """
-
-from __future__ import annotations
 
 import math
 
@@ -56,10 +53,7 @@ class GuideWirePickup:
         self._near_at = (math.inf, math.inf)
 
     def field(self, xy: np.ndarray, segments: np.ndarray | None = None) -> np.ndarray:
-        """Field vectors (arbitrary units, z up) at floor points `xy` (k, 2), coil height up.
-
-        Sums the segments within `reach` of the points' centre, or those `segments` (indices).
-        """
+        """Field (z up) at floor points `xy` (k, 2), coil height up: `segments` or all in reach."""
         h = self.p.coil_height
         near = segments
         if near is None:
@@ -91,11 +85,10 @@ class GuideWirePickup:
     def coils(self, x: float, y: float, heading: float) -> tuple[int, int]:
         """Rectified (left, right) coil amplitudes in 12-bit ADC counts.
 
-        The lateral component of `field` over the segments within `reach` of the coils'
-        centre, taken from a candidate list refreshed each NEAR_MOVE of travel: in scalar
-        arithmetic on a straight (a few segments, where numpy's per-call overhead would cost
-        more than the sum) and with numpy on a curve (hundreds of short segments). test_world
-        checks both against `field`.
+        The lateral component of `field` over the segments within `reach` of the coils, from a
+        candidate list refreshed each NEAR_MOVE of travel: scalar arithmetic on a straight (a few
+        segments, where numpy's per-call overhead costs more) and numpy on a curve (hundreds of
+        short segments); test_world checks both against `field`.
         """
         half = self.p.coil_spacing / 2.0
         lx, ly = -math.sin(heading), math.cos(heading)  # left unit vector = coil axis

@@ -1,14 +1,10 @@
 """World layouts (config/layouts/*.yaml): guide wires or tape, markers on stands, workstations.
 
-A path (guide wire or optical tape) is built from a start pose and a list of straight and arc
-segments, and sampled into a polyline every `step` metres for the field and image models.
-Markers are placed by (path, distance along it); their card faces the path from the vehicle's
-sensor side at the sensor's standoff (Baker 1983, 4.4 and 5.1: 300 mm from the lens; the route
-is held to +-1 cm, a goal of this reproduction: the thesis text states no tolerance).
-Every error names the file, the key and the value.
+A path (guide wire or optical tape) is a start pose and straight and arc segments, sampled every
+`step` m. Markers are placed by (path, distance along it), the card facing the path from the sensor
+side at the standoff (Baker 1983, 4.4 and 5.1: 300 mm from the lens; the route held to +-1 cm, this
+reproduction's goal: the thesis states none). Every error names the file, the key and the value.
 """
-
-from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
@@ -18,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from agv_nodes.markers import LOCATION_PATTERNS, STOP_STRIP, WHITE_CARD
-from agv_nodes.yaml_files import read_mapping
+from agv_nodes.package_share import config_dir, read_mapping
 
 
 class LayoutError(ValueError):
@@ -329,10 +325,10 @@ def _load_marker(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
 
 def _add_sign(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
               step: float) -> dict[str, Any]:
-    """Draw a road sign on a tape: a wider patch before the junction, and the branches.
+    """Draw a road sign on a tape: a wider patch before the junction, then the branches.
 
-    Each turning branch is a tape at right angles (the camera sees the width jump, then the
-    branch at column 0 or 127), `branch` m long, a 0.35 m stub by default.
+    Each turning branch is a tape at right angles (the camera sees the width jump, then the branch
+    at column 0 or 127), `branch` m long (0.35 m).
     """
     key = f'signs[{i}]'
     if not isinstance(spec, dict):
@@ -391,11 +387,7 @@ def _check_rig(layout: Layout, file: Path) -> None:
 
 
 def layout_parameters(layout: Layout) -> dict[str, dict[str, Any]]:
-    """Return what a layout sets in the nodes of a truck on it.
-
-    That is the executive's route map and the kind of steering route following drives
-    (agv-launch and the lock-step harness both).
-    """
+    """Return what a layout sets in its truck's nodes: the route map, route following's vehicle."""
     return {'executive': {'srm_map': list(layout.srm_map)},
             'route_following': {'vehicle': layout.vehicle}}
 
@@ -405,6 +397,4 @@ def layout_path(name_or_file: str) -> Path:
     candidate = Path(name_or_file)
     if candidate.suffix == '.yaml' or candidate.exists():
         return candidate
-    from agv_nodes.package_share import config_dir
-
     return config_dir() / 'layouts' / f'{name_or_file}.yaml'

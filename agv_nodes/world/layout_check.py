@@ -1,25 +1,14 @@
 """Layout check: the marker sensor's view of every marker as the truck drives the route.
 
-A layout places each card square to its wire at the sensor's standoff, but the truck does not
-carry the lens along the wire's normal: on a bend the front axle (the sensor point, Baker 1983,
-6.3.2) follows the wire while the rear axle cuts inside, so the truck's heading lags the wire's
-and the lens, `sensor.lateral` to the right of the front axle and square to the truck (Baker
-1983, 5.1), swings toward or away from the stands, its axis turned off the cards' normal. That
-lasts a few wheelbases past the bend, and an SRM's landing (7.2) leaves the truck off the wire
-in heading and offset for as long.
-
-So the check drives the truck: the world's own Electruk model (agv_nodes/world/vehicles.py),
-steered by the route-following core's wire law (agv_nodes/route_following/core.py) from the
-world's pickup model, each fed as in the lock-step harness. It drives every wire from its start,
-and the truck from the layout's start by the route map (an SRM at each location of `srm_map`),
-twice round. For each marker it takes the pass furthest from the sensor's working range
-(`READ_STANDOFF`, `READ_ANGLE`, agv_nodes/world/marker_sensor.py): the standoff along the
-optical axis and the card's angle off it as the axis crosses the card centre. On the belt rig
-the lens runs along the belt line itself. Tape layouts are driven by the camera; their markers
-are not checked (none of the shipped ones has any).
+On a bend the front axle (the sensor point, Baker 1983, 6.3.2) follows the wire while the rear axle
+cuts inside, so the lens (Baker 1983, 5.1) swings off the cards' normal for a few wheelbases, and
+likewise after an SRM's landing (7.2). So the check drives the world's Electruk model
+(agv_nodes.world.vehicles) with the route-following core's wire law, fed as in the lock-step
+harness, every wire from its start and the truck by the route map twice round, and takes each
+marker's pass furthest from the sensor's working range (`READ_STANDOFF`, `READ_ANGLE`,
+agv_nodes.world.marker_sensor). On the belt rig the lens runs along the belt line itself; tape
+layouts (camera) are not checked. See docs/architecture.md, "Layout check".
 """
-
-from __future__ import annotations
 
 from dataclasses import dataclass
 import math
@@ -36,8 +25,7 @@ from agv_nodes.world.vehicles import Electruk
 
 # Speeds of the executive's demands (executive parameters: cruise_demand 55 % ~ 0.7 m/s, the
 # practical top speed of Baker 1983, 7.2; srm_demand 27 % ~ 0.3 m/s, kept to the next landmark).
-CRUISE = 0.7
-SRM_SPEED = 0.3
+CRUISE, SRM_SPEED = 0.7, 0.3
 VIEW = 0.6  # m: the optics look no further for a card (MarkerSensorModel.optics)
 LAPS = 2  # the route map is driven twice round, so what a lap leaves off-wire comes round again
 
@@ -149,11 +137,7 @@ def check_layout(layout: Layout, world: WorldParams | None = None,
 
 
 def enforce(layout: Layout, world: WorldParams | None = None, mode: str = 'error') -> list[str]:
-    """Run the check as the world does on the layout it loads.
-
-    Raise LayoutError with one line per unreadable marker (mode 'error'), or return those
-    lines for the caller to log (mode 'warn').
-    """
+    """Check as the world does: LayoutError of the lines (mode 'error'), else return them."""
     errors = check_layout(layout, world).errors()
     if errors and mode != 'warn':
         raise LayoutError('\n'.join(errors))
@@ -164,17 +148,12 @@ class _Drive:
     """One drive: the lens's passes over the cards, kept where they are the worst so far."""
 
     def __init__(self, layout: Layout, passages: list[Passage], label: str) -> None:
-        self.layout = layout
-        self.passages = passages
-        self.label = label
+        self.layout, self.passages, self.label = layout, passages, label
         self._side: dict[int, tuple[float, float, float]] = {}  # marker -> last (t, u, angle)
         self.passed: list[Marker] = []  # cards whose centre the axis crossed on the last sample
 
     def look(self, lens: tuple[float, float], heading: float, count: bool = True) -> None:
-        """Take one lens pose: note the cards whose centre the optical axis has just crossed.
-
-        Not `count`: the truck is not where those cards are for (it is leaving their wire).
-        """
+        """Note the cards whose centre the axis just crossed (not `count`: leaving their wire)."""
         self.passed = []
         for i, p in enumerate(self.passages):
             m = p.marker
@@ -213,10 +192,10 @@ class _Drive:
 
     def truck(self, world: WorldParams, route_params: RouteParams,
               start: tuple[str, float, float, float], distance: float, route_map: bool) -> None:
-        """Drive the Electruk on the wires from `start` (path, at, lateral, heading), `distance` m.
+        """Drive the Electruk `distance` m from `start` (path, at, lateral, heading).
 
-        Its speed is held (cruise; the SRM speed from an SRM to the next landmark); the steering
-        is the route-following core's, from the pickup's coils, as the harness wires them.
+        Speed held (cruise; SRM speed from an SRM to the next landmark), steered by the
+        route-following core from the pickup's coils, as the harness wires them.
         """
         lay = self.layout
         truck = Electruk(world.electruk)

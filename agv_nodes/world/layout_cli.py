@@ -2,13 +2,9 @@
 
     agv-layout check FILE [FILE...]
 
-prints each marker's standoff and angle as the truck drives the route, and whether the marker
-sensor reads it there. Exit 0: every marker is readable; 1: one line per marker that is not
-(on stderr); 2: a file that cannot be read or is no valid layout (one line naming it and the key).
-A FILE may also be a layout's name (config/layouts/<name>.yaml).
+Exit 0: every marker readable; 1: one line per marker that is not (stderr); 2: a file that is no
+valid layout. FILE may be a layout's name (config/layouts/<name>.yaml); see docs/architecture.md.
 """
-
-from __future__ import annotations
 
 import argparse
 import sys

@@ -35,8 +35,6 @@ Scalings the thesis does not give, chosen here:
   measured one, so that re-enabling is bumpless (the kinematic model does the same).
 """
 
-from __future__ import annotations
-
 import math
 
 F_CLK = 6.0e6  # Hz (Rajagopalan 1991, App. C.1.7.1)

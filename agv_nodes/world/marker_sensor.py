@@ -1,19 +1,14 @@
 """The pulsed-IR marker sensor: 2 x 4 photodiodes looking sideways at marker cards (Baker ch 5).
 
-Each detector images a 20 x 40 mm patch of the marker plane at 300 mm (magnification 1/3, f =
-75 mm; Baker 1983, 5.1). Its output is the integral of card reflectance over its aperture,
-i.e. the convolution of the element box-car with the aperture of thesis fig 5.5, blurred by
-defocus away from 300 mm, times an illumination fall-off with range and incidence, times a
-per-detector gain, plus an offset. Ambient light adds to the lit and the dark conversion alike
-(so the on/off difference removes it) and can saturate the 8-bit ADC0809; both conversions carry
-noise. Gains and black levels default to values derived from Table 7.1 (see `calibrate`).
-
-Geometry: the lens sits at the sensor point, `sensor_lateral` to the right of the guide-wire
-sensor point, its axis horizontal and square to the truck, pointing right. Column C1 looks
-furthest forward, so a card passing in forward travel moves across the image from C1 to C4.
+Each detector images a 20 x 40 mm patch of the marker plane at 300 mm (magnification 1/3, f = 75
+mm; 5.1): card reflectance over its aperture (the element box-car convolved with the aperture of
+fig 5.5), blurred by defocus off 300 mm, times an illumination fall-off with range and incidence
+and a per-detector gain, plus an offset. Ambient light adds to lit and dark conversion alike (the
+difference removes it) and can saturate the 8-bit ADC0809; both carry noise. Gains and black levels
+default to values derived from Table 7.1 (`calibrate`). The lens sits `sensor_lateral` right of the
+guide-wire sensor point, its axis horizontal, square to the truck, pointing right; column C1 looks
+furthest forward, so a card passing in forward travel crosses the image from C1 to C4.
 """
-
-from __future__ import annotations
 
 import functools
 import math
@@ -59,10 +54,7 @@ def lens_position(sensor_point: tuple[float, float], heading: float,
 
 def axis_on_card(lens: tuple[float, float], heading: float,
                  card) -> tuple[float, float, float] | None:
-    """Where the optical axis meets a card's plane: (range t, along the card u, cos incidence).
-
-    u is + downstream of the card centre; None when the card is seen edge-on or from behind.
-    """
+    """(t range, u along the card, + downstream, cos incidence) of the axis; None if edge-on."""
     ax, ay = math.sin(heading), -math.cos(heading)
     nx, ny = card.normal
     denom = ax * nx + ay * ny
@@ -86,12 +78,8 @@ class MarkerSensorModel:
         self._normals = np.random.default_rng(rng.getrandbits(64))
         self._noise: list[float] = []
         self._noise_at = 0
-        if not params.gains or not params.blacks:
-            gains, blacks = calibrate(params)
-            self.gains = params.gains or gains
-            self.blacks = params.blacks or blacks
-        else:
-            self.gains, self.blacks = params.gains, params.blacks
+        gains, blacks = calibrate(params) if not params.gains or not params.blacks else ((), ())
+        self.gains, self.blacks = params.gains or gains, params.blacks or blacks
         if len(self.gains) != 8 or len(self.blacks) != 8 or len(params.skew) != 8:
             raise ValueError('marker sensor: gains, blacks and skew need 8 values each')
 
@@ -189,11 +177,7 @@ def _adc8(value: float) -> int:
 
 @functools.cache
 def _white_runs(row: str) -> tuple[tuple[float, float], ...]:
-    """White runs of a card row as (start, end) along the card from its upstream end, m.
-
-    Element j (0-based, C1 first) is the downstream-most at j = 0, so it spans
-    [(n - 1 - j) w, (n - j) w] from the upstream edge.
-    """
+    """White runs (start, end) of a card row, m from its upstream end (C1, j = 0, downstream)."""
     n = len(row)
     runs: list[tuple[float, float]] = []
     for j, ch in enumerate(row):
@@ -212,8 +196,7 @@ def _box_blur_cover(a: float, b: float, lo: float, hi: float, sigma: float) -> f
     if sigma <= 0.0:
         return max(0.0, min(b, hi) - max(a, lo))
     s = sigma
-    return s * (_psi((b - lo) / s) - _psi((b - hi) / s) - _psi((a - lo) / s)
-                + _psi((a - hi) / s))
+    return s * (_psi((b - lo) / s) - _psi((b - hi) / s) - _psi((a - lo) / s) + _psi((a - hi) / s))
 
 
 def _trapezoid_mass(z0: float, z1: float, height: float, flat: float) -> float:
@@ -253,10 +236,9 @@ class _Belt:
 def _belt_runs(params_key: tuple) -> tuple:
     """Run the threshold experiment of Baker 1983, 7.1.2-7.1.3 for a unit detector.
 
-    The alternating location-2 pattern at 1 m/s, 256 samples at 340 Hz per run, ranges
-    280-320 mm in 5 mm steps. For each range and detector, the mean over the peaks and over the
-    troughs of the x4 running sum of the black part X = illum (1 - cover) and the white part
-    Y = illum cover, so that any detector (signal = A X + B Y) follows by linearity.
+    Location-2's alternating pattern at 1 m/s, 256 samples at 340 Hz a run, 280-320 mm in 5 mm
+    steps: per range and detector the mean over peaks and troughs of the x4 running sum of the
+    black part X = illum (1 - cover) and the white part Y = illum cover (a detector: A X + B Y).
     """
     model = MarkerSensorModel.__new__(MarkerSensorModel)
     model.p = SensorParams(**dict(params_key))
@@ -284,13 +266,12 @@ def _belt_runs(params_key: tuple) -> tuple:
 def calibrate(params: SensorParams) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """Per-detector gains and black levels that reproduce Table 7.1.
 
-    With threshold = trough + {0.2, 0.8} x amplitude (Baker 1983, 7.1.3), Table 7.1 implies each
-    detector's worst-case mean trough and peak of the x4 running sum (the lowest mean peak and
-    highest mean trough over 28 +- 2 cm, thesis 7.1.3). The model is linear in A = gain x black
-    and B = gain, so the simulated threshold experiment fixes both. A is kept >= 0 (a detector
-    cannot see less than no light): where the optics cannot reach the table's contrast, the
-    black level is 0 and the simulated worst trough lies above the table's, still below the
-    black threshold.
+    With threshold = trough + {0.2, 0.8} x amplitude (Baker 1983, 7.1.3), Table 7.1 gives each
+    detector's worst-case mean trough and peak of the x4 running sum over 28 +- 2 cm. The model is
+    linear in A = gain x black and B = gain, so the simulated threshold experiment fixes both. A is
+    kept >= 0 (no detector sees less than no light): where the optics cannot reach the table's
+    contrast, the black level is 0 and the worst trough lies above the table's (below the black
+    threshold).
     """
     key = tuple(sorted((k, v) for k, v in vars(params).items()
                        if k not in ('gains', 'blacks', 'unit', 'noise', 'ambient',

@@ -1,22 +1,13 @@
 """Pacing: the simulated world waits for the slowest node (ROS-free).
 
-A simulation is only faithful if every node sees time pass as the truck does. On real hardware
-the clock never waits; in the simulated graph nine Python processes share two cores, and a node
-starved of CPU falls behind the world's clock: its sensor samples queue up, its commands arrive
-late, and the truck it drives behaves as if the Z-80 had stalled (a missed marker, a stop 30 mm
-late, a steering loop acting on 100 ms old wire samples and snaking off the wire). Gazebo calls
-the remedy lock-step; here each node says on its own simulation channel how far it has got in
-sim time (agv_nodes/sim_progress.py), the world's `GraphPacer` keeps the latest word of each,
-and before each step the world asks which nodes lag by more than `max_lag` beyond what the
-progress period and the /clock step account for. It then waits (real time only: sim time does
-not move) until they catch up, or for `lag_patience` real seconds, after which it carries on
-without them: a node that died must not stop the world, since the rest of the graph has to see
-the truck stop. A node given up is waited for again once it is heard from.
-
-Nothing of this is in the 16-byte records: they carry only what the boards would exchange.
+Nine Python processes share two cores; a node starved of CPU would see the truck move on without it
+(a missed marker, a stop 30 mm late, steering on 100 ms old wire samples). Gazebo calls the remedy
+lock-step: `GraphPacer` keeps each node's latest word on the simulation channel
+(agv_nodes.sim_progress) and says which nodes lag by more than `max_lag` beyond the progress period
+and the /clock step. The world waits for them (real time only) at most `lag_patience` real seconds,
+then carries on: a node that died must not stop the world, the rest of the graph has to see the
+truck stop. A node given up is waited for again once heard from (docs/architecture.md).
 """
-
-from __future__ import annotations
 
 from dataclasses import dataclass, field
 
@@ -44,11 +35,7 @@ class GraphPacer:
         return self.max_lag + self.period + self.clock_step
 
     def start(self, now: float) -> None:
-        """Start the world moving at sim time `now`.
-
-        A node not heard from yet is taken as heard at `now`, so the world waits for its first
-        word as for any other (one starved at start-up would otherwise fall behind unwaited).
-        """
+        """Start the world at `now`; a node not heard yet counts as heard then (so waited for)."""
         for node, heard in self._heard.items():
             if heard is None:
                 self._heard[node] = now
@@ -70,9 +57,7 @@ class GraphPacer:
 
     def lagging(self, now: float) -> list[str]:
         """Nodes that have fallen behind the world."""
-        if not self.max_lag:
-            return []
-        return [node for node in self.nodes if self.behind(node, now) > 0]
+        return [node for node in self.nodes if self.max_lag and self.behind(node, now) > 0]
 
     def give_up(self, nodes: list[str]) -> None:
         """Stop waiting for `nodes` until they are heard from again."""

@@ -1,14 +1,10 @@
 """Before the world moves: every link of the graph matched at both ends (graph/links).
 
-Discovery is two-sided: a writer may match a reader before the reader has matched the writer,
-and either side that has not matched loses what is sent meanwhile. So each node announces on
-graph/links which of its inputs have matched a writer and how many readers each of its outputs
-(its progress writer included) has matched (agv_nodes/ros_ports.LinkAnnouncer), and the world
-waits for the links agv-launch names in `wait_for_links`: 'NODE:RECORD' (NODE's reader has
-matched the record's writer) and 'NODE>RECORD:N' (NODE's writer has matched N readers).
+Each node announces which inputs have matched a writer and how many readers each output has matched
+(agv_nodes.ros_ports.LinkAnnouncer); the world waits for `wait_for_links`: 'NODE:RECORD' (NODE's
+reader has matched the writer) and 'NODE>RECORD:N' (NODE's writer has matched N readers). Why:
+docs/architecture.md, "Start-up".
 """
-
-from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 
@@ -21,17 +17,12 @@ from agv_nodes.ros_ports import LINKS_TOPIC, parse_links
 
 
 def parse_link_entry(entry: str) -> tuple[str, str, int | None] | None:
-    """Parse a `wait_for_links` entry.
-
-    'NODE:RECORD' -> (node, record, None); 'NODE>RECORD:N' -> (node, record, N), where RECORD
-    may also be the progress writer; None when it is neither.
-    """
+    """'NODE:RECORD' -> (node, record, None), 'NODE>RECORD:N' (or progress) -> N; else None."""
     if '>' in entry:
         node, _, rest = entry.partition('>')
         record, _, count = rest.partition(':')
         readers = int(count) if count.isdigit() and int(count) > 0 else None
-        if not node or readers is None or (record not in codec()
-                                           and record != sim_progress.LINK):
+        if not node or readers is None or (record not in codec() and record != sim_progress.LINK):
             return None
         return node, record, readers
     node, _, record = entry.partition(':')
@@ -39,10 +30,7 @@ def parse_link_entry(entry: str) -> tuple[str, str, int | None] | None:
 
 
 class LinkWatch:
-    """The world's view of which links have matched.
-
-    Its own ends directly, the others' from their graph/links announcements.
-    """
+    """The world's view of which links have matched: its own ends, the others' announcements."""
 
     def __init__(self, node: Node, links: list[tuple[str, str, int | None]],
                  own_readers: Mapping[str, Callable[[], int]],
@@ -57,8 +45,7 @@ class LinkWatch:
 
     def _on_links(self, msg: String) -> None:
         name, inputs, outputs = parse_links(msg.data)
-        self._inputs[name] = inputs
-        self._outputs[name] = outputs
+        self._inputs[name], self._outputs[name] = inputs, outputs
 
     def missing(self) -> list[str]:
         """Links not matched yet."""

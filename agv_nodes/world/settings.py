@@ -1,21 +1,11 @@
-"""World settings: the classes its parameters.yaml declares the parameters of.
-
-WorldParams is the simulated hardware (WorldCore); WorldNodeSettings is what the world node
-has besides (agv_nodes/world/node.py).
-"""
-
-from __future__ import annotations
+"""World settings: WorldParams, the simulated hardware, and WorldNodeSettings, the node's own."""
 
 from agv_nodes.settings import ProcessSettings, settings_class
 
 
 @settings_class
 class ElectrukParams:
-    """The A.W.D. Electruk tug (Baker 1983).
-
-    [A] unless noted: chosen so that 80 % duty gives about 1 m/s unloaded, 20 % about 0.2 m/s
-    and nothing moves below about 5 %.
-    """
+    """The A.W.D. Electruk tug (Baker 1983); [A]: 80 % duty ~1 m/s unloaded, 20 % ~0.2, <5 % 0."""
 
 
 @settings_class
@@ -51,7 +41,4 @@ class WorldParams:
 
 @settings_class
 class WorldNodeSettings(ProcessSettings):
-    """The world node's own parameters (besides WorldParams).
-
-    The layout, /clock, and how it waits for the graph and paces itself on it.
-    """
+    """The world node's own parameters: layout, /clock, waiting for the graph, pacing on it."""

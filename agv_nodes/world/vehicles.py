@@ -8,19 +8,16 @@ front steering by an actuator with rate and angle limits. Per motor:
     L di/dt = duty * V_batt - R i - k_phi(field) * w_m ,  i >= 0 (chopper + freewheel diode)
     torque = k_phi(field) * i
 
-so reversing the field while the truck still rolls forward makes the back-EMF add to the supply
-and the torque oppose the motion: plug braking (Baker 1983, 6.3, 8.5), limited by the controller's
-current limit. With the armature off only friction acts (the "friction only" braking of the
-1983 stop). Parameters marked [A] are assumptions chosen so that 80 % duty gives about 1 m/s
-unloaded, 20 % about 0.2 m/s and nothing moves below about 5 % (Baker 1983, 6.3.2).
+so reversing the field while the truck still rolls forward makes the back-EMF add to the supply and
+the torque oppose the motion: plug braking (Baker 1983, 6.3, 8.5), limited by the controller's
+current limit. With the armature off only friction acts (the "friction only" braking of the 1983
+stop). Parameters marked [A] are assumptions (agv_nodes.world.settings.ElectrukParams).
 
 CONCIC-II (Rajagopalan 1991: the vehicle 6.3.1-6.3.2, Table 6.1, App. B.3-B.5, App. C; the
-kinematics 3.5; the LM628 and the coast 7.3.2, 7.3.4): differential drive, wheel radius 0.075
-m, casters; each wheel's commanded speed is approached at a fixed acceleration (the LM628
-trapezoid) and followed with a first-order lag; "motor off" coasts down (5 mm from 0.16 m/s).
+kinematics 3.5; the LM628 and the coast 7.3.2, 7.3.4): differential drive, wheel radius 0.075 m,
+casters; each wheel's commanded speed is approached at a fixed acceleration (the LM628 trapezoid)
+and followed with a first-order lag; "motor off" coasts down (5 mm from 0.16 m/s).
 """
-
-from __future__ import annotations
 
 from dataclasses import dataclass
 import math
@@ -64,16 +61,12 @@ class Electruk:
         self.current = 0.0  # armature current per motor, A
         self.flux = 1.0  # field flux as a fraction of full field, signed (+ = forward)
         # Inputs (held between updates, as the hardware holds its PWM registers).
-        self.armature_duty = 0.0  # 0..0.8
-        self.field_duty = 0.0  # 0..1
+        self.armature_duty = self.field_duty = 0.0  # 0..0.8, 0..1
         self.field_forward = True
-        self.armature_enable = False
-        self.field_enable = False
-        self.contactor = False
+        self.armature_enable = self.field_enable = self.contactor = False
         self.relay_closed = True  # the trip relay, held closed by the watchdog monostable
-        self.radio_stop = False
+        self.radio_stop = self.steer_enable = False
         self.steer_demand = 0.0
-        self.steer_enable = False
         self._step_key: tuple[float, ...] | None = None
         self._step_constants: tuple[float, ...] = ()
 
@@ -92,12 +85,10 @@ class Electruk:
     def set_drive(self, armature_duty: float, field_duty: float, field_forward: bool,
                   armature_enable: bool, field_enable: bool, contactor: bool) -> None:
         """Latch the traction_drive outputs."""
-        self.armature_duty = armature_duty
-        self.field_duty = field_duty
-        self.field_forward = field_forward
-        self.armature_enable = armature_enable
-        self.field_enable = field_enable
-        self.contactor = contactor
+        self.armature_duty, self.field_duty, self.field_forward = (armature_duty, field_duty,
+                                                                   field_forward)
+        self.armature_enable, self.field_enable, self.contactor = (armature_enable, field_enable,
+                                                                   contactor)
 
     @property
     def pushing(self) -> bool:
@@ -108,11 +99,7 @@ class Electruk:
                 and self.field_enable and self.field_forward == forward)
 
     def _constants(self, dt: float) -> tuple[float, ...]:
-        """Return what step() needs that only dt and the parameters set.
-
-        Worked out again when dt, the parameters object or the load changes (the world steps at
-        one dt).
-        """
+        """Return what step() needs that only dt, the parameters and the load set (cached)."""
         p = self.p
         key = (dt, id(p), p.mass, p.payload)
         if self._step_key != key:
@@ -183,14 +170,10 @@ class Concic2:
     def __init__(self, params: Concic2Params) -> None:
         self.p = params
         self.state = VehicleState()
-        self.left = 0.0  # actual wheel rim speeds, m/s
-        self.right = 0.0
-        self.left_profile = 0.0  # LM628 trajectory generator outputs
-        self.right_profile = 0.0
-        self.left_demand = 0.0
-        self.right_demand = 0.0
-        self.enable = False
-        self.radio_stop = False
+        self.left = self.right = 0.0  # actual wheel rim speeds, m/s
+        self.left_profile = self.right_profile = 0.0  # LM628 trajectory generator outputs
+        self.left_demand = self.right_demand = 0.0
+        self.enable = self.radio_stop = False
 
     @property
     def sensor_point(self) -> tuple[float, float]:
@@ -220,8 +203,7 @@ class Concic2:
             v = 0.5 * (self.left + self.right)
             dv = p.coast_deceleration * dt
             scale = max(abs(v) - dv, 0.0) / abs(v) if v != 0.0 else 0.0
-            self.left *= scale
-            self.right *= scale
+            self.left, self.right = self.left * scale, self.right * scale
             self.left_profile, self.right_profile = self.left, self.right
         v = 0.5 * (self.left + self.right)
         advance_pose(s, v, (self.right - self.left) / p.wheel_span, dt)

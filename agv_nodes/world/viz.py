@@ -1,7 +1,5 @@
 """The world's pictures: the route and marker cards (latched), the pose, camera frames."""
 
-from __future__ import annotations
-
 import math
 
 from builtin_interfaces.msg import Time
@@ -52,8 +50,7 @@ def _card(k: int, m) -> list[Marker]:
     card.color.a = 1.0
     card.color.r = 1.0 if m.kind == 'stop' else 0.2
     card.color.g = 1.0 if m.kind == 'location' else 0.2
-    label = Marker(ns='labels', id=k, type=Marker.TEXT_VIEW_FACING, action=Marker.ADD,
-                   text=m.name)
+    label = Marker(ns='labels', id=k, type=Marker.TEXT_VIEW_FACING, action=Marker.ADD, text=m.name)
     label.header.frame_id = 'map'
     label.pose = card.pose
     label.pose.position.z = 0.8
@@ -63,11 +60,7 @@ def _card(k: int, m) -> list[Marker]:
 
 
 def layout_messages(layout: Layout) -> tuple[Path, MarkerArray]:
-    """Build world/route and world/markers, drawn once and latched.
-
-    world/route is every wire and tape as one path; world/markers the wires, tapes, cards and
-    their labels.
-    """
+    """Build world/route (every wire and tape as one path) and world/markers (paths and cards)."""
     path = Path()
     path.header.frame_id = 'map'
     markers = MarkerArray()
