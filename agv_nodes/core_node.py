@@ -124,6 +124,9 @@ class CoreNode(Node):
                                      qos.RECORD_READER)
         if self.core.period:
             self.periodic(self.core.period, self._tick)
+        if getattr(self.core, 'supervision_period', None):
+            self.periodic(self.core.supervision_period,
+                          lambda: self.publish(self.core.supervise(self.now_s())))
         if ns.fault_record and ns.fault_delay:
             self.periodic(0.001, self._release)  # fires once per /clock step
         if ns.fault_record:

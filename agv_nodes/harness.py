@@ -50,6 +50,7 @@ class _Member:
     readers: dict[str, RecordReader] = field(default_factory=dict)
     writers: dict[str, RecordWriter] = field(default_factory=dict)
     next_tick: float = 0.0
+    next_supervise: float = 0.0
 
 
 class Harness:
@@ -178,6 +179,10 @@ class Harness:
             while m.core.period is not None and m.next_tick <= now + 1e-12:
                 m.next_tick += m.core.period
                 self._publish(m, m.core.tick(now))
+            every = getattr(m.core, 'supervision_period', None)
+            while every is not None and m.next_supervise <= now + 1e-12:
+                m.next_supervise += every
+                self._publish(m, m.core.supervise(now))
         return out
 
     def run(self, seconds: float, until: Callable[[], bool] | None = None) -> bool:

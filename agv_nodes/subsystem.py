@@ -54,6 +54,8 @@ class SubsystemCore:
     def __init__(self, params: Any = None) -> None:
         self.p = params if params is not None else self.settings_type()
         self.period: float | None = getattr(self.p, self.period_setting)
+        # a second, faster timer for a core that checks something between its passes
+        self.supervision_period: float | None = None
         self.notes = Notes()  # what it says in words (its node logs them)
 
     def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
@@ -63,3 +65,7 @@ class SubsystemCore:
     def tick(self, now: float) -> dict | None:
         """Run the timer, every `period` s; return records to send (or None)."""
         raise NotImplementedError
+
+    def supervise(self, now: float) -> dict | None:
+        """Run the second timer, every `supervision_period` s (when not None)."""
+        return None

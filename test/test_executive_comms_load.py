@@ -187,6 +187,30 @@ def test_a_silent_subsystem_is_noticed_between_ticks_when_others_report():
     assert out['traction_command']['demand'] == 0 and ex.fault == ('stale_status', 'traction')
 
 
+def test_a_silent_subsystem_on_the_common_grid_is_noticed_by_the_supervision_timer():
+    """The others report together every 50 ms: the 10 ms supervision finds the stale status.
+
+    Without it the check waits for the next 50 ms pass or arrival: status_timeout + 50 ms.
+    """
+    p = ExecutiveParams()
+    ex = running_executive()  # last records and tick at 0.45 s; status_timeout 0.15 s
+    out, t, k = None, 0.45, 0
+    while ex.fault is None and k < 100:
+        k += 1
+        t = round(0.45 + k * p.supervision_period, 6)
+        if k % 5 == 0:  # the common 50 ms grid: the others report, then the pass runs
+            for name, fields in status_records(t).items():
+                if name != 'traction':
+                    ex.on_record(f'{name}_status', fields, t)
+            ex.tick(t)
+        out = ex.supervise(t)
+    assert ex.fault == ('stale_status', 'traction')
+    assert 0.45 + p.status_timeout < t <= 0.45 + p.status_timeout + p.supervision_period + 1e-9
+    assert out['traction_command']['demand'] == 0
+    # and the supervision alone never sends commands while all is well
+    assert running_executive().supervise(0.46) is None
+
+
 def test_a_starved_executive_does_not_blame_a_record_still_in_its_queue():
     ex = running_executive()  # last records and tick at 0.45 s; status_timeout 0.15 s
     t = 0.45 + 0.25  # its clock jumps: it was starved, four records wait in its queues

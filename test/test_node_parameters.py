@@ -112,8 +112,12 @@ def test_the_harness_and_the_launched_graph_run_with_the_same_settings():
 
 def test_shipped_parameter_file_is_valid_for_every_node(tmp_path):
     """Every node starts with config/agv_demo.yaml (and stops at once: duration / SIGINT)."""
+    import os
     import signal
     import time
+
+    import rclpy
+    from rclpy.context import Context
 
     from agv_nodes.graph.model import load_graph
 
@@ -125,9 +129,21 @@ def test_shipped_parameter_file_is_valid_for_every_node(tmp_path):
             [str(BIN / spec.executable), '--ros-args', '--params-file', str(graph.parameters),
              '-p', 'use_sim_time:=true', *extra], stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT, text=True)))
-    time.sleep(4.0)
-    for name, proc in procs:
-        assert proc.poll() is None, f'{name} exited: {proc.stdout.read()}'
+    # up = its node is in the ROS graph (a fixed sleep interrupted a slow start-up)
+    context = Context()
+    rclpy.init(context=context, domain_id=int(os.environ['ROS_DOMAIN_ID']))
+    probe = rclpy.create_node('parameter_file_probe', context=context)
+    try:
+        deadline = time.monotonic() + 90.0
+        while missing := {n for n, _ in procs} - set(probe.get_node_names()):
+            for name, proc in procs:
+                assert proc.poll() is None, f'{name} exited: {proc.stdout.read()}'
+            assert time.monotonic() < deadline, f'not up within 90 s: {sorted(missing)}'
+            time.sleep(0.1)
+    finally:
+        probe.destroy_node()
+        rclpy.shutdown(context=context)
+    for _name, proc in procs:
         proc.send_signal(signal.SIGINT)
     for name, proc in procs:
         out, _ = proc.communicate(timeout=30)

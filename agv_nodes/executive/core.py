@@ -45,6 +45,7 @@ class ExecutiveCore(SubsystemCore):
         super().__init__(params)
         self.srm_map = parse_srm_map(self.p.srm_map)  # location -> SRM angle, degrees
         self._last_tick: float | None = None
+        self.supervision_period = self.p.supervision_period
         self.status: dict[str, dict[str, Any]] = {}  # latest status record per sub-system
         self.status_time: dict[str, float] = {}
         self.max_age: dict[str, float] = {}  # oldest status seen while supervising (diagnostics)
@@ -305,7 +306,7 @@ class ExecutiveCore(SubsystemCore):
                               else 'none', f'{len(self.rejects)} in 1 s')
         # Communications too: a silent sub-system is a fault to stop on (Baker 1983, 7.2: one
         # that failed made the others reset, which hid the fault), and without it no abort
-        # reaches the truck. Its 100 ms status makes status_timeout 1.5 of its periods.
+        # reaches the truck. Its status comes on the same 50 ms grid as the others.
         for sub in ('navigation', 'traction', 'route', 'load', 'communications'):
             t = self.status_time.get(sub)
             if t is None:
@@ -357,6 +358,17 @@ class ExecutiveCore(SubsystemCore):
         self.notes.add(now, text)
 
     # -- the loop ---------------------------------------------------------------------------
+    def supervise(self, now: float) -> dict[str, dict[str, Any]] | None:
+        """Check for a stale status between two passes; on a fault send the e-stop at once.
+
+        The sub-systems report on the same 50 ms grid, so their records arrive together, and a
+        status that goes stale between two arrivals would otherwise wait for the next pass.
+        """
+        if self.mode not in ('running', 'cruising'):
+            return None
+        self._supervise(now)
+        return self._commands(now) if self.mode == 'failed' else None
+
     def tick(self, now: float) -> dict[str, dict[str, Any]]:
         """Supervise, run the step, and send every command record (pigeon-holes)."""
         traction = self.status.get('traction') or {}
