@@ -50,11 +50,30 @@ def config_dir() -> Path:
     return share_dir() / 'config'
 
 
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, refusing a key given twice in one mapping (it keeps the last)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
+        seen: set[Any] = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f'key {key!r} given twice', key_node.start_mark)
+            seen.add(key)
+        return super().construct_mapping(node, deep)
+
+
+def load_yaml(text: str) -> Any:
+    """Parse YAML as yaml.safe_load does, but a key given twice in a mapping is an error."""
+    return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
+
+
 def read_mapping(path: Path, error: type[Exception],
                  keys: Collection[str] | None = None) -> dict[str, Any]:
     """Read a YAML file's top-level mapping; `error` names the file and any key not in `keys`."""
     try:
-        doc = yaml.safe_load(path.read_text())
+        doc = load_yaml(path.read_text())
     except (OSError, yaml.YAMLError) as exc:
         reason = ' '.join(str(exc).split())  # one line, whatever the YAML parser printed
         raise error(f'{path}: cannot read: {reason}') from None

@@ -18,8 +18,15 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String, UInt8MultiArray
 
 from agv_nodes import qos
+from agv_nodes.rclpy_internals import writer_identity_unavailable, writer_tagged_subscription
 from agv_nodes.records.carrier import clock_ns, uint8_array_cdr, uint8_array_data
-from agv_nodes.records.ports import RecordReader, RecordWriter, inputs_report
+from agv_nodes.records.ports import (
+    FOREIGN_WRITER,
+    RecordReader,
+    RecordWriter,
+    WriterCheck,
+    inputs_report,
+)
 from agv_nodes.records.schema import RecordSchema
 
 
@@ -87,32 +94,97 @@ def clock_time_ns(raw: bytes) -> int:
     return ns
 
 
+def full_name(node: Node, name: str) -> str:
+    """Return the full name of node `name` as seen from `node` (relative: its namespace)."""
+    if name.startswith('/'):
+        return name
+    return f'{node.get_namespace().rstrip("/")}/{name}'
+
+
+def writer_name(node: Node, schema: RecordSchema) -> str:
+    """Return the full name of the node whose records `node` takes on `schema`'s topic.
+
+    The schema's writer, unless the node's `record_writers` setting names another (a hardware
+    driver in its place).
+    """
+    settings = getattr(node, 'node_settings', None)
+    named = settings.writer_nodes() if hasattr(settings, 'writer_nodes') else {}
+    return full_name(node, named.get(schema.name, schema.writer))
+
+
 class RecordSubscription(RecordReader):
     """Subscribes one record topic; calls `callback(fields)` for each record accepted.
 
-    It takes the messages serialized (`raw=True`) and reads the 16 bytes from the CDR
-    (`record_bytes`): a 340 Hz reader costs a node a third less CPU that way
-    (agv_nodes.records.carrier).
+    Only the topic's one genuine writer is heard (records.ports.WriterCheck): each message is
+    taken with its writer's GID (rclpy_internals.WriterTaggedSubscription) and one from any
+    other endpoint is rejected as `foreign_writer`, counted and never passed to `on_reject`, so
+    a second writer can neither steer a node nor exhaust the rejection budget its core keeps
+    for the genuine writer's faults. The genuine writer is the graph's node `writer` (full
+    name; default `writer_name`). Where librcl cannot be used the check is off (said on stderr
+    and in /diagnostics) and rclpy takes the messages. Either way they are taken serialized and
+    the 16 bytes read from the CDR (`record_bytes`): a 340 Hz reader costs a node a third less
+    CPU that way (agv_nodes.records.carrier).
     """
 
     def __init__(self, node: Node, schema: RecordSchema, integrity: str = 'e2e',
                  callback: Callable[[dict[str, Any]], None] | None = None,
-                 sent_stamps: bool = False) -> None:
+                 sent_stamps: bool = False, writer: str | None = None) -> None:
         super().__init__(schema, integrity if schema.protected else 'none')
         self._node = node
         self._callback = callback
         self._now_ns = node_time(node)
-        self.on_reject: Callable[[], None] | None = None  # told after each rejection
+        self.on_reject: Callable[[], None] | None = None  # told after each rejection but ours
         self.sent_ns = 0  # DDS source timestamp of the record being handled (writer's wall ns)
-        # Only a reader that ages records from their send asks for the message info: rclpy
-        # 7.1.6's EventsExecutor fails ("SystemError: null argument") on (msg, info) callbacks.
-        self._sub = node.create_subscription(
-            UInt8MultiArray, schema.topic, self._on_msg_info if sent_stamps else self._on_msg,
-            qos.reader_qos(schema), raw=True)
+        self.writer = writer or writer_name(node, schema)
+        self.check = WriterCheck(self.writer, self._graph_writers)
+        self._current: bytes | None = None  # the genuine writer's GID: the hot path's test
+        self._tagged = writer_tagged_subscription(node, UInt8MultiArray, schema.topic,
+                                                  qos.reader_qos(schema), self._on_sample)
+        if self._tagged is None:
+            # Only a reader that ages records from their send asks for the message info:
+            # rclpy 7.1.6's EventsExecutor fails ("SystemError: null argument") on (msg, info)
+            # callbacks.
+            self._sub = node.create_subscription(
+                UInt8MultiArray, schema.topic, self._on_msg_info if sent_stamps else self._on_msg,
+                qos.reader_qos(schema), raw=True)
 
     def publisher_count(self) -> int:
         """Writers this reader has matched (its own side of the link)."""
+        if self._tagged is not None:
+            return self._tagged.publisher_count()
         return self._sub.get_publisher_count()
+
+    def identity(self) -> str:
+        """Say who this reader takes records from (its /diagnostics `writer` value)."""
+        if self._tagged is None:
+            return f'not checked: {writer_identity_unavailable()}'
+        if self._tagged.layout_ok is False:
+            return 'not checked: the message info is not laid out as in Jazzy (no GID)'
+        gid = self._current.hex() if self._current else 'not heard yet'
+        check = self.check
+        return (f'{self.writer} ({gid}); {check.held} held for the graph, {check.restarts} '
+                f'restarts, {check.lookups} graph queries')
+
+    def _graph_writers(self) -> list[tuple[str, bytes]]:
+        return [(f'{i.node_namespace.rstrip("/")}/{i.node_name}', bytes(i.endpoint_gid))
+                for i in self._node.get_publishers_info_by_topic(self.schema.topic)]
+
+    def _on_sample(self, raw: bytes, gid: bytes | None, stamp: int) -> None:
+        self.sent_ns = stamp
+        if gid == self._current or gid is None:  # None: no GID to be had (check off)
+            self._on_msg(raw)
+            return
+        for (data, sent_ns), who, verdict in self.check.admit((raw, stamp), gid):
+            self.sent_ns = sent_ns  # a held sample's own
+            if verdict == FOREIGN_WRITER:
+                self._reject(FOREIGN_WRITER, f'{self.schema.name}: from '
+                             f'{self.check.nodes.get(who, "?")} ({who.hex()}), not the '
+                             f'writer {self.writer}')
+                continue
+            if verdict == 'restart':
+                self.resync()  # a new process: its counter starts afresh
+            self._current = who
+            self._on_msg(data)
 
     def _on_msg_info(self, raw: bytes, info: Mapping[str, Any]) -> None:
         self.sent_ns = info.get('source_timestamp') or 0

@@ -24,6 +24,8 @@ from typing import Any
 
 import yaml
 
+from agv_nodes.package_share import load_yaml
+
 SPEC = 'agv_nodes.setting'
 SCALARS = (bool, int, float, str)
 
@@ -62,7 +64,7 @@ class DefinitionError(ValueError):
 
 @functools.cache
 def _definitions(path: Path) -> dict[str, Any]:
-    doc = yaml.safe_load(path.read_text())
+    doc = load_yaml(path.read_text())
     if not isinstance(doc, dict):
         raise DefinitionError(f'{path}: expected settings classes at the top level')
     return doc
@@ -278,7 +280,7 @@ def read_parameter_file(path: Path | str) -> dict[str, Any]:
     """
     path = Path(path)
     try:
-        doc = yaml.safe_load(path.read_text())
+        doc = load_yaml(path.read_text())
     except yaml.YAMLError as exc:
         mark = getattr(exc, 'problem_mark', None)
         line = f' line {mark.line + 1}' if mark is not None else ''
@@ -346,6 +348,22 @@ class ProcessSettings:
 @settings_class
 class NodeSettings(ProcessSettings):
     """What every sub-system node has besides its core's settings (agv_nodes/core_node.py)."""
+
+    def writer_nodes(self) -> dict[str, str]:
+        """Return the record_writers entries: record -> the node to take it from."""
+        return dict(entry.split('=', 1) for entry in self.record_writers)  # type: ignore[attr-defined]
+
+    def problems(self) -> list[tuple[str, Any, str]]:
+        """Make the checks `build` needs beyond each field's own: record_writers' entries."""
+        from agv_nodes.records import codec  # the schemas, only when a node is built
+
+        names = {s.name for s in codec()}
+        for entry in self.record_writers:  # type: ignore[attr-defined]
+            record, sep, node = entry.partition('=')
+            if not sep or record not in names or not node.strip('/') or ' ' in node:
+                return [('record_writers', list(self.record_writers),  # type: ignore[attr-defined]
+                         f'entry {entry!r} is not record=node with a record of msg_schemas/')]
+        return []
 
 
 # Parameters rclpy itself declares on every node.

@@ -3,7 +3,9 @@
 The Mk 1 board converts eight photodiodes with the IREDs on, then eight with them off (ADC0809,
 8-bit), 340 times a second. This driver publishes each such 16-byte sample on
 hw/position_sensor/adc, where the position_sensor node expects it, so the graph can run with
-world:=none:
+world:=none. The position_sensor node takes that record only from its named writer, so it is
+told this board's node name:
+`-p "record_writers:=['adc_snapshot=marker_sensor_board']"` (docs/hardware.md).
 
     python examples/marker_sensor_board.py --serial /dev/ttyUSB0      # 16 bytes per sample
     python examples/marker_sensor_board.py --bag runs/demo-*/bag      # replay a recorded run

@@ -37,7 +37,8 @@ def main() -> int:
                 got.append(fields)
                 print(json.dumps({'fields': fields, 'raw': sub.raw.hex()}), flush=True)
 
-            sub = RecordSubscription(node, schema, callback=on_record)
+            # the other peer stands in for the schema's writer
+            sub = RecordSubscription(node, schema, callback=on_record, writer='/dds_peer_pub')
             while rclpy.ok() and len(got) < wanted:
                 rclpy.spin_once(node, timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -2,7 +2,9 @@
 
 Every recipe makes a record the receiving port must reject (wrong lengths, random
 bytes, bad CRC, repeated or skipped counters, spare bits set, out-of-range values). Recipes
-that need a live counter start from the latest genuine record seen on the topic (`genuine`).
+that need a live counter start from a record the reader has accepted (`genuine`).
+test/fuzz_session.py sends them through a live graph and keeps the exact count each reader must
+show (test/test_bad_input_dds.py, bench/fuzz_bench.py).
 
 What is left out, and why: 16 random bytes that happen to carry a valid CRC-8 (1 in 256) and a
 counter within 15 of the last genuine one are, by construction, a record E2E cannot tell from a

@@ -1,197 +1,110 @@
-"""Bad records and foreign writers over DDS: counted, shown in /diagnostics, never acted on.
+"""Bad records over DDS: every one counted, by reason and exactly, and never acted on.
 
 The whole graph runs (one process per node, config/graph.yaml) with the truck at rest and no
-task. This test process is the foreign writer: hypothesis draws one malformed record per record
-topic per example (test/record_fuzz.py: wrong lengths, random bytes, bad CRC, replayed and
-skipped counters, spare bits, out-of-range values) and publishes it next to the genuine writer.
-Afterwards every reading node's `/diagnostics` inputs row must count at least as many
-rejections on each record topic as records were sent to it (less the replays, copies of a
-genuine record that may stand in for it; 90 % on the best-effort 340 Hz ADC stream, whose
-transport may drop a record unseen), no node may have died, and the world's
-ground truth must show that nothing happened: the truck never moved and no load moved.
+task. A reader hears only its topic's named writer (records.ports.WriterCheck): records from
+any other endpoint are rejected as `foreign_writer` before the codec sees them. So, to fuzz
+the codec and the E2E checks over DDS, this test's probe node stands in as the named writer
+(`record_writers`) of every record a sub-system node reads (test/fuzz_session.py); the graph's
+own writers of those records are then foreign there. The world keeps its schema writers, so on
+the three records it reads the probe is a foreign writer: that is the foreign part.
 
-`AGV_FUZZ_EXAMPLES` sets the number of examples (default 150: 3,000 records on 20 topics; the
-long variant `AGV_FUZZ_EXAMPLES=5000 ./agv.sh test -m dds -k fuzz` sends 100,000, ~6 min).
+1. Hand-shake: a too-short probe record on every topic, sent until each reader has counted
+   it (`wrong_length` at a stand-in reader, `foreign_writer` at the world); the counts then
+   settle and are the baseline. Then one valid reference record per protected topic (a copy
+   of the genuine writer's latest), which the sequence defects count from.
+2. Hypothesis draws one malformed record per topic per example (test/record_fuzz.py: wrong
+   lengths, random bytes, bad CRC, replayed and skipped counters, spare bits, out-of-range
+   values). What each reader must count is computed in the test from the recipe and the
+   reader's state (a model reader sees the same records in the same order); a recipe's own
+   defect must be the reason it names.
+3. Every reader's `/diagnostics` row must then show exactly those counts per topic and reason
+   since the baseline, and exactly the reference as accepted: no fuzzed record was taken, so
+   none acted on. Fuzzed traction commands with a valid content ask for manual reverse, which
+   traction's status never shows; the world's ground truth shows the truck never moved and
+   nothing happened, and no node died.
+
+`AGV_FUZZ_EXAMPLES` sets the number of examples (default 150: 3,000 records on 20 topics);
+bench/fuzz_bench.py sends 100,000 and writes bench/results/fuzz_bench.md.
 """
 
 from __future__ import annotations
 
-from collections import Counter
-import math
 import os
 import time
 
+from fuzz_session import fuzzed_schemas, start_session
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 import pytest
-from record_fuzz import apply, recipes, rejected
+from record_fuzz import recipes
 
 from agv_nodes.records.codec import codec
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
 EXAMPLES = int(os.environ.get('AGV_FUZZ_EXAMPLES', '150'))
-GRAPH_NODES = ('position_sensor', 'navigation', 'traction', 'route_following', 'load_handling',
-               'executive', 'communications', 'world')
-FUZZED = [s for s in codec() if s.kind != 'ground_truth'
-          and any(r in GRAPH_NODES for r in s.readers)]
+FUZZED = fuzzed_schemas()
 
 
-# -- the live graph -----------------------------------------------------------------------------
-class Graph:
-    """The launched graph plus this process's probe node (the foreign writer)."""
+def test_legacy_graph_rejects_a_foreign_writer_but_obeys_one_named_as_its_writer(
+        tmp_path, fault_table):
+    """record_integrity none (a legacy 1983 peer): what the writer check does and does not do.
 
-    def __init__(self, launch, node, executor, integrity: str = 'e2e') -> None:
-        from std_msgs.msg import UInt8MultiArray
-
-        from agv_nodes import qos
-
-        self.launch, self.node, self.executor = launch, node, executor
-        self.integrity = integrity
-        self.sent: Counter[str] = Counter()
-        self.replays: Counter[str] = Counter()  # copies of a genuine record (repeated counter)
-        self.ours: set[bytes] = set()
-        self.genuine: dict[str, bytes] = {}
-        self.max_speed = 0.0
-        self.events: list[dict] = []
-        self.inputs: dict[str, dict[str, str]] = {}  # node -> diagnostics values
-        self._pose: tuple[float, float, float] | None = None
-        self.pubs = {}
-        deep = qos.QoSProfile(depth=200, reliability=qos.ReliabilityPolicy.RELIABLE,
-                              durability=qos.DurabilityPolicy.VOLATILE)
-        for schema in FUZZED:
-            self.pubs[schema.name] = node.create_publisher(UInt8MultiArray, schema.topic, deep)
-            node.create_subscription(UInt8MultiArray, schema.topic, self._genuine(schema),
-                                     qos.reader_qos(schema))
-
-    def _genuine(self, schema):
-        def on_msg(msg) -> None:
-            data = bytes(msg.data)
-            if data not in self.ours and not rejected(schema, data, self.integrity):
-                self.genuine[schema.name] = data
-        return on_msg
-
-    def on_pose(self, msg) -> None:
-        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-        x, y = msg.pose.position.x, msg.pose.position.y
-        if self._pose is not None and t > self._pose[0]:
-            speed = math.hypot(x - self._pose[1], y - self._pose[2]) / (t - self._pose[0])
-            self.max_speed = max(self.max_speed, speed)
-        self._pose = (t, x, y)
-
-    def on_diagnostics(self, msg) -> None:
-        for st_ in msg.status:
-            if st_.name.endswith('/inputs'):
-                self.inputs[st_.hardware_id] = {kv.key: kv.value for kv in st_.values}
-
-    def send(self, name: str, data: bytes) -> None:
-        from std_msgs.msg import UInt8MultiArray
-
-        self.ours.add(data)
-        self.pubs[name].publish(UInt8MultiArray(data=data))
-        self.sent[name] += 1
-
-    def spin(self, seconds: float) -> None:
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            self.executor.spin_once(timeout_sec=0.005)
-        dead = self.launch.poll()
-        assert not dead, f'{dead} died: ' + '\n'.join(self.launch.lines[-40:])
-
-    def spin_until(self, condition, what: str, wall_limit: float = 60.0) -> None:
-        """Spin until `condition()` holds.
-
-        A /diagnostics row comes once a (sim) second, and how much wall time that takes depends
-        on the machine, so wait for it, not a fixed time.
-        """
-        deadline = time.monotonic() + wall_limit
-        while not condition():
-            assert time.monotonic() < deadline, f'{what} within {wall_limit:.0f} s (wall)'
-            self.spin(0.05)
-
-    def counted(self, node: str, key: str) -> int:
-        """One count from `node`'s latest /diagnostics inputs row (0 before the first row)."""
-        return int(self.inputs.get(node, {}).get(key, '0'))
-
-
-def start_graph(tmp_path, integrity: str = 'e2e'):
-    from diagnostic_msgs.msg import DiagnosticArray
-    from geometry_msgs.msg import PoseStamped
-    import rclpy
-    from rclpy.context import Context
-
-    from agv_nodes import qos
-    from agv_nodes.graph.parameters import Options
-    from agv_nodes.graph.supervisor import Launch
-    from agv_nodes.ros_ports import RecordSubscription
-
-    launch = Launch(Options(time_factor=0.0, quiet=True, log_dir=tmp_path / 'logs',
-                            record_integrity=integrity,
-                            domain_id=int(os.environ['ROS_DOMAIN_ID'])))
-    context = Context()
-    rclpy.init(context=context, domain_id=launch.domain)
-    node = rclpy.create_node('foreign_writer', context=context)
-    executor = rclpy.executors.SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    graph = Graph(launch, node, executor, integrity)
-    node.create_subscription(PoseStamped, 'world/pose', graph.on_pose, qos.STREAM_READER)
-    node.create_subscription(DiagnosticArray, '/diagnostics', graph.on_diagnostics, qos.EVENTS)
-    RecordSubscription(node, codec()['world_event'], 'e2e', graph.events.append)
-
-    def stop() -> None:
-        node.destroy_node()
-        executor.shutdown()
-        rclpy.try_shutdown(context=context)
-        launch.stop()
-
-    launch.start()
-    deadline = time.monotonic() + 120
-    try:
-        while not launch.moving.is_set() or len(graph.genuine) < len(FUZZED) - 2:
-            graph.spin(0.05)
-            assert time.monotonic() < deadline, f'graph did not come up: {sorted(graph.genuine)}'
-    except BaseException:
-        stop()  # never leave a graph running on the session's domain
-        raise
-    return graph, stop
-
-
-def test_foreign_plain_traction_command_is_obeyed_by_a_legacy_graph(tmp_path, fault_table):
-    """record_integrity none (a legacy 1983 peer): the same foreign records are accepted.
-
-    This is the documented risk of `none` (docs/hardware.md): any process on the domain can
-    command the truck, and traction cannot tell. The test proves the risk is real, so the
+    Plain thesis records carry no CRC, so only the writer check stands between a second
+    process and the truck. A node of another name is rejected (`foreign_writer`); a node that
+    takes the executive's own name in the graph is obeyed - the documented risk of `none`
+    (docs/hardware.md: only access control stops it). The test proves both, so the
     documentation cannot go stale. (First in the module: it runs its own graph on the
-    session's domain before the module's e2e graph starts.)
+    session's domain before the module's graph starts.)
     """
-    graph, stop = start_graph(tmp_path, integrity='none')
+    import rclpy
+
+    from agv_nodes.ros_ports import RecordPublisher
+
+    session, stop = start_session(tmp_path / 'logs', integrity='none', stand_in=False)
+    schema = codec()['traction_command']
+    impostor = rclpy.create_node('executive', context=session.node.context)
     try:
-        graph.spin_until(lambda: 'traction' in graph.inputs, "traction's first inputs row")
-        before = dict(graph.inputs['traction'])
-        schema = codec()['traction_command']
-        for k in range(40):
-            demand = 0 if k < 4 else 55
-            graph.send('traction_command', schema.encode({'demand': demand}, integrity='none'))
-            graph.spin(0.05)
-        first = int(before['traction_command accepted'])
+        session.handshake()
+        plain = [{'demand': 0 if k < 4 else 55} for k in range(40)]  # 00H clears a trip latch
+        for fields in plain:  # from the probe, a node of another name
+            session.send_raw('traction_command', schema.encode(fields, integrity='none'))
+            session.spin(0.05)
+        left = session.wait_counted()
+        assert not left, f'not counted exactly (got, due): {left}'
+        foreign = session.due[('traction', 'traction_command', 'foreign_writer')]
+        # the same records from a node named as the executive (a second /executive)
+        pub = RecordPublisher(impostor, schema, 'none')
+        wait(session, lambda: pub.subscription_count > 0, 'the impostor matched')
+        first = int(session.inputs['traction']['traction_command accepted'])
+        for fields in plain:
+            pub.publish(fields)
+            session.spin(0.05)
         # ours (40) + the executive's own 20 Hz commands meanwhile: a row that counts them all
-        graph.spin_until(lambda: graph.counted('traction', 'traction_command accepted')
-                         >= first + 40 + 20, 'traction counting the foreign commands')
-        after = graph.inputs['traction']
-        accepted = int(after['traction_command accepted']) - first
-        assert after['traction_command rejected'] == before['traction_command rejected']
-        fault_table.add('foreign writer: plain traction_command, record_integrity none',
-                        'accepted: the documented risk of a legacy peer (docs/hardware.md)',
-                        f'{accepted} accepted, none rejected')
+        wait(session, lambda: int(session.inputs['traction']['traction_command accepted'])
+             >= first + 40 + 20, "traction counting the impostor's commands as accepted")
+        accepted = int(session.inputs['traction']['traction_command accepted']) - first
+        assert not session.wait_counted(), 'the impostor was counted as foreign'
     finally:
+        impostor.destroy_node()
         stop()
+    fault_table.add('plain traction_command, record_integrity none: from a node of another '
+                    'name, and from a node named as the executive',
+                    'another node: rejected (foreign_writer); one named as the executive: '
+                    'accepted (the documented risk of a legacy peer, docs/hardware.md)',
+                    f'{foreign} of 40 foreign_writer; impostor and executive: {accepted} '
+                    'accepted, none rejected')
 
 
 @pytest.fixture(scope='module')
-def graph(tmp_path_factory):
-    g, stop = start_graph(tmp_path_factory.mktemp('fuzz'))
-    yield g
-    stop()
+def session(tmp_path_factory):
+    s, stop = start_session(tmp_path_factory.mktemp('fuzz') / 'logs')
+    try:
+        s.handshake()
+        s.send_reference()
+        yield s
+    finally:
+        stop()
 
 
 BATCH = st.fixed_dictionaries({s.name: recipes(s) for s in FUZZED})
@@ -200,66 +113,58 @@ BATCH = st.fixed_dictionaries({s.name: recipes(s) for s in FUZZED})
 @settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None,
           suppress_health_check=list(HealthCheck))
 @given(batch=BATCH)
-def test_fuzz_every_record_topic(graph, batch):
-    c = codec()
+def test_fuzz_every_record_topic(session, batch):
     for name, recipe in batch.items():
-        graph.send(name, apply(c[name], recipe, graph.genuine.get(name)))
-        graph.replays[name] += recipe.kind == 'repeated_counter'
-    graph.spin(0.04)  # paced so that no reader's queue overflows: every record arrives
+        session.send(name, recipe)
+    session.spin(0.04)  # paced so that no reader's queue overflows: every record arrives
 
 
-def test_fuzzed_records_were_counted_and_never_acted_on(graph, fault_table):
-    assert sum(graph.sent.values()) >= EXAMPLES * len(FUZZED)
-    want = {(r, s.name): graph.sent[s.name] for s in FUZZED for r in s.readers
-            if r in GRAPH_NODES}
-
-    c = codec()
-
-    def short() -> dict:
-        out = {}
-        for (reader, record), n in want.items():
-            got = int(graph.inputs.get(reader, {}).get(f'{record} rejected', '0'))
-            # A best-effort stream (the 340 Hz ADC) may drop a record before it reaches the
-            # port (a few in a thousand, more on a loaded machine): those are never seen, so
-            # never acted on either; 90 % must arrive and be counted.
-            # A replay is a byte-for-byte copy of a genuine record: if it overtakes the
-            # original it is taken in its place (same data) and the original is rejected as
-            # the repeat - unless the writer's keep-last-1 history had already replaced the
-            # original, so a replay may cost no rejection at all.
-            need = n - graph.replays[record]
-            if got < (need * 0.9 if c[record].qos == 'stream' else need):
-                out[(reader, record)] = (got, need)
-        return out
-
-    deadline = time.monotonic() + 60
-    while short() and time.monotonic() < deadline:
-        graph.spin(0.2)
-    assert not short(), f'rejections not counted in /diagnostics (got, sent): {short()}'
-    assert graph.max_speed < 0.005, f'the truck moved ({graph.max_speed:.3f} m/s)'
-    assert not graph.events, f'something happened in the world: {graph.events}'
-    print(f'{sum(graph.sent.values())} malformed records on {len(FUZZED)} topics: all counted')
-    fault_table.add('malformed records from a foreign process on every record topic',
-                    'every one rejected and counted in /diagnostics; truck never moves; no '
-                    'node dies', f'{sum(graph.sent.values())} records on {len(FUZZED)} topics: '
-                    'all counted, truck at rest')
+def test_every_fuzzed_one_was_counted_exactly_and_never_acted_on(session, fault_table):
+    sent = sum(session.by_recipe.values()) - sum(session.skipped.values())
+    assert sent >= EXAMPLES * len(FUZZED) - sum(session.skipped.values())
+    left = session.wait_counted()
+    assert not left, f'counts since the hand-shake differ (got, due): {left}'
+    manual = [s for s in session.statuses if s['manual']]
+    assert session.statuses and not manual, manual[:3]
+    assert session.max_speed < 0.005, f'the truck moved ({session.max_speed:.3f} m/s)'
+    assert not session.events, f'something happened in the world: {session.events}'
+    # the graph's own writers are foreign at the stand-in readers: the check is on
+    theirs = {link for link in session.links() if link[0] != 'world'
+              and 'foreign_writer' in session.inputs[link[0]].get(f'{link[1]} rejects by '
+                                                                  'reason', '')}
+    assert len(theirs) >= len(session.links()) - 3 - 2, theirs
+    reasons = sorted({reason for (_r, _n, reason) in session.due})
+    print(f'{sent} fuzzed records ({sum(session.skipped.values())} the model would accept not '
+          'sent) '
+          f'on {len(FUZZED)} topics: counted exactly by reason ({", ".join(reasons)})')
+    fault_table.add('malformed records on every record topic: from the named writer (a '
+                    'stand-in) and, at the world, from a foreign one',
+                    'each counted by its reason, exactly; none acted on; truck never moves; '
+                    'no node dies',
+                    f'{sent} records on {len(FUZZED)} topics: counts exact, truck at rest')
 
 
-def test_foreign_plain_traction_command_is_rejected_under_e2e(graph, fault_table):
-    """A writer outside the graph that sends plain 1983 records (no CRC) does not drive."""
+def test_named_writers_plain_traction_command_is_rejected_under_e2e(session, fault_table):
+    """Even the named writer's plain 1983 records (no CRC) do not drive under e2e."""
     schema = codec()['traction_command']
-    graph.spin_until(lambda: 'traction' in graph.inputs, "traction's first inputs row")
-    before = graph.counted('traction', 'traction_command rejected')
     for k in range(40):  # 00H (clears a trip latch) then 55 %, 20 Hz for 2 s
-        demand = 0 if k < 4 else 55
-        graph.send('traction_command', schema.encode({'demand': demand}, integrity='none'))
-        graph.spin(0.05)
-    graph.spin_until(lambda: graph.counted('traction', 'traction_command rejected')
-                     >= before + 40, 'traction counting the foreign commands as rejected')
-    graph.spin(0.5)  # and the truck has had time to (not) move
-    after = graph.counted('traction', 'traction_command rejected')
-    assert after - before >= 40
-    assert 'bad_crc' in graph.inputs['traction']['traction_command rejects by reason']
-    assert graph.max_speed < 0.005
-    fault_table.add('foreign writer: plain traction_command (no CRC), record_integrity e2e',
-                    'rejected (bad_crc), counted, truck does not move',
-                    f'{after - before} rejected, truck at rest')
+        data = schema.encode({'demand': 0 if k < 4 else 55}, integrity='none')
+        session.send_raw('traction_command', data)
+        session.spin(0.05)
+    left = session.wait_counted()
+    assert not left, f'counts since the hand-shake differ (got, due): {left}'
+    session.spin(0.5)  # and the truck has had time to (not) move
+    assert session.max_speed < 0.005
+    due = session.due[('traction', 'traction_command', 'bad_crc')]
+    fault_table.add('plain traction_command (no CRC) from its named writer, record_integrity '
+                    'e2e', 'rejected (bad_crc), counted, truck does not move',
+                    f'40 sent, counted exactly ({due} bad_crc in the session), truck at rest')
+
+
+def wait(session, condition, what: str, wall_limit: float = 60.0) -> None:
+    """Spin `session` until `condition()`."""
+    deadline = time.monotonic() + wall_limit
+    while not condition():
+        assert time.monotonic() < deadline, what
+        session.spin(0.05)
+

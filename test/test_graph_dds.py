@@ -218,7 +218,8 @@ def test_marker_board_example_drives_a_real_position_sensor(quick):
                 break
     assert first is not None and first[1] == 0, first  # the run read L0 first
     sensor = subprocess.Popen([str(Path(PYTHON).parent / 'position_sensor'), '--ros-args',
-                               '-p', 'use_sim_time:=false'],
+                               '-p', 'use_sim_time:=false',  # the board in the world's place
+                               '-p', "record_writers:=['adc_snapshot=marker_sensor_board']"],
                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     rclpy.init()
     node = rclpy.create_node('board_probe')

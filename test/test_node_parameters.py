@@ -44,14 +44,20 @@ def test_bad_parameter_file_stops_start_up(tmp_path, node, key, value, words):
     assert 'Traceback' not in res.stderr
 
 
-def test_an_unparsable_parameter_file_names_the_file_and_line(tmp_path):
+@pytest.mark.parametrize('text, line_no, words', [
+    ('/**/traction:\n  ros__parameters:\n    kp: [1, 2\n', None, 'not YAML'),
+    # YAML itself keeps the last of two: a typo-free duplicate must not silently win either
+    ('/**/traction:\n  ros__parameters:\n    command_timeout: 0.15\n'
+     '    command_timeout: 0.3\n', 4, "key 'command_timeout' given twice"),
+], ids=['unparsable', 'duplicate-key'])
+def test_a_bad_yaml_parameter_file_names_the_file_and_line(tmp_path, text, line_no, words):
     params = tmp_path / 'broken.yaml'
-    params.write_text('/**/traction:\n  ros__parameters:\n    kp: [1, 2\n')
+    params.write_text(text)
     res = subprocess.run([str(BIN / 'traction'), '--ros-args', '--params-file', str(params)],
                          capture_output=True, text=True, timeout=60)
     assert res.returncode == 2, res.stdout + res.stderr
     line = res.stderr.strip().splitlines()[-1]
-    assert line.startswith(f'{params}: line ') and 'not YAML' in line, res.stderr
+    assert line.startswith(f'{params}: line {line_no or ""}') and words in line, res.stderr
 
 
 def test_an_unknown_parameter_on_the_command_line_stops_the_node():

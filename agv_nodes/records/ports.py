@@ -6,12 +6,18 @@ every rejection by reason, so `/diagnostics` can show "the 32 bytes" (thesis 8.2
 A rejected record changes nothing but the rejection counts (and, for a counter jump, the
 resynchronisation runs of records/e2e.py): the last good record, its age and the sequence
 reference stay as they were.
+
+`WriterCheck` decides who may write a topic: the one DDS endpoint the ROS graph names as the
+schema's writer node (or the node a reader is told to take instead). Records from any other
+endpoint are rejected as `foreign_writer`: counted and shown like every other reason, never
+acted on, and (agv_nodes/ros_ports.py) never passed to a core's rejection budget.
 """
 
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Mapping
+from collections.abc import Callable, Iterable, Mapping
+import time
 from typing import Any
 
 from agv_nodes.records.e2e import Sequence, SequenceCheck
@@ -95,6 +101,10 @@ class RecordReader:
         self.accepted += 1
         return fields
 
+    def identity(self) -> str:
+        """Say who this reader takes records from ('' where there are no endpoints)."""
+        return ''
+
     def resync(self) -> None:
         """Accept the next valid record whatever its counter (its writer is known to be new)."""
         self.sequence.resync()
@@ -112,6 +122,106 @@ class RecordReader:
         self.rejects[reason] += 1
         self.last_error = text
         self.last_reason = reason
+
+
+FOREIGN_WRITER = 'foreign_writer'  # the rejection reason of a record from another endpoint
+# What the graph says of an endpoint whose node it has not learnt yet (rmw_dds_common).
+UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'
+
+
+class WriterCheck:
+    """Which DDS endpoint may write one record topic, learnt from the graph as samples come.
+
+    `lookup()` returns the topic's writers as the graph shows them: (node's full name, endpoint
+    GID). It is asked only when a sample comes from a GID not known yet (or samples wait), at
+    most once every `requery_s` (wall, `clock`). An endpoint of node `writer` is genuine; any
+    other is foreign, and stays so (an endpoint's node never changes). The graph may know a
+    sample's writer before it knows that writer's node, or not at all yet (discovery lag), so
+    such a sample is held, not judged: released in order once the graph names its node, and
+    foreign once its GID has gone unnamed for `patience_s` (a plain DDS writer, which has no
+    node); past `hold` waiting samples (a second of the 340 Hz stream) the oldest is rejected.
+    A genuine GID other than the one last seen is the writer restarted (its records start a
+    new counter): `admit` says 'restart' for its first sample.
+    """
+
+    def __init__(self, writer: str, lookup: Callable[[], Iterable[tuple[str, bytes]]],
+                 clock: Callable[[], float] = time.monotonic, requery_s: float = 0.2,
+                 patience_s: float = 2.0, hold: int = 400) -> None:
+        self.writer = writer
+        self._lookup = lookup
+        self._clock = clock
+        self._requery_s = requery_s
+        self._patience_s = patience_s
+        self._hold = hold
+        self.current: bytes | None = None  # the genuine GID last admitted
+        self.genuine: set[bytes] = set()
+        self.nodes: dict[bytes, str] = {}  # GID -> node, for every GID the graph has named
+        self._unnamed: dict[bytes, float] = {}  # GID -> when first seen unnamed
+        self._held: list[tuple[Any, bytes]] = []  # (data, GID), oldest first
+        self._asked = float('-inf')
+        self.lookups = 0  # graph queries made
+        self.held = 0  # samples that waited for the graph to name their writer
+        self.restarts = 0
+
+    def admit(self, data: Any, gid: bytes) -> list[tuple[Any, bytes, str]]:
+        """Take one sample; return the samples now decided, oldest first.
+
+        Each as (data, GID, verdict); `data` is the caller's, passed through. The verdict is
+        'genuine', 'restart' (the genuine writer under a new GID) or 'foreign_writer'.
+        """
+        out: list[tuple[Any, bytes, str]] = []
+        if (gid not in self.nodes or self._held) and self._refresh() and self._held:
+            out += self._release()
+        if gid in self.nodes or self._expired(gid):
+            out.append(self._decided(data, gid))
+            return out
+        self.held += 1
+        self._held.append((data, gid))
+        if len(self._held) > self._hold:  # a flood from endpoints the graph does not name
+            oldest, who = self._held.pop(0)
+            out.append((oldest, who, FOREIGN_WRITER))
+        return out
+
+    def _refresh(self) -> bool:
+        now = self._clock()
+        if now - self._asked < self._requery_s:
+            return False
+        self._asked = now
+        self.lookups += 1
+        for node, gid in self._lookup():
+            if node.rsplit('/', 1)[-1] != UNKNOWN_NODE:
+                self.nodes[gid] = node
+                if node == self.writer:
+                    self.genuine.add(gid)
+        return True
+
+    def _expired(self, gid: bytes) -> bool:
+        first = self._unnamed.setdefault(gid, self._clock())
+        if self._clock() - first < self._patience_s:
+            return False
+        self.nodes[gid] = '(no node in the graph)'
+        return True
+
+    def _release(self) -> list[tuple[Any, bytes, str]]:
+        out, waiting = [], []
+        for data, gid in self._held:
+            if gid in self.nodes or self._expired(gid):
+                out.append(self._decided(data, gid))
+            else:
+                waiting.append((data, gid))
+        self._held = waiting
+        return out
+
+    def _decided(self, data: Any, gid: bytes) -> tuple[Any, bytes, str]:
+        self._unnamed.pop(gid, None)
+        if gid not in self.genuine:
+            return data, gid, FOREIGN_WRITER
+        verdict = 'genuine'
+        if self.current is not None and gid != self.current:
+            verdict = 'restart'
+            self.restarts += 1
+        self.current = gid
+        return data, gid, verdict
 
 
 def inputs_report(readers: Mapping[str, RecordReader], rejected_before: int = 0,
@@ -137,6 +247,8 @@ def inputs_report(readers: Mapping[str, RecordReader], rejected_before: int = 0,
         if now_ns is not None:
             age = reader.age_s(now_ns)
             values[f'{name} age (s)'] = 'never' if age == float('inf') else f'{age:.3f}'
+        if reader.identity():
+            values[f'{name} writer'] = reader.identity()
         if reader.last_error:
             values[f'{name} last rejection'] = reader.last_error
     values['rejected'] = str(total)
