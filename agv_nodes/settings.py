@@ -344,11 +344,6 @@ def settings_from_file(cls: type, path: Path | str, node: str,
 class ProcessSettings:
     """What every node process of the package has (agv_nodes/node_process.py)."""
 
-
-@settings_class
-class NodeSettings(ProcessSettings):
-    """What every sub-system node has besides its core's settings (agv_nodes/core_node.py)."""
-
     def writer_nodes(self) -> dict[str, str]:
         """Return the record_writers entries: record -> the node to take it from."""
         return dict(entry.split('=', 1) for entry in self.record_writers)  # type: ignore[attr-defined]
@@ -364,6 +359,11 @@ class NodeSettings(ProcessSettings):
                 return [('record_writers', list(self.record_writers),  # type: ignore[attr-defined]
                          f'entry {entry!r} is not record=node with a record of msg_schemas/')]
         return []
+
+
+@settings_class
+class NodeSettings(ProcessSettings):
+    """What every sub-system node has besides its core's settings (agv_nodes/core_node.py)."""
 
 
 # Parameters rclpy itself declares on every node.

@@ -19,7 +19,9 @@ def test_world_node_publishes_adc_at_340_hz_of_sim_time():
     world = subprocess.Popen(
         [WORLD, '--ros-args', '-p', 'layout:=straight_track', '-p', 'time_factor:=2.0',
          '-p', f'duration:={seconds + 1.0}',
-         '-p', "wait_for_links:=['world>adc_snapshot:1', 'world:traction_drive']"],
+         '-p', "wait_for_links:=['world>adc_snapshot:1', 'world:traction_drive']",
+         # the probe stands in for traction, the writer the world takes traction_drive from
+         '-p', "record_writers:=['traction_drive=world_probe']"],
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     probe = subprocess.run([PYTHON, str(REPO / 'test' / 'world_probe.py'), str(seconds), '60'],
                            capture_output=True, text=True, timeout=120)

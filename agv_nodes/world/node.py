@@ -59,6 +59,7 @@ class WorldNode(Node):
     def __init__(self) -> None:
         super().__init__(NODE)
         self.s = s = declare(self, WorldNodeSettings)
+        self.node_settings = s  # record_writers: whom its record inputs come from
         wp = declare(self, WorldParams)
         refuse_unknown(self)
         self.executor_kind = s.executor
