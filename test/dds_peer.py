@@ -34,8 +34,9 @@ def main() -> int:
             got: list[dict] = []
 
             def on_record(fields: dict) -> None:
-                got.append(fields)
-                print(json.dumps({'fields': fields, 'raw': sub.raw.hex()}), flush=True)
+                if len(got) < wanted:  # records held for the graph to name the writer come at once
+                    got.append(fields)
+                    print(json.dumps({'fields': fields, 'raw': sub.raw.hex()}), flush=True)
 
             # the other peer stands in for the schema's writer
             sub = RecordSubscription(node, schema, callback=on_record, writer='/dds_peer_pub')

@@ -146,8 +146,12 @@ class GraphProbe:
                                            if n not in self.expected_dead])
         # as agv-demo: every link has carried a record before the task goes
         links = wait_links(self.launch.graph)
-        self.spin_until(lambda: not silent_links(links, self.accepted()), 60,
-                        'every link to carry a record')
+        try:
+            self.spin_until(lambda: not silent_links(links, self.accepted()), 60,
+                            'every link to carry a record')
+        except AssertionError as exc:
+            silent = silent_links(links, self.accepted())
+            raise AssertionError(f'silent: {silent}; {exc}') from None
         self.task_pub.publish(String(data=text))
         if cruise is not None:
             self.spin_until(lambda: self.speed > cruise, 90, f'the truck to exceed {cruise}')

@@ -74,8 +74,22 @@ def test_an_endpoint_the_graph_never_names_is_foreign_after_the_patience():
         out += check.admit(b'x', OTHER)
         g.now += 0.1
     assert [v for _d, _g, v in out] == [FOREIGN_WRITER] * 30
-    assert check.nodes[OTHER] == '(no node in the graph)'
+    assert OTHER not in check.nodes
     assert check.admit(b'y', OTHER) == [(b'y', OTHER, FOREIGN_WRITER)]
+
+
+def test_a_genuine_writer_named_only_after_the_patience_is_then_taken():
+    """A loaded machine may name the writer late: its records flow from then on."""
+    g = Graph()
+    check = g.check(requery_s=0.2, patience_s=2.0)
+    out = []
+    for _ in range(30):  # 3 s unnamed: held, then foreign
+        out += check.admit(b'x', GENUINE)
+        g.now += 0.1
+    assert out and {v for _d, _g, v in out} == {FOREIGN_WRITER}
+    g.endpoints.append(('/executive', GENUINE))
+    g.now += 0.3
+    assert check.admit(b'y', GENUINE)[-1] == (b'y', GENUINE, 'genuine')
 
 
 def test_past_the_hold_the_oldest_waiting_sample_is_rejected_as_foreign():

@@ -138,8 +138,9 @@ class WriterCheck:
     other is foreign, and stays so (an endpoint's node never changes). The graph may know a
     sample's writer before it knows that writer's node, or not at all yet (discovery lag), so
     such a sample is held, not judged: released in order once the graph names its node, and
-    foreign once its GID has gone unnamed for `patience_s` (a plain DDS writer, which has no
-    node); past `hold` waiting samples (a second of the 340 Hz stream) the oldest is rejected.
+    foreign while its GID stays unnamed past `patience_s` (a plain DDS writer, which has no
+    node), until the graph names it; past `hold` waiting samples (a second of the 340 Hz
+    stream) the oldest is rejected.
     A genuine GID other than the one last seen is the writer restarted (its records start a
     new counter): `admit` says 'restart' for its first sample.
     """
@@ -196,11 +197,10 @@ class WriterCheck:
         return True
 
     def _expired(self, gid: bytes) -> bool:
+        # Not cached as foreign: a loaded machine can take longer than the patience to name a
+        # genuine writer, whose records must then be taken as soon as the graph names it.
         first = self._unnamed.setdefault(gid, self._clock())
-        if self._clock() - first < self._patience_s:
-            return False
-        self.nodes[gid] = '(no node in the graph)'
-        return True
+        return self._clock() - first >= self._patience_s
 
     def _release(self) -> list[tuple[Any, bytes, str]]:
         out, waiting = [], []
@@ -213,7 +213,8 @@ class WriterCheck:
         return out
 
     def _decided(self, data: Any, gid: bytes) -> tuple[Any, bytes, str]:
-        self._unnamed.pop(gid, None)
+        if gid in self.nodes:
+            self._unnamed.pop(gid, None)
         if gid not in self.genuine:
             return data, gid, FOREIGN_WRITER
         verdict = 'genuine'

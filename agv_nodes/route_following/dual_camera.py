@@ -28,88 +28,13 @@ travel with the cameras' roles swapped, and `wheel_speeds` maps its output back 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 import enum
 from typing import NamedTuple
 
 from agv_nodes.route_following.camera_guidance import CameraSteering, Measurement, Validity
-from agv_nodes.route_following.settings import SteeringParams
-
-
-def _spec(meaning: str, lo: float | None = None, hi: float | None = None,
-          choices: tuple[str, ...] = ()) -> dict:
-    return {'description': meaning, 'range': (lo, hi), 'choices': choices}
-
-
-@dataclass(frozen=True)
-class DualCameraParams:
-    """Gains and options of the dual-camera law; each field's metadata gives meaning and range.
-
-    Gains are rad of caster angle per m of offset (per rad for G2), as the single-camera law's.
-    The thesis gives its simulation gains only inside Figs. 7.13-7.14 and found them by trial
-    and error (Sec. 7.4); so were these, on the kinematic CONCIC-II at 0.47 m/s
-    (bench/dual_camera_bench.py shows the result and the trade-off). Both extra terms equal
-    e_df + e_dr whenever their law applies, so with the caster law psi' = V theta_s / L_a each
-    law is linear in the axle's offset y and heading psi along the track: per metre travelled,
-    y'' + (G L_c / L_a) y' + ((G + 2 Gx) / L_a) y = 0, G = G1 or G4 and Gx = G3 or G5. The
-    straight start gains put both roots at 4.2 per m with damping 0.86, the low ones at 3.2
-    per m with damping 0.82.
-    """
-
-    g1_start: float = field(default=3.5, metadata=_spec(
-        'G1 before the front first crosses the tape, same side, straight (5.19)', 0.0, 50.0))
-    g1_start_curve: float = field(default=6.0, metadata=_spec(
-        'G1 before the front first crosses, same side, curved (5.21; thesis: higher)', 0.0, 50.0))
-    g1_low: float = field(default=2.5, metadata=_spec(
-        'G1 once the front has crossed and both ends are on one side again (less hunting)',
-        0.0, 50.0))
-    g2_straight: float = field(default=0.0, metadata=_spec(
-        'G2 on e_tf when no curvature is seen (thesis: may be 0)', 0.0, 10.0))
-    # L_a / (2 L_c): then G2 (e_tf - e_tr) = G2 * 2 asin(L_c / R) is the caster angle ~L_a / R
-    # a circle of any radius needs, so both windows can sit on the tape without an offset.
-    g2_curve: float = field(default=0.24, metadata=_spec(
-        'G2 on the orientation term when curvature is seen (thesis: small)', 0.0, 10.0))
-    g3: float = field(default=1.0, metadata=_spec(
-        'G3 on (|e_df| + |e_dr|) sgn(e_df), same-side laws 5.19 and 5.21', 0.0, 50.0))
-    g4_start: float = field(default=6.0, metadata=_spec(
-        'G4 when starting with the ends on opposite sides, until the front crosses (5.20)',
-        0.0, 50.0))
-    g4_low: float = field(default=2.5, metadata=_spec(
-        'G4 once the front has crossed, opposite sides (thesis: about half G1)', 0.0, 50.0))
-    g5: float = field(default=0.3, metadata=_spec(
-        'G5 on (|e_df| - |e_dr|) sgn(e_df), opposite-side laws 5.20 and 5.22', 0.0, 50.0))
-    curvature_deadband: float = field(default=0.035, metadata=_spec(
-        'rad: |e_theta| below this has no sign when detecting curvature (Sec. 5.3.3)',
-        0.0, 0.5))
-    orientation_term: str = field(default='difference', metadata=_spec(
-        'curved laws: G2 (e_tf - e_tr) as printed, or G2 (e_tf + e_tr) / 2, the chord '
-        'misalignment (sum)', choices=('difference', 'sum')))
-    eq522_gain: str = field(default='g4', metadata=_spec(
-        'first gain of Eq. 5.22: G4 as in Eq. 5.20, or G3 as the text is printed',
-        choices=('g4', 'g3')))
-    integral: bool = field(default=False, metadata=_spec(
-        'add G_i times the integral of e_df (Sec. 5.3.4 recommends one; off: the thesis)'))
-    gain_i: float = field(default=1.5, metadata=_spec(
-        'rad of caster angle per m s of integrated e_df (with integral on)', 0.0, 20.0))
-    integral_band: float = field(default=0.03, metadata=_spec(
-        'm: the integral gathers only while |e_df| is within this (0: always)', 0.0, 0.2))
-    trailing_lost: str = field(default='stop', metadata=_spec(
-        'trailing camera without tape for absent_frames: motor-off stop, or steer by the '
-        'leading camera alone with G1 = g1_low (lead_only)', choices=('stop', 'lead_only')))
-
-    def problems(self) -> list[tuple[str, object, str]]:
-        """Return (name, value, reason) for each field outside its range or choices."""
-        out = []
-        for name, meta in self.__dataclass_fields__.items():
-            value = getattr(self, name)
-            lo, hi = meta.metadata['range']
-            choices = meta.metadata['choices']
-            if choices and value not in choices:
-                out.append((name, value, f'not one of {choices}'))
-            elif isinstance(value, float) and ((lo is not None and value < lo)
-                                               or (hi is not None and value > hi)):
-                out.append((name, value, f'outside [{lo}, {hi}]'))
-        return out
+from agv_nodes.route_following.settings import DualCameraParams, SteeringParams
+from agv_nodes.settings import build, values_of
 
 
 class Offsets(NamedTuple):
@@ -168,9 +93,7 @@ class DualCameraGuidance:
     def __init__(self, params: DualCameraParams | None = None,
                  steering: SteeringParams | None = None) -> None:
         self.p = params or DualCameraParams()
-        bad = self.p.problems()
-        if bad:
-            raise ValueError(f'DualCameraParams: {bad[0][0]} = {bad[0][1]!r}: {bad[0][2]}')
+        build(DualCameraParams, values_of(self.p))  # SettingError: a value out of its range
         # The geometry, caster limit and absent-frame count are the single-camera law's.
         self.steering = CameraSteering(steering or SteeringParams())
         self.direction = 1

@@ -24,5 +24,21 @@ class TurningParams:
 
 
 @settings_class
+class DualCameraParams:
+    """Gains and options of the dual-camera law (agv_nodes/route_following/dual_camera.py).
+
+    Gains are rad of caster angle per m of offset (per rad for G2), as the single-camera law's.
+    The thesis gives its simulation gains only inside Figs. 7.13-7.14 and found them by trial
+    and error (Sec. 7.4); so were these, on the kinematic CONCIC-II at 0.47 m/s
+    (bench/dual_camera_bench.py shows the result and the trade-off). Both extra terms equal
+    e_df + e_dr whenever their law applies, so with the caster law psi' = V theta_s / L_a each
+    law is linear in the axle's offset y and heading psi along the track: per metre travelled,
+    y'' + (G L_c / L_a) y' + ((G + 2 Gx) / L_a) y = 0, G = G1 or G4 and Gx = G3 or G5. The
+    straight start gains put both roots at 4.2 per m with damping 0.86, the low ones at 3.2
+    per m with damping 0.82.
+    """
+
+
+@settings_class
 class RouteParams:
     """All route-following settings."""

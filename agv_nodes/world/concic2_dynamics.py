@@ -72,7 +72,7 @@ from agv_nodes.world.lm628 import (
     velocity_code,
 )
 from agv_nodes.world.settings import Concic2Params
-from agv_nodes.world.vehicles import VehicleState, advance_pose
+from agv_nodes.world.vehicles import Concic2, VehicleState, advance_pose
 
 G = 9.81
 TWO_PI = 2.0 * math.pi
@@ -129,7 +129,7 @@ class Concic2DynamicParams:
                    max_wheel_speed=p.max_wheel_speed)
 
 
-class Concic2Dynamic:
+class Concic2Dynamic(Concic2):
     """CONCIC-II, Huang's dynamic model with LM628 loops; the interface of vehicles.Concic2."""
 
     kind = 'concic2'
@@ -193,19 +193,9 @@ class Concic2Dynamic:
                        for code in range(-128, 128)]
         self.m_v, self.m_w = m_v, m_w
 
-    @property
-    def sensor_point(self) -> tuple[float, float]:
-        """The front camera window centre."""
-        s = self.state
-        return (s.x + self.p.camera_distance * math.cos(s.heading),
-                s.y + self.p.camera_distance * math.sin(s.heading))
-
     def set_wheels(self, left: float, right: float, enable: bool) -> None:
         """Latch the wheel speed demands (m/s) into the two LM628s."""
-        lim = self.p.max_wheel_speed
-        self.left_demand = min(max(left, -lim), lim)
-        self.right_demand = min(max(right, -lim), lim)
-        self.enable = enable
+        super().set_wheels(left, right, enable)
         self.left_chip.load_velocity(velocity_code(self.left_demand, self.counts_per_m))
         self.right_chip.load_velocity(velocity_code(self.right_demand, self.counts_per_m))
 
@@ -274,18 +264,12 @@ class Concic2Dynamic:
                 i1 = i_ss + (i1 - i_ss) * decay
                 o1 = o1 + h if abs(i1) > i_cont else 0.0
                 lim = i_peak if o1 < t_peak else i_cont
-                if i1 > lim:
-                    i1 = lim
-                elif i1 < -lim:
-                    i1 = -lim
+                i1 = min(max(i1, -lim), lim)
                 i_ss = (vt2 - ke * w2) / r_a
                 i2 = i_ss + (i2 - i_ss) * decay
                 o2 = o2 + h if abs(i2) > i_cont else 0.0
                 lim = i_peak if o2 < t_peak else i_cont
-                if i2 > lim:
-                    i2 = lim
-                elif i2 < -lim:
-                    i2 = -lim
+                i2 = min(max(i2, -lim), lim)
             else:  # relays open: the armature carries no current
                 i1 = i2 = 0.0
             f1 = (kt * i1 - b * w1) * n_r + q1
