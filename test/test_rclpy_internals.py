@@ -71,54 +71,19 @@ def test_each_message_comes_with_its_writers_graph_gid_in_order(context, kind):
         node.destroy_node()
 
 
-def test_without_librcl_the_reader_takes_through_rclpy_and_says_the_check_is_off(
-        context, monkeypatch, capsys):
+def _a_record_from_an_intruder(context, reader: str, second_reader: bool = False):
+    """Return (subscription, records taken) of node `reader` after node `intruder` sent one."""
     import rclpy
 
-    from agv_nodes import rclpy_internals
     from agv_nodes.records import codec
     from agv_nodes.ros_ports import RecordPublisher, RecordSubscription
 
-    monkeypatch.setattr(rclpy_internals, '_libraries', lambda: 'librcl.so: not found')
-    rclpy_internals.writer_identity_unavailable.cache_clear()
-    try:
-        node = rclpy.create_node('executive', context=context)
-        schema = codec()['traction_command']
-        got: list[dict] = []
-        sub = RecordSubscription(node, schema, callback=got.append)
-        RecordSubscription(node, codec()['traction_status'])  # a second reader: said once
-        pub = RecordPublisher(rclpy.create_node('intruder', context=context), schema)
-        executor = rclpy.executors.SingleThreadedExecutor(context=context)
-        executor.add_node(node)
-        deadline = time.monotonic() + 10
-        while sub.publisher_count() < 1 or pub.subscription_count < 1:
-            executor.spin_once(timeout_sec=0.05)
-            assert time.monotonic() < deadline
-        pub.publish({'demand': 10})
-        while not got and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
-        assert got and got[0]['demand'] == 10  # no identity check: any writer is heard
-        assert sub.identity() == 'not checked: librcl.so: not found'
-        assert capsys.readouterr().err.count('record writer identity check off') == 1
-        executor.shutdown()
-    finally:
-        rclpy_internals.writer_identity_unavailable.cache_clear()
-
-
-def test_a_message_info_not_laid_out_as_expected_turns_the_check_off(context, monkeypatch):
-    """Where the GID is not where Jazzy has it, a reader hears every writer and says so."""
-    import rclpy
-
-    from agv_nodes import rclpy_internals
-    from agv_nodes.records import codec
-    from agv_nodes.ros_ports import RecordPublisher, RecordSubscription
-
-    monkeypatch.setattr(rclpy_internals.WriterTaggedSubscription, '_check_layout',
-                        lambda self: False)
-    node = rclpy.create_node('traction', context=context)
+    node = rclpy.create_node(reader, context=context)
     schema = codec()['traction_command']
     got: list[dict] = []
     sub = RecordSubscription(node, schema, callback=got.append)
+    if second_reader:
+        RecordSubscription(node, codec()['traction_status'])
     pub = RecordPublisher(rclpy.create_node('intruder', context=context), schema)
     executor = rclpy.executors.SingleThreadedExecutor(context=context)
     executor.add_node(node)
@@ -129,6 +94,32 @@ def test_a_message_info_not_laid_out_as_expected_turns_the_check_off(context, mo
     pub.publish({'demand': 10})
     while not got and time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.05)
+    executor.shutdown()
+    return sub, got
+
+
+def test_without_librcl_the_reader_takes_through_rclpy_and_says_the_check_is_off(
+        context, monkeypatch, capsys):
+    from agv_nodes import rclpy_internals
+
+    monkeypatch.setattr(rclpy_internals, '_libraries', lambda: 'librcl.so: not found')
+    rclpy_internals.writer_identity_unavailable.cache_clear()
+    try:
+        # a second reader: the check being off is said once
+        sub, got = _a_record_from_an_intruder(context, 'executive', second_reader=True)
+        assert got and got[0]['demand'] == 10  # no identity check: any writer is heard
+        assert sub.identity() == 'not checked: librcl.so: not found'
+        assert capsys.readouterr().err.count('record writer identity check off') == 1
+    finally:
+        rclpy_internals.writer_identity_unavailable.cache_clear()
+
+
+def test_a_message_info_not_laid_out_as_expected_turns_the_check_off(context, monkeypatch):
+    """Where the GID is not where Jazzy has it, a reader hears every writer and says so."""
+    from agv_nodes import rclpy_internals
+
+    monkeypatch.setattr(rclpy_internals.WriterTaggedSubscription, '_check_layout',
+                        lambda self: False)
+    sub, got = _a_record_from_an_intruder(context, 'traction')
     assert got and sub.rejected == 0
     assert sub.identity().startswith('not checked: the message info is not laid out')
-    executor.shutdown()
