@@ -163,7 +163,10 @@ class CoreNode(Node):
 
     def _on_record(self, name: str) -> Callable[[dict[str, Any]], None]:
         def callback(fields: dict[str, Any]) -> None:
-            self.publish(self.core.on_record(name, fields, self.now_s()))
+            now = self.now_s()
+            if self.readers[name].restarted:
+                self.publish(self.core.on_writer_restart(name, now))
+            self.publish(self.core.on_record(name, fields, now))
         return callback
 
     def _on_reject(self, reader: RecordSubscription) -> Callable[[], None]:

@@ -1,9 +1,11 @@
 """agv-demo: the closed-loop demonstration (the README's first command).
 
-Starts the whole graph (one process per node over real DDS, sim time, the demo_1983 room) with the
-recorder, sends the demonstration programme (thesis 7.2 tasks 1-7 and the fig 3.1 transfer) on
-comms/task, shows the reports, stops the graph, writes the report (agv-report) and prints a summary
-table. `--quick` runs the CI variant (tasks 1 and 2).
+Starts a truck's whole graph (one process per node over real DDS, sim time) with the recorder,
+sends its demonstration programme on comms/task, shows the reports, stops the graph, writes the
+report and prints a summary table. `--truck electruk` (default): the 1983 tug in the demo_1983
+room, thesis 7.2 tasks 1-7 and the fig 3.1 transfer. `--truck concic2`: the 1991 camera truck on
+the signs_1991 tape, legs through every road sign with scripted turns and a reverse leg.
+`--quick` runs the CI variant of either.
 """
 
 import argparse
@@ -18,9 +20,12 @@ from typing import Any
 from agv_nodes.graph.model import GraphError
 from agv_nodes.graph.parameters import Options, wait_links
 from agv_nodes.graph.supervisor import Launch
-from agv_nodes.harness import DEMO_PROGRAMME
+from agv_nodes.harness import CONCIC2_PROGRAMME, CONCIC2_QUICK, DEMO_PROGRAMME
+from agv_nodes.sim_progress import CLOCK_LINK
 
-QUICK = DEMO_PROGRAMME[:2]
+# truck -> (layout, programme, quick programme)
+TRUCKS = {'electruk': ('demo_1983', DEMO_PROGRAMME, DEMO_PROGRAMME[:2]),
+          'concic2': ('signs_1991', CONCIC2_PROGRAMME, CONCIC2_QUICK)}
 STATUS_REPLY = 'comms: status:'
 
 
@@ -47,8 +52,8 @@ def silent_links(links: list[str], accepted: dict[str, dict[str, int]]) -> list[
     silent = []
     for link in links:
         node, sep, record = link.partition(':')
-        if not sep or '>' in node:
-            continue  # a writer's end ('node>record:N')
+        if not sep or '>' in node or record == CLOCK_LINK:
+            continue  # a writer's end ('node>record:N'), or /clock (not a record)
         row = accepted.get(node)
         if row is None or row.get(record, 1 if node == 'world' else 0) == 0:
             silent.append(link)
@@ -76,10 +81,11 @@ def run(args: argparse.Namespace) -> int:
     """Launch, drive the programme, stop, report; exit status."""
     out = Path(args.out or f'runs/demo-{time.strftime("%Y%m%d-%H%M%S")}')
     out.mkdir(parents=True, exist_ok=True)
-    tasks = list(QUICK if args.quick else DEMO_PROGRAMME)
+    layout, programme, quick = TRUCKS[args.truck]
+    tasks = list(quick if args.quick else programme)
     try:
         launch = Launch(Options(time_factor=args.time_factor, bag=out / 'bag', quiet=True,
-                                log_dir=out / 'logs', domain_id=args.domain_id))
+                                log_dir=out / 'logs', domain_id=args.domain_id, layout=layout))
     except GraphError as exc:
         print(f'agv-demo: {exc}', file=sys.stderr)
         return 2
@@ -92,8 +98,9 @@ def run(args: argparse.Namespace) -> int:
     from agv_nodes import qos
     from agv_nodes.node_process import make_executor
 
-    print(f'agv-demo: {len(tasks)} tasks on demo_1983; {len(launch.specs())} processes, '
-          f'ROS_DOMAIN_ID={launch.domain}, time_factor {args.time_factor:g}; output in {out}')
+    print(f'agv-demo: {args.truck}, {len(tasks)} tasks on {layout}; {len(launch.specs())} '
+          f'processes, ROS_DOMAIN_ID={launch.domain}, time_factor {args.time_factor:g}; '
+          f'output in {out}')
     rclpy.init()
     node = rclpy.create_node('demo')
     # One executor for the run, not rclpy.spin_once(node), which adds the node to the global
@@ -140,6 +147,7 @@ def run(args: argparse.Namespace) -> int:
         # Every link has carried records before the programme goes: the world moved only once
         # both ends of each had matched, but a run whose navigation still had no sensor status
         # at its first task must fail here, naming the link, and not as a task's `sensor lost`.
+        # (The CONCIC-II has no navigation; the same holds for its camera route following.)
         links = wait_links(launch.graph, recording=True)
         deadline = time.monotonic() + 60
         while silent := silent_links(links, accepted):
@@ -181,14 +189,20 @@ def run(args: argparse.Namespace) -> int:
                          for i, text in enumerate(tasks)],
                'sim_seconds': sim_elapsed, 'wall_seconds': wall_elapsed,
                'real_time_factor': sim_elapsed / wall_elapsed if wall_elapsed else 0.0,
+               'truck': args.truck, 'layout': layout,
                'bag': str(out / 'bag'), 'processes': len(launch.specs()),
                'node_exits': launch.exits}
     (out / 'demo.json').write_text(json.dumps(summary, indent=2))
     report = None
     if not args.no_report and (out / 'bag').exists():
-        from agv_nodes.report import make_report
+        if args.truck == 'concic2':
+            from agv_nodes.camera_report import make_camera_report
 
-        report = make_report(out / 'bag', out / 'report')
+            report = make_camera_report(out / 'bag', out / 'report', layout)
+        else:
+            from agv_nodes.report import make_report
+
+            report = make_report(out / 'bag', out / 'report')
     print_summary(summary, report, out)
     return code
 
@@ -199,11 +213,21 @@ def print_summary(summary: dict, report: dict | None, out: Path) -> None:
     for t in summary['tasks']:
         when = f'{t["sim_time"]:.1f}' if t['sim_time'] is not None else '-'
         print(f'| {t["task"]}: {t["text"]} | {t["result"]} | {when} |')
-    if report:
+    if report and 'stops' in report and report['stops'] and 'marker' in report['stops'][0]:
         print('\n| stop | marker | error (mm, + = past the centre) | speed before (mm/s) |\n'
               '|---|---|---|---|')
         for i, s in enumerate(report['stops'], 1):
             print(f'| {i} | {s["marker"]} | {s["error_mm"]:+d} | {s["speed_mm_s"]} |')
+    if report and 'legs' in report:
+        print('\n| leg | direction | distance (m) | junctions | lateral rms / max (mm) |\n'
+              '|---|---|---|---|---|')
+        for leg in report['legs']:
+            rms, top = leg['lateral_rms_mm'], leg['lateral_max_mm']
+            error = '-' if rms is None else f'{rms:.1f} / {top}'
+            print(f'| {leg["leg"]} | {leg.get("direction", "-")} | {leg["distance_m"]:.2f} | '
+                  f'{leg["junctions"]} | {error} |')
+        print(f'\nroad signs met: {len(report["signs"])}; stops: {len(report["stops"])}')
+    if report and 'faults' in report:
         print(f'\nfaults: {"; ".join(report["faults"] or ["none"])}')
     print(f'\nsimulated {summary["sim_seconds"]:.1f} s in {summary["wall_seconds"]:.1f} s wall '
           f'= real-time factor {summary["real_time_factor"]:.2f} '
@@ -216,7 +240,10 @@ def print_summary(summary: dict, report: dict | None, out: Path) -> None:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of agv-demo."""
     ap = argparse.ArgumentParser(prog='agv-demo', description=__doc__.splitlines()[0])
-    ap.add_argument('--quick', action='store_true', help='tasks 1-2 only (the CI variant)')
+    ap.add_argument('--truck', choices=sorted(TRUCKS), default='electruk',
+                    help='electruk: the 1983 wire-guided tug (default); concic2: the 1991 camera '
+                    'truck on taped floor')
+    ap.add_argument('--quick', action='store_true', help='the short CI variant of the programme')
     # 0 is safe because the world paces itself on the slowest node (world/pacing.py): unpaced,
     # a fixed 1.25x saturates the 2-core reference machine and markers are seen late (stops at
     # +54/+70 mm) or missed; paced, the programme runs at ~1.2x with stops as in lock step.

@@ -86,6 +86,23 @@ class Harness:
                                     self.world.time))
         self._routes.clear()
 
+    def restart(self, node: str) -> None:
+        """Start `node` afresh, as a respawned process: new core state, counters from 0.
+
+        Its readers see a new writer, as the graph's WriterCheck tells them of a new GID, and
+        take it up at once (`resync`).
+        """
+        m = next(m for m in self.members if m.core.node == node)
+        m.core = type(m.core)(m.core.p)
+        m.writers = {name: RecordWriter(w.schema, w.integrity) for name, w in m.writers.items()}
+        for record in m.writers:
+            for other in self.members:
+                if record in other.readers:
+                    other.readers[record].resync()
+        m.next_tick = m.next_supervise = self.now
+        if (cores := getattr(self, 'cores', None)) is not None:
+            cores[node] = m.core
+
     @property
     def now(self) -> float:
         """Simulated time, s."""
@@ -121,6 +138,8 @@ class Harness:
         for m, reader in routes:
             fields = reader.accept(raw, now_ns)
             if fields is not None:
+                if reader.restarted:
+                    queue.append((m, m.core.on_writer_restart(record, now)))
                 queue.append((m, m.core.on_record(record, fields, now)))
             elif hasattr(m.core, 'on_reject'):
                 queue.append((m, m.core.on_reject(record, reader.last_reason, now)))
@@ -170,11 +189,12 @@ class Harness:
         self.events.extend(out['events'])
         if out['frames']:
             self.frames = out['frames']
-            # hw/camera/front (sensor_msgs/Image in the graph)
-            if (front := out['frames'].get('front')) is not None:
-                for m in self.members:
-                    if hasattr(m.core, 'on_frame'):
-                        self._publish(m, m.core.on_frame(front, now))
+            # hw/camera/front and hw/camera/rear (sensor_msgs/Image in the graph), front first
+            for camera in ('front', 'rear'):
+                if (frame := out['frames'].get(camera)) is not None:
+                    for m in self.members:
+                        if hasattr(m.core, 'on_frame'):
+                            self._publish(m, m.core.on_frame(frame, now, camera=camera))
         for m in self.members:
             while m.core.period is not None and m.next_tick <= now + 1e-12:
                 m.next_tick += m.core.period
@@ -215,10 +235,21 @@ DEMO_PROGRAMME = (  # thesis 7.2 tasks 1-7 and fig 3.1 on demo_1983, in an order
     'stop at 2 second',  # task 5: the second stop marker
     'stop at 2 first then second',  # task 6: first, then advance to the second
 )
+# The CONCIC-II's programme on signs_1991 (Rajagopalan 1991, App. F.6-F.7): every road sign met,
+# scripted left and right turns, the R = 2.95 m curve, and a reverse leg led by the rear camera.
+CONCIC2_PROGRAMME = (
+    'tape junctions 1 left then reverse for 1.0 m',
+)
+CONCIC2_QUICK = CONCIC2_PROGRAMME[:1]
+
+
 def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
           overrides: Mapping[str, Mapping[str, Any]] | None = None,
           params_file: Path | str | None = None, integrity: str = 'e2e') -> Harness:
-    """Build the world and all seven node cores in lock step, set as a launched graph's nodes are.
+    """Build the world and the truck's node cores in lock step, set as a launched graph's are.
+
+    The layout's vehicle picks the cores, as it picks the launched graph's nodes: all seven for
+    the 1983 Electruk, route following, executive and communications for the CONCIC-II.
 
     Settings: the graph's parameter file (config/agv_demo.yaml), the layout's
     (`layout_parameters`), then `overrides` ({node: {name: value}}, as agv-launch's `-p
@@ -228,6 +259,7 @@ def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
     """
     from agv_nodes.communications.core import CommunicationsCore
     from agv_nodes.executive.core import ExecutiveCore
+    from agv_nodes.graph.model import load_graph
     from agv_nodes.load_handling.core import LoadHandlingCore
     from agv_nodes.navigation.core import NavigationCore
     from agv_nodes.package_share import config_dir
@@ -255,9 +287,11 @@ def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
     if settings('world', WorldNodeSettings, WorldParams).layout_check != 'warn':
         _check(lay, world_params)
     world = WorldCore(lay, world_params)
+    on_truck = {n.name for n in load_graph().for_truck(lay.vehicle).nodes}  # config/graph.yaml
     cores = [core_type(settings(core_type.node, core_type.settings_type))
              for core_type in (TractionCore, PositionSensorCore, NavigationCore, RouteCore,
-                               ExecutiveCore, CommunicationsCore, LoadHandlingCore)]
+                               ExecutiveCore, CommunicationsCore, LoadHandlingCore)
+             if core_type.node in on_truck]
     h = Harness(world, cores, integrity=integrity, seed=seed)
     h.cores = {c.node: c for c in cores}
     return h

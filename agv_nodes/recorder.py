@@ -48,13 +48,16 @@ from rosbags.interfaces import (
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
 
+from agv_nodes import qos
 from agv_nodes.node_process import spin_main
 from agv_nodes.params import declare, parameter_error, refuse_unknown
 from agv_nodes.rclpy_internals import drop_clock_reader, take_all
-from agv_nodes.ros_ports import clock_time_ns
+from agv_nodes.ros_ports import LINKS_TOPIC, clock_time_ns
 from agv_nodes.sent_time import SentTimeline
 from agv_nodes.settings import settings_class
+from agv_nodes.sim_progress import CLOCK_LINK
 
 SKIP = {'/parameter_events'}
 # s of wall time between commits of the bag file and its metadata.yaml: half the second a
@@ -202,6 +205,10 @@ class Recorder(Node):
         # metadata.yaml as last written: (topics, checkpoints since, the text rosbags made)
         self._metadata: tuple[int, int, str] = (0, 0, '')
         self._open()
+        # 'recorder clock' on graph/links once /clock is matched: the world does not move
+        # before (its wait list has 'recorder:clock'), so the bag has every /clock sample
+        self._links = self.create_publisher(String, LINKS_TOPIC, qos.LATCHED)
+        self._clock_said = False
         self.create_timer(0.5, self._discover, clock=self._wall_clock())
         if self.poll_period:
             self.create_timer(self.poll_period, self.poll, clock=self._wall_clock())
@@ -308,6 +315,10 @@ class Recorder(Node):
             self.counts[topic] = 0
             if topic == '/clock' and self._polled is not None:
                 self._take_over_clock()
+        clock = self.subs.get('/clock')
+        if clock is not None and not self._clock_said and clock.get_publisher_count() > 0:
+            self._links.publish(String(data=f'{self.get_name()} {CLOCK_LINK}'))
+            self._clock_said = True
 
     def _take_over_clock(self) -> None:
         """Set the node's ROS time from the polled /clock samples; drop rclpy's own reader.

@@ -268,11 +268,19 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog='agv-report', description=__doc__.splitlines()[0])
     ap.add_argument('bag', type=Path)
     ap.add_argument('--out', type=Path, help='output directory (default: <bag>_report)')
+    ap.add_argument('--layout', help='a camera-truck run on this tape layout (name or file): '
+                    'write the camera report (agv_nodes.camera_report) instead')
     args = ap.parse_args(argv)
     if not (args.bag / 'metadata.yaml').is_file():
         print(f'agv-report: {args.bag} is not a rosbag2 bag (no metadata.yaml)', file=sys.stderr)
         return 2
     out = args.out or args.bag.with_name(args.bag.name + '_report')
+    if args.layout:
+        from agv_nodes.camera_report import make_camera_report  # it imports this module
+
+        result = make_camera_report(args.bag, out, args.layout)
+        print(f'{len(result["legs"])} legs, {len(result["stops"])} stops; wrote {out}')
+        return 0
     result = make_report(args.bag, out)
     print(f'{len(result["stops"])} stops, {len(result["faults"])} faults; wrote {out}')
     return 0

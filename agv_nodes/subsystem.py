@@ -69,3 +69,7 @@ class SubsystemCore:
     def supervise(self, now: float) -> dict | None:
         """Run the second timer, every `supervision_period` s (when not None)."""
         return None
+
+    def on_writer_restart(self, record: str, now: float) -> dict | None:
+        """Hear that `record`'s writer started afresh (its next record follows at once)."""
+        return None

@@ -2,7 +2,7 @@
 
     ros2 launch agv_nodes agv_demo.launch.py [namespace:=/agv2] [use_sim_time:=true]
         [time_factor:=1.0] [record_integrity:=e2e] [world:=sim|none] [bag:=/path/new_bag]
-        [params_file:=<file>] [respawn:=false] [realtime:=0]
+        [params_file:=<file>] [layout:=<name>] [respawn:=false] [realtime:=0]
 
 Nodes, executables and roles come from share/agv_nodes/config/graph.yaml, and each node's
 parameters from agv_nodes.graph.parameters.node_parameters - the same description and function
@@ -28,6 +28,7 @@ ARGUMENTS = {
     'world': ('sim', 'sim: the simulated world; none: hardware drivers publish hw/*'),
     'bag': ('', 'record every topic into this new bag directory (empty: no recorder)'),
     'params_file': ('', 'ROS parameter file (default: config/agv_demo.yaml)'),
+    'layout': ('', "world layout (default: the parameter file's); its vehicle picks the truck"),
     'respawn': ('false', 'restart nodes that die'),
     'realtime': ('0', 'SCHED_FIFO priority 1-99 of the sensor-to-traction chain (0 = off)'),
 }
@@ -40,6 +41,7 @@ def _nodes(context):
         check_realtime,
         node_parameters,
         realtime_priority,
+        truck_graph,
     )
     from agv_nodes.package_share import config_dir  # ament_index share/agv_nodes when installed
 
@@ -50,8 +52,10 @@ def _nodes(context):
                       record_integrity=arg['record_integrity'], world=arg['world'],
                       bag=Path(arg['bag']) if arg['bag'] else None,
                       realtime=int(arg['realtime']),
-                      params=Path(arg['params_file']) if arg['params_file'] else None)
+                      params=Path(arg['params_file']) if arg['params_file'] else None,
+                      layout=arg['layout'] or None)
     check_realtime(options)
+    graph = truck_graph(graph, options)
     params_file = arg['params_file'] or str(graph.parameters)
     nodes = []
     for spec in graph.nodes:

@@ -19,6 +19,7 @@ from agv_nodes.world.lm628 import (
     velocity_code,
 )
 from agv_nodes.world.settings import Concic2Params
+from agv_nodes.world.vehicles import Concic2
 
 DT = 1.0 / 340.0 / 4.0  # the world's sub-step
 
@@ -75,34 +76,103 @@ def wheel_speeds_from_position(log: list[tuple], n_r: float) -> list[tuple[float
             for a, b in zip(log, log[1:], strict=False)]
 
 
+def servo_lag(p: Concic2DynamicParams) -> float:
+    """Return how far (s) a wheel trails its LM628 profile on a ramp, from the parameters.
+
+    The LM628's P term on the position error sets the speed loop's input; the amplifier's
+    speed loop holds the speed that input asks for (max_wheel_speed per full_speed_input
+    volts). So the position loop's crossover is the speed per count of error times the counts
+    per metre, and a ramp is followed 1 / crossover plus the speed loop's own time constant
+    behind: the truck's mass (and the rotors') over the speed loop's damping at both wheels.
+    """
+    n_r = p.gear_ratio / p.wheel_radius
+    per_code = p.dac_volts_per_code * p.max_wheel_speed / p.full_speed_input  # m/s
+    crossover = per_code * p.kp / 2 ** p.output_shift * counts_per_metre(p.wheel_radius,
+                                                                          p.gear_ratio)
+    m_v = p.mass + p.payload + 2 * n_r ** 2 * p.rotor_inertia
+    tau = m_v / (2 * n_r ** 2 * (p.torque_constant * p.velocity_gain + p.viscous_friction))
+    return 1.0 / crossover + tau
+
+
 @pytest.mark.timeout(30)
 def test_velocity_step_follows_trapezoid_and_settles() -> None:
-    """0.63 m/s step: ramp at the programmed 0.3 m/s^2, overshoot, settle on the speed.
+    """0.63 m/s step: ramp at the programmed 0.3 m/s^2 a servo lag behind, settle on the speed.
 
-    The thesis saw 1 % overshoot (7.5.2.1, with its 0.024 m/s^2 ramp). This model gives 3.8 %
-    here: the thesis gains close a position loop that only the back-EMF damps against the
-    loaded wheel (about 0.1 of critical), and the lag built up on the ramp is released at its
-    end; bound 5 %. The loop then rings down (period about 0.6 s) without a limit cycle: the
-    DAC dithers between two adjacent codes.
+    The wheel trails the profile by the lag servo_lag derives (about 0.18 s; 6.3.8 puts the
+    servo loop's time constant at four vision cycles, 0.18 s), overshoots by under 2 % (the
+    thesis saw 1 %, 7.5.2.1) and then holds the speed within the +-0.5 rpm the thesis read back.
     """
     v = Concic2Dynamic(Concic2DynamicParams())
     v.set_wheels(0.63, 0.63, True)
     log = run(v, 8.0, every=0.04)
     speeds = wheel_speeds_from_position(log, v.p.gear_ratio / v.p.wheel_radius)
-    # After the first second (stiction delays the start, the position loop then catches up)
-    # the wheel is on the profile a t within 0.03 m/s.
-    assert all(abs(s - 0.3 * (t - 0.02)) < 0.03 for t, s in speeds if 1.2 <= t <= 2.0)
+    lag = servo_lag(v.p)
+    on_ramp = [t - s / 0.3 for t, s in speeds if 0.5 <= t <= 2.0]
+    assert sum(on_ramp) / len(on_ramp) == pytest.approx(lag, rel=0.15)
+    assert all(abs(x - lag) < 0.04 for x in on_ramp)  # a steady ramp, not a ringing one
     peak = max(s for _, s in speeds)
-    assert 0.63 * 1.02 < peak < 0.63 * 1.05
+    assert 0.63 < peak < 0.63 * 1.02
     # The LM628 closes a position loop, so the mean speed over a window is exact to within the
-    # change of the count error over it (about 50 counts, 0.6 mm, from 6 s): 0.1 % over 2 s.
+    # change of the count error over it: 0.1 % over 2 s.
     a = next(r for r in log if r[0] >= 6.0)
     b = log[-1]
     mean = (b[6] - a[6]) / (v.p.gear_ratio / v.p.wheel_radius) / (b[0] - a[0])
     assert mean == pytest.approx(0.63, rel=0.001)
-    # Settled, the 40 ms speed stays within the +-0.5 rpm the thesis read back (7.5.2.1).
     rpm = 2 * math.pi * v.p.wheel_radius / 60.0
-    assert all(abs(s - 0.63) < 0.5 * rpm for t, s in speeds if t > 6.0)
+    assert all(abs(s - 0.63) < 0.5 * rpm for t, s in speeds if t > 4.0)
+
+
+def differential_step(v: Concic2 | Concic2Dynamic, speed: float, half: float,
+                      seconds: float) -> tuple[list[tuple[float, float]], float]:
+    """Cruise, then step the wheels to speed -+ half; return (t, yaw rate) and the heading turned.
+
+    Yaw rate from the wheel speeds every sub-step; t from the step.
+    """
+    v.set_wheels(speed, speed, True)
+    for _ in range(int(round(4.0 / DT))):
+        v.step(DT)
+    h0 = v.state.heading
+    v.set_wheels(speed - half, speed + half, True)
+    out = []
+    for k in range(1, int(round(seconds / DT)) + 1):
+        v.step(DT)
+        left, right = v.wheel_speeds()
+        out.append((k * DT, (right - left) / v.p.wheel_span))
+    return out, v.state.heading - h0
+
+
+@pytest.mark.timeout(30)
+def test_differential_step_damped_like_the_kinematic_truck() -> None:
+    """A 0.06 m/s differential step at 0.47 m/s: the yaw rate the kinematic model gives.
+
+    The steady yaw rate is (v2 - v1) / L within 0.2 % (the wheels' speed ratio is held), and
+    the heading turned over 3 s within 5 % of the kinematic Concic2's. The response is near
+    critically damped, as the thesis tuned the drive (C.2.3.5: 5 % overshoot): under 10 %
+    overshoot (a voltage-source amplifier gave 79 %, and rang at 1.2 Hz); 63 % within the
+    trapezoid's 0.1 s plus the servo lag.
+    """
+    dyn, turned = differential_step(Concic2Dynamic(Concic2DynamicParams()), 0.47, 0.03, 3.0)
+    kin, turned_kin = differential_step(Concic2(Concic2Params()), 0.47, 0.03, 3.0)
+    target = 0.06 / 0.52
+    late = [w for t, w in dyn if t > 2.0]
+    assert sum(late) / len(late) == pytest.approx(target, rel=0.002)
+    assert kin[-1][1] == pytest.approx(target, rel=1e-6)
+    assert turned == pytest.approx(turned_kin, rel=0.05)
+    assert max(w for _, w in dyn) < 1.10 * target
+    t63 = next(t for t, w in dyn if w >= 0.632 * target)
+    assert t63 < 0.1 + servo_lag(Concic2DynamicParams())
+
+
+@pytest.mark.timeout(30)
+def test_no_yaw_on_a_straight_command() -> None:
+    """Equal wheel commands at cruise: no steady yaw (no caster side force or friction bias)."""
+    v = Concic2Dynamic(Concic2DynamicParams())
+    v.set_wheels(0.79, 0.79, True)
+    run(v, 4.0)
+    h0, y0 = v.state.heading, v.state.y
+    run(v, 6.0)
+    assert abs(v.state.heading - h0) < 1e-3  # rad over 4.7 m
+    assert abs(v.state.y - y0) < 2e-3
 
 
 @pytest.mark.timeout(60)
@@ -184,30 +254,26 @@ def coast_distance(v: Concic2Dynamic, speed: float, radio: bool) -> tuple[float,
 
 
 @pytest.mark.timeout(30)
-def test_motor_off_coast() -> None:
-    """Motor off from 0.16 m/s: zero terminal voltage, so back-EMF braking plus friction.
+def test_motor_off_stops_in_5_mm() -> None:
+    """Motor off from 0.16 m/s: zero input, the amplifier's speed loop brakes: about 5 mm.
 
-    The thesis measured 5 mm (7.3.4); no consistent reading of the drive gives that (see the
-    concic2_dynamics docstring). The model is held to its own physics: linear braking c plus
-    Coulomb force F stop a mass m from v0 in d = (m/c)(v0 - (F/c) ln(1 + c v0 / F)), and the
-    braking starts only after the amplifier (1 ms) and armature (L/R 7.8 ms) lags, which add
-    about v0 times their sum. The speed at the cut is the loop's, which ripples a few % at
-    0.16 m/s. An E-stop (relays open) has no electrical braking and goes further.
+    The thesis measured 5 mm (7.3.4, Fig. 7.9). The speed loop brakes linearly, c = 2 (n/r)^2
+    (K_t G_v + b), with Coulomb friction F besides, which stops a mass m from v0 in
+    d = (m/c)(v0 - (F/c) ln(1 + c v0 / F)); the 36 A limit, reached in the first few ms, and the
+    current's lag lengthen it a little: within 20 %. An E-stop (relays open) has no braking
+    current and coasts on friction alone, several times further.
     """
     v = Concic2Dynamic(Concic2DynamicParams())
     d, v0 = coast_distance(v, 0.157, radio=False)
     p = v.p
     n_r = v._n_r
-    c = 2 * n_r ** 2 * (p.torque_constant * p.back_emf_constant / p.armature_resistance
-                        + p.viscous_friction)
+    c = 2 * n_r ** 2 * (p.torque_constant * p.velocity_gain + p.viscous_friction)
     f = 2 * p.coulomb_friction * n_r + 4 * p.rolling_k1 * v._normal
-    m = v.m_v
-    lags = p.amplifier_time_constant + p.armature_inductance / p.armature_resistance
-    expected = m / c * (v0 - f / c * math.log(1 + c * v0 / f)) + v0 * lags
-    assert d == pytest.approx(expected, rel=0.05)
-    assert 0.015 < d < 0.025  # four times the thesis's 5 mm, for the reasons documented
+    expected = v.m_v / c * (v0 - f / c * math.log(1 + c * v0 / f))
+    assert d == pytest.approx(expected, rel=0.2)
+    assert 0.004 < d < 0.0065
     e_stop, _ = coast_distance(Concic2Dynamic(Concic2DynamicParams()), 0.157, radio=True)
-    assert e_stop > 1.3 * d
+    assert e_stop > 3.0 * d
 
 
 @pytest.mark.timeout(30)

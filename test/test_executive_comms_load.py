@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import pytest
 
-from agv_nodes.communications.core import CommunicationsCore, TaskError, parse_task
+from agv_nodes.communications.core import CommunicationsCore
+from agv_nodes.communications.task_language import TaskError, parse_task
 from agv_nodes.executive.core import ExecutiveCore, itinerary
 from agv_nodes.executive.diagnostics import ERROR, OK, WARN, HealthMonitor
 from agv_nodes.executive.settings import ExecutiveParams
 from agv_nodes.harness import DEMO_PROGRAMME, submit, truck
 from agv_nodes.load_handling.core import LoadHandlingCore
+from agv_nodes.navigation.settings import NavigationParams
 from agv_nodes.report import final_stops
 
 
@@ -209,6 +211,36 @@ def test_a_silent_subsystem_on_the_common_grid_is_noticed_by_the_supervision_tim
     assert out['traction_command']['demand'] == 0
     # and the supervision alone never sends commands while all is well
     assert running_executive().supervise(0.46) is None
+
+
+@pytest.mark.parametrize('sub', ['navigation', 'traction', 'route', 'load'])
+def test_a_subsystem_restarted_during_a_task_fails_it_at_once(sub, fault_table):
+    ex = running_executive()
+    out = ex.on_writer_restart(f'{sub}_status', 0.47)
+    assert out['traction_command']['demand'] == 0 and ex.fault == ('restarted', sub)
+    assert out['comms_command']['state'] == 'failed'
+    assert out['comms_command']['cause'] == 'restarted'
+    idle = ExecutiveCore(ExecutiveParams())  # no task: a restart is no fault
+    assert idle.on_writer_restart(f'{sub}_status', 0.0) is None and idle.fault is None
+
+
+def test_a_respawned_navigation_stops_the_truck_in_lock_step(fault_table):
+    """Navigation restarted while cruising: its new process knows nothing of the task."""
+    h = truck('demo_1983', seed=1)
+    submit(h, 'stop at 2 second')
+    h.run(20.0, until=lambda: h.world.vehicle.state.speed > 0.5)
+    at = h.now
+    h.restart('navigation')
+    h.run(1.0, until=lambda: any(e['event'] == 'drive_off' for e in h.events
+                                 if e['time'] >= at))
+    off = next(e['time'] for e in h.events if e['event'] == 'drive_off' and e['time'] >= at)
+    assert h.cores['executive'].fault == ('restarted', 'navigation')
+    assert off - at <= NavigationParams().status_period + 0.02, off - at
+    h.run(3.0)
+    assert h.world.vehicle.state.speed == 0.0
+    fault_table.add('navigation restarted while cruising (lock step, new core and counters)',
+                    'e-stop, task FAILED: restarted (navigation), truck at rest',
+                    f'drive off {1000 * (off - at):.0f} ms after the restart')
 
 
 def test_a_starved_executive_does_not_blame_a_record_still_in_its_queue():

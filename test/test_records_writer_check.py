@@ -120,6 +120,26 @@ def test_a_reader_resyncs_its_counter_for_a_restarted_writer():
     assert reader.accept(jumped, 1) is None and reader.last_reason == 'wrong_sequence'
     reader.resync()
     assert reader.accept(schema.encode({'demand': 10}, counter=4), 2) is not None
+    assert reader.restarted and reader.restarts == 1  # its node hears of the new writer
+    assert reader.accept(schema.encode({'demand': 10}, counter=5), 3) is not None
+    assert not reader.restarted
+
+
+def test_a_writer_restarted_without_a_new_gid_is_known_by_its_counter_run():
+    """A driver board that resets behind the same endpoint: its counter restarts from 0."""
+    schema = codec()['traction_command']
+    reader = RecordReader(schema)
+    for k in range(50, 53):
+        assert reader.accept(schema.encode({'demand': 10}, counter=k), k) is not None
+        assert not reader.restarted  # the first writer ever heard is no restart
+    taken = [reader.accept(schema.encode({'demand': 10}, counter=k), 100 + k) for k in range(3)]
+    assert taken[:2] == [None, None] and taken[2] is not None
+    assert reader.restarted and reader.restarts == 1
+    plain = RecordReader(schema, 'none')  # without counters only resync() can tell
+    plain.accept(schema.encode({'demand': 10}, integrity='none'), 0)
+    plain.resync()
+    plain.accept(schema.encode({'demand': 10}, integrity='none'), 1)
+    assert plain.restarted and plain.restarts == 1
 
 
 def test_foreign_writer_rejections_are_shown_in_the_inputs_report_like_every_reason():

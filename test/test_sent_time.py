@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from test_executive_comms_load import status_records
 
-from agv_nodes.communications.core import parse_task
+from agv_nodes.communications.task_language import parse_task
 from agv_nodes.executive.core import ExecutiveCore
 from agv_nodes.executive.settings import ExecutiveParams
 from agv_nodes.sent_time import SentTimeline

@@ -6,10 +6,9 @@ the executive's comms_command records into readable reports. A bad task is rejec
 and the reason, and changes nothing.
 """
 
-from dataclasses import dataclass, field
-import re
 from typing import Any
 
+from agv_nodes.communications.task_language import Task, TaskError, parse_task
 from agv_nodes.settings import settings_class
 from agv_nodes.subsystem import SubsystemCore
 
@@ -17,140 +16,6 @@ from agv_nodes.subsystem import SubsystemCore
 @settings_class
 class CommsParams:
     """The task queue and its relay to the executive (its parameters.yaml section)."""
-
-
-class TaskError(ValueError):
-    """A task text that does not parse; names the column and the reason."""
-
-    def __init__(self, text: str, column: int, reason: str) -> None:
-        self.text, self.column, self.reason = text, column, reason
-        super().__init__(f'rejected {text!r}: column {column}: {reason}')
-
-
-@dataclass
-class Task:
-    """One parsed task, as the comms_status record carries it."""
-
-    text: str
-    op: str
-    location: int = 0xFF
-    marker: str = 'first'
-    destination: int = 0xFF
-    dwell: int = 0
-    srm_angle: int = 0
-    then: str = 'stay'
-    conveyor: str = 'first'
-    load_name: str = ''
-    task_id: int = 0
-
-    def record(self) -> dict[str, Any]:
-        """Return the comms_status fields."""
-        return {'task_id': self.task_id, 'op': self.op, 'location': self.location,
-                'marker': self.marker, 'destination': self.destination, 'dwell': self.dwell,
-                'srm_angle': self.srm_angle, 'then': self.then, 'conveyor': self.conveyor}
-
-
-@dataclass
-class _Tokens:
-    text: str
-    items: list[tuple[str, int]] = field(default_factory=list)  # (word, 1-based column)
-    i: int = 0
-
-    def __post_init__(self) -> None:
-        self.items = [(m.group(0).lower(), m.start() + 1) for m in re.finditer(r'\S+', self.text)]
-
-    def peek(self) -> str | None:
-        return self.items[self.i][0] if self.i < len(self.items) else None
-
-    def column(self) -> int:
-        return self.items[self.i][1] if self.i < len(self.items) else len(self.text) + 1
-
-    def take(self, *expected: str) -> str:
-        word = self.peek()
-        if word is None or (expected and word not in expected):
-            got = 'the end of the task' if word is None else repr(word)
-            raise TaskError(self.text, self.column(),
-                            f'expected {" or ".join(repr(e) for e in expected)}, got {got}')
-        self.i += 1
-        return word
-
-    def number(self, what: str, lo: int, hi: int) -> int:
-        column, word = self.column(), self.peek()
-        if word is None or not re.fullmatch(r'[+-]?\d+', word):
-            got = 'the end of the task' if word is None else repr(word)
-            raise TaskError(self.text, column, f'expected {what} (a number), got {got}')
-        self.i += 1
-        value = int(word)
-        if not lo <= value <= hi:
-            raise TaskError(self.text, column, f'{what} {value} outside {lo}..{hi}')
-        return value
-
-
-def parse_task(text: str, locations: tuple[int, ...] = (0, 1, 2, 3)) -> Task:
-    """Parse one task of the task language (TaskError on anything else)."""
-    t = _Tokens(text)
-    verb = t.peek()
-    verbs = ('load', 'unload', 'wait', 'stop', 'srm', 'leave', 'abort', 'status')
-    if verb not in verbs:
-        what = 'empty task' if verb is None else f'unknown task {verb!r}'
-        raise TaskError(text, t.column(), f'{what} (expected one of {", ".join(verbs)})')
-    t.take()
-
-    def location(what: str = 'location') -> int:
-        column = t.column()
-        n = t.number(what, 0, 31)
-        if n not in locations:
-            raise TaskError(text, column, f'{what} {n}: no such location marker (known: '
-                            f'{", ".join(map(str, locations))})')
-        return n
-
-    if verb in ('abort', 'status'):
-        task = Task(text, verb)
-    elif verb == 'load' and t.peek() not in (None, 'at'):  # load A at B and take to C
-        name = t.take()
-        t.take('at')
-        source = location()
-        for word in ('and', 'take', 'to'):
-            t.take(word)
-        destination = location('destination')
-        if destination == source:
-            raise TaskError(text, t.items[t.i - 1][1], 'destination equals the source')
-        task = Task(text, 'transfer', location=source, destination=destination, load_name=name)
-    elif verb in ('srm', 'leave'):
-        if verb == 'leave':
-            t.take('wire')
-        t.take('at')
-        n = location()
-        angle = 15
-        if t.peek() == 'angle':
-            t.take()
-            angle = t.number('angle', -45, 45)
-        task = Task(text, 'srm', location=n, srm_angle=angle, then='continue')
-    else:  # load, unload, wait, stop
-        t.take('at')
-        task = Task(text, verb, location=location())
-        if verb == 'wait':
-            t.take('for')
-            task.dwell = t.number('seconds', 0, 255)
-            if t.peek() in ('s', 'sec', 'seconds'):
-                t.take()
-        if t.peek() in ('first', 'second'):
-            task.marker = t.take()
-            if task.marker == 'first' and t.peek() == 'then' and t.i + 1 < len(t.items) \
-                    and t.items[t.i + 1][0] == 'second':
-                t.take('then')
-                t.take('second')
-                if verb != 'stop':
-                    raise TaskError(text, t.items[t.i - 1][1], '"first then second" is a '
-                                    'stop task (thesis 7.2 task 6)')
-                task.marker = 'first_then_second'
-            task.conveyor = 'second' if task.marker == 'second' else 'first'
-        if t.peek() == 'then':
-            t.take()
-            task.then = t.take('continue', 'stay')
-    if t.peek() is not None:
-        raise TaskError(text, t.column(), f'unexpected {t.peek()!r} after a complete task')
-    return task
 
 
 STATE_WORDS = {'accepted': 'accepted', 'running': 'running', 'step_done': 'step done',

@@ -14,7 +14,8 @@ At each location marker reported the route map decides continue or SRM (the demo
 L1 and L3 every lap); wire changes run at `srm_demand`, slow until the next landmark (thesis 7.2).
 Traction's byte 2 stays non-zero while navigation positions the truck. Faults - wire or marker
 sensor lost, a stale status, over `reject_limit` rejected records in a second, a sub-system fault
-(traction tripped, radio stop, load failed), a step longer than `route_limit` - give an emergency
+(traction tripped, radio stop, load failed) or restart (its status from a new writer: whatever it
+knew of the task is gone), a step longer than `route_limit` - give an emergency
 stop (traction byte 2 = 00H) and fail the task naming cause and sub-system until a new task.
 
 A status is stale when older than `status_timeout` *and* `stale_confirm` records from the others
@@ -25,18 +26,17 @@ record still queued. `status_age: sent` ages a status from its send (agv_nodes.s
 
 from typing import Any
 
+from agv_nodes.executive.faults import SUBSYSTEM_OF, SUBSYSTEMS, FaultSupervision
 from agv_nodes.executive.itinerary import NO_TASK, Step, itinerary
 from agv_nodes.executive.settings import ExecutiveParams, parse_srm_map
+from agv_nodes.executive.tape_legs import TapeLegs
 from agv_nodes.subsystem import SubsystemCore
 
 EXPLORE = 31  # a location identity no marker carries: "cruise and report every landmark"
-STATUS_RECORDS = {'navigation': 'navigation_status', 'traction': 'traction_status',
-                  'route': 'route_status', 'load': 'load_status',
-                  'communications': 'comms_status'}
-SUBSYSTEM_OF = {record: sub for sub, record in STATUS_RECORDS.items()}
+TAPE_STEPS = ('tape', 'tape_reverse')
 
 
-class ExecutiveCore(SubsystemCore):
+class ExecutiveCore(FaultSupervision, SubsystemCore):
     """See the module docstring."""
 
     node, settings_type, period_setting = 'executive', ExecutiveParams, 'period'
@@ -63,8 +63,11 @@ class ExecutiveCore(SubsystemCore):
         self.fault: tuple[str, str] | None = None
         self.demand = 0
         self.nav = (NO_TASK, 0)
-        self.route = {'mode': 'follow_wire', 'srm_angle': 0, 'junction': 'straight',
-                      'manoeuvre': 0}
+        self.camera = self.p.guidance == 'camera'
+        self.subsystems = SUBSYSTEMS[self.p.guidance]
+        self.route = {'mode': 'idle' if self.camera else 'follow_wire', 'srm_angle': 0,
+                      'junction': 'straight', 'manoeuvre': 0}
+        self.tape = TapeLegs(self.p.junction_seed, self.p.leg_rest_time)
         self.load = {'action': 'idle', 'conveyor': 'first', 'timeout': self.p.load_timeout,
                      'job': 0}
         self.slow = False  # after an SRM, until the next landmark
@@ -112,6 +115,13 @@ class ExecutiveCore(SubsystemCore):
         self.rejects.append((now, SUBSYSTEM_OF.get(record, 'none')))
         return None
 
+    def on_writer_restart(self, record: str, now: float) -> dict | None:
+        """Fail the task: a sub-system that restarts during one has lost what it knew of it."""
+        if self.mode not in ('running', 'cruising') or record not in SUBSYSTEM_OF:
+            return None
+        self._fail(now, 'restarted', SUBSYSTEM_OF[record], f'{record} from a new writer')
+        return self._commands(now)
+
     def _task_record(self, fields: dict[str, Any], now: float) -> None:
         if fields['task_id'] == 0 or fields['task_id'] == self.task_id:
             return
@@ -123,14 +133,17 @@ class ExecutiveCore(SubsystemCore):
             self.report = {'state': 'completed', 'cause': 'none', 'subsystem': 'none'}
             self._log(now, f'task {self.task_id}: abort')
             return
-        if not (steps := itinerary(fields)):
+        steps = itinerary(fields)
+        if not steps or (fields['op'] == 'tape') != self.camera:
             self.report = {'state': 'rejected', 'cause': 'bad_task', 'subsystem': 'none'}
-            self._log(now, f'task {self.task_id}: rejected (no itinerary)')
+            why = 'no itinerary' if not steps else \
+                f'a {fields["op"]} task, on a truck with {self.p.guidance} guidance'
+            self._log(now, f'task {self.task_id}: rejected ({why})')
             return
         self.steps, self.index, self.mode, self.fault = steps, 0, 'running', None
         self.task_start = now
         traction = self.status.get('traction')
-        if traction is None or traction.get('tripped'):
+        if not self.camera and (traction is None or traction.get('tripped')):
             # 00H first: traction's trip latch clears on 00H then non-zero. Only a tripped
             # traction needs it: sent to a truck cruising on from the last task it is an
             # emergency stop pulse (the closed loop brakes to rest on it).
@@ -213,6 +226,10 @@ class ExecutiveCore(SubsystemCore):
             self.phase = 'transfer'
         elif step.kind == 'wait':
             self.phase = 'dwell'
+        elif step.kind in TAPE_STEPS:
+            self.route = self.tape.start(self.task or {}, step.kind == 'tape_reverse', step.value,
+                                         self.route)
+            self.phase = 'leg'
 
     def _advance(self, now: float) -> None:
         step = self.step
@@ -224,6 +241,8 @@ class ExecutiveCore(SubsystemCore):
             self.mode = 'cruising' if last == 'continue' else 'idle'
             if self.mode == 'idle':
                 self.demand = 0  # stay put until the next order (e-stop hold)
+                if self.camera:
+                    self.route = {**self.route, 'mode': 'idle'}
             self.report = {'state': 'completed', 'cause': 'none', 'subsystem': 'none'}
             self._log(now, f'task {self.task_id}: completed')
             return
@@ -294,81 +313,20 @@ class ExecutiveCore(SubsystemCore):
         elif step.kind == 'continue':
             if now - self.phase_time >= 0.5:
                 self._advance(now)
-
-    # -- faults -----------------------------------------------------------------------------
-    def _supervise(self, now: float) -> None:
-        # First: a writer whose records are being rejected also goes stale, and the rejections
-        # are the better name for it.
-        self.rejects = [(t, sub) for t, sub in self.rejects if now - t <= 1.0]
-        if len(self.rejects) > self.p.reject_limit:
-            writers = sorted({sub for _t, sub in self.rejects})
-            return self._fail(now, 'rejected_records', writers[0] if len(writers) == 1
-                              else 'none', f'{len(self.rejects)} in 1 s')
-        # Communications too: a silent sub-system is a fault to stop on (Baker 1983, 7.2: one
-        # that failed made the others reset, which hid the fault), and without it no abort
-        # reaches the truck. Its status comes on the same 50 ms grid as the others.
-        for sub in ('navigation', 'traction', 'route', 'load', 'communications'):
-            t = self.status_time.get(sub)
-            if t is None:
-                if now - self.task_start > 1.0:
-                    return self._fail(now, 'stale_status', sub, 'never heard from')
-                continue
-            age = now - t
-            self.max_age[sub] = max(self.max_age.get(sub, 0.0), age)
-            others = self.arrivals - self.arrivals_at.get(sub, 0)
-            if age > self.p.status_timeout and (others >= self.p.stale_confirm
-                                                or age > 2 * self.p.status_timeout):
-                return self._fail(now, 'stale_status', sub, f'{age:.2f} s old')
-        nav = self.status.get('navigation') or {}
-        if nav.get('sensor_lost'):
-            return self._fail(now, 'sensor_lost', 'navigation', 'marker sensor lost')
-        route = self.status.get('route') or {}
-        if route.get('state') == 'lost':
-            return self._fail(now, 'lost_wire', 'route', 'guide wire lost')
-        traction = self.status.get('traction') or {}
-        if traction.get('radio_stop'):
-            return self._fail(now, 'radio_stop', 'traction', 'radio stop')
-        if traction.get('tripped') and now - self.task_start > self.p.trip_grace:
-            return self._fail(now, 'tripped', 'traction', traction.get('trip_cause', ''))
-        if self.distance > self.p.route_limit:
-            return self._fail(now, 'route_limit', 'navigation',
-                              f'{self.distance:.1f} m without reaching the step goal')
-        if self.phase == 'positioning' and self.positioning_distance > self.p.positioning_limit:
-            return self._fail(now, 'route_limit', 'navigation',
-                              f'no stop marker within {self.positioning_distance:.1f} m')
-        return None
-
-    def _fail(self, now: float, cause: str, subsystem: str, detail: str) -> None:
-        self._stop_everything()
-        self.mode = 'failed'
-        self.fault = (cause, subsystem)
-        self.report = {'state': 'failed', 'cause': cause, 'subsystem': subsystem}
-        self._log(now, f'task {self.task_id}: FAILED {cause} ({subsystem}): {detail}')
-
-    def _stop_everything(self) -> None:
-        self.demand = 0  # EMERGENCY STOP: traction byte 2 = 00H
-        self.nav = (NO_TASK, 0)
-        self.load = {**self.load, 'action': 'stop'}
-        self.slow = False
-        self._srm_at = self._srm_pending = None
-        if self.route['mode'] == 'srm':  # keep steering on the wire while the truck stops
-            self.route = {**self.route, 'mode': 'follow_wire'}
+        elif step.kind in TAPE_STEPS:
+            outcome, self.route = self.tape.update(self.status.get('route') or {}, self.route, now)
+            for line in self.tape.log:
+                self._log(now, line)
+            self.tape.log.clear()
+            if outcome.state == 'done':
+                self._advance(now)
+            elif outcome.state == 'failed':
+                self._fail(now, outcome.cause, 'route', outcome.detail)
 
     def _log(self, now: float, text: str) -> None:
         self.notes.add(now, text)
 
     # -- the loop ---------------------------------------------------------------------------
-    def supervise(self, now: float) -> dict[str, dict[str, Any]] | None:
-        """Check for a stale status between two passes; on a fault send the e-stop at once.
-
-        The sub-systems report on the same 50 ms grid, so their records arrive together, and a
-        status that goes stale between two arrivals would otherwise wait for the next pass.
-        """
-        if self.mode not in ('running', 'cruising'):
-            return None
-        self._supervise(now)
-        return self._commands(now) if self.mode == 'failed' else None
-
     def tick(self, now: float) -> dict[str, dict[str, Any]]:
         """Supervise, run the step, and send every command record (pigeon-holes)."""
         traction = self.status.get('traction') or {}

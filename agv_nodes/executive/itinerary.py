@@ -1,4 +1,8 @@
-"""The itinerary: a task record into steps (Baker 1983, fig 3.1, level 2), ROS-free."""
+"""The itinerary: a task record into steps (Baker 1983, fig 3.1, level 2), ROS-free.
+
+A tape task (the camera truck, Rajagopalan 1991, App. F.6-F.7) is one or two legs: tape, then
+tape_reverse with `then reverse` (agv_nodes.executive.tape_legs runs them).
+"""
 
 from dataclasses import dataclass
 from typing import Any
@@ -34,6 +38,15 @@ def itinerary(task: dict[str, Any]) -> list[Step]:
     elif op == 'srm':
         steps.append(Step('srm', n, value=task['srm_angle'],
                           name=f'SRM at L{n}, {task["srm_angle"]} deg'))
+    elif op == 'tape':
+        length = task['leg_distance']
+        steps.append(Step('tape', value=length, name='tape leg forward, ' + (
+            f'{length / 10:.1f} m' if length else 'to the end of the tape')))
+        if task['then'] == 'reverse':
+            back = task['reverse_distance']
+            steps.append(Step('tape_reverse', value=back, name='tape leg in reverse, ' + (
+                f'{back / 10:.1f} m' if back else 'to the end of the tape')))
+        return steps
     elif op == 'transfer':
         b, c = n, task['destination']
         steps += [Step('goto', b, 0, name=f'go to B = L{b}'),

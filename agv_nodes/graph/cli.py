@@ -1,7 +1,8 @@
 """agv-launch: start the graph one process per node, as `ros2 launch` would on a ROS install.
 
-Each node of config/graph.yaml with the parameter file plus agv_nodes.graph.parameters (via
-agv_nodes.graph.supervisor); SIGINT/SIGTERM stop the graph in order (docs/architecture.md).
+Each node of config/graph.yaml that the layout's truck has, with the parameter file plus
+agv_nodes.graph.parameters (via agv_nodes.graph.supervisor); SIGINT/SIGTERM stop the graph in
+order (docs/architecture.md).
 """
 
 import argparse
@@ -9,7 +10,7 @@ from pathlib import Path
 import sys
 
 from agv_nodes.graph.model import GraphError, load_graph
-from agv_nodes.graph.parameters import Options, parse_fault
+from agv_nodes.graph.parameters import Options, parse_fault, truck_graph
 from agv_nodes.graph.supervisor import Launch
 
 
@@ -54,13 +55,14 @@ def options_from(args: argparse.Namespace) -> Options:
         if not sep or ':=' not in rest:
             raise GraphError(f'-p {item!r}: expected NODE:NAME:=VALUE')
         extra.setdefault(node, []).append(rest)
-    graph = load_graph(args.graph)
-    faults = dict(parse_fault(text, graph) for text in args.fault)
-    return Options(faults=faults, graph=args.graph, params=args.params, namespace=args.namespace,
-                   use_sim_time=args.use_sim_time == 'true', time_factor=args.time_factor,
-                   record_integrity=args.record_integrity, world=args.world, extra=extra,
-                   domain_id=args.domain_id, bag=args.bag, respawn=args.respawn,
-                   layout=args.layout, log_dir=args.log_dir, realtime=args.realtime)
+    options = Options(graph=args.graph, params=args.params, namespace=args.namespace,
+                      use_sim_time=args.use_sim_time == 'true', time_factor=args.time_factor,
+                      record_integrity=args.record_integrity, world=args.world, extra=extra,
+                      domain_id=args.domain_id, bag=args.bag, respawn=args.respawn,
+                      layout=args.layout, log_dir=args.log_dir, realtime=args.realtime)
+    graph = truck_graph(load_graph(args.graph), options)
+    options.faults = dict(parse_fault(text, graph) for text in args.fault)
+    return options
 
 
 def main(argv: list[str] | None = None) -> int:

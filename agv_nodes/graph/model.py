@@ -5,8 +5,9 @@ from pathlib import Path
 
 from agv_nodes.package_share import config_dir, read_mapping
 
-NODE_KEYS = frozenset({'name', 'executable', 'module', 'role', 'realtime'})
+NODE_KEYS = frozenset({'name', 'executable', 'module', 'role', 'realtime', 'trucks'})
 ROLES = ('node', 'world', 'recorder')
+TRUCKS = ('electruk', 'concic2')  # the vehicles a layout names (agv_nodes/world/layout.py)
 
 
 class GraphError(ValueError):
@@ -22,6 +23,7 @@ class NodeSpec:
     module: str
     role: str = 'node'
     realtime: bool = False  # on the sensor-to-traction chain: SCHED_FIFO with --realtime
+    trucks: tuple[str, ...] = TRUCKS  # the trucks that have this node
 
 
 @dataclass
@@ -36,6 +38,11 @@ class Graph:
     def node(self, name: str) -> NodeSpec:
         """Return the node called `name`."""
         return next(n for n in self.nodes if n.name == name)
+
+    def for_truck(self, vehicle: str) -> 'Graph':
+        """Return the graph of one truck: the nodes it has (`trucks`)."""
+        return Graph(self.name, [n for n in self.nodes if vehicle in n.trucks], self.parameters,
+                     self.file)
 
 
 def load_graph(file: Path | None = None) -> Graph:
@@ -57,6 +64,11 @@ def load_graph(file: Path | None = None) -> Graph:
             raise GraphError(f'{file}: key nodes[{i}].role: {role!r} not one of {ROLES}')
         if not isinstance(realtime := spec.get('realtime', False), bool):
             raise GraphError(f'{file}: key nodes[{i}].realtime: {realtime!r} is not true/false')
-        nodes.append(NodeSpec(spec['name'], spec['executable'], spec['module'], role, realtime))
+        trucks = spec.get('trucks', list(TRUCKS))
+        if not isinstance(trucks, list) or not trucks or set(trucks) - set(TRUCKS):
+            raise GraphError(f'{file}: key nodes[{i}].trucks: {trucks!r} is not a list of '
+                             f'{", ".join(TRUCKS)}')
+        nodes.append(NodeSpec(spec['name'], spec['executable'], spec['module'], role, realtime,
+                              tuple(trucks)))
     params = file.parent / str(doc.get('parameters', 'agv_demo.yaml'))
     return Graph(str(doc.get('graph', 'agv')), nodes, params, file)

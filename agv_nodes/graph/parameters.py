@@ -14,6 +14,7 @@ import yaml
 from agv_nodes.graph.model import Graph, GraphError, NodeSpec
 from agv_nodes.records import codec
 from agv_nodes.settings import ParameterFileError, parameter_file_values
+from agv_nodes.sim_progress import CLOCK_LINK as CLOCK
 from agv_nodes.sim_progress import LINK as PROGRESS
 from agv_nodes.world.layout import LayoutError, layout_parameters, layout_path, load_layout
 from agv_nodes.world.settings import WorldNodeSettings
@@ -59,7 +60,9 @@ def wait_links(graph: Graph, recording: bool = False, paced: Iterable[str] = ())
     """Return the world's `wait_for_links`: both ends of every link of the graph.
 
     'reader:record' for each reader of each record (both ends launched); 'writer>record:N', the
-    writer has matched all N readers (record_readers); 'node>progress:1' for each paced node. An
+    writer has matched all N readers (record_readers); 'node>progress:1' for each paced node;
+    on sim time 'world>clock:N', /clock matched by the paced nodes and the recorder, and
+    'recorder:clock', the recorder's /clock reader matched. An
     unmatched end loses what is sent (docs/architecture.md, "Start-up"): navigation would call a
     silent sensor lost, and the world would pace on a node it cannot hear.
     """
@@ -70,6 +73,11 @@ def wait_links(graph: Graph, recording: bool = False, paced: Iterable[str] = ())
     for name, n in record_readers(graph, 'world' in running, recording).items():
         links.add(f'{codec()[name].writer}>{name}:{n}')
     links.update(f'{node}>{PROGRESS}:1' for node in paced if node in progress)
+    clock_readers = len([node for node in paced if node in progress]) + recording
+    if paced and clock_readers:  # on sim time: every /clock reaches the nodes and the bag
+        links.add(f'world>{CLOCK}:{clock_readers}')
+        if recording:
+            links.add(f'recorder:{CLOCK}')
     return sorted(links)
 
 
@@ -107,6 +115,16 @@ def layout_name(graph: Graph, options: Options) -> str:
     except ParameterFileError as exc:
         raise GraphError(str(exc)) from None
     return str(own.get('layout', shared.get('layout', WorldNodeSettings().layout)))
+
+
+def truck_graph(graph: Graph, options: Options) -> Graph:
+    """Return the graph of the truck the layout names (the CONCIC-II has fewer nodes)."""
+    name = layout_name(graph, options)
+    try:
+        vehicle = load_layout(layout_path(name)).vehicle
+    except (LayoutError, FileNotFoundError) as exc:
+        raise GraphError(f'layout {name!r}: {exc}') from None
+    return graph.for_truck(vehicle)
 
 
 def from_layout(graph: Graph, options: Options) -> dict[str, dict[str, object]]:

@@ -32,6 +32,7 @@ from agv_nodes.graph.parameters import (
     check_realtime,
     override_parameters,
     realtime_priority,
+    truck_graph,
 )
 
 CHILD = 'agv_nodes.graph.child'
@@ -86,7 +87,7 @@ class Launch:
 
     def __init__(self, options: Options) -> None:
         self.o = options
-        self.graph = load_graph(options.graph)
+        self.graph = truck_graph(load_graph(options.graph), options)
         check_realtime(options)
         self.params = Path(options.params) if options.params else self.graph.parameters
         if not self.params.is_file():

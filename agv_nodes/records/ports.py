@@ -63,6 +63,9 @@ class RecordReader:
         self.raw: bytes | None = None  # its 16 bytes
         self.stamp_ns: int | None = None  # when it was accepted
         self.accepted = 0
+        self.restarts = 0  # times the reader took up a writer anew after following one
+        self.restarted = False  # the record just accepted is the first of a new writer
+        self._new_writer = False  # resync() was told the writer changed
         self.rejects: Counter[str] = Counter()
         self.last_error: str = ''
         self.last_reason: str = ''  # key of the last rejection (bad_crc, spare_set, ...)
@@ -79,6 +82,7 @@ class RecordReader:
         except RecordError as exc:
             self._reject(exc.code.value, str(exc))
             return None
+        initial = False
         if self.schema.protected and self.integrity == 'e2e':
             counter = e2e_counter(data)
             verdict = self.sequence.check(counter)
@@ -95,6 +99,12 @@ class RecordReader:
                              f'run after a jump (resynchronising after '
                              f'{self.sequence.sync_records}, not acted on)')
                 return None
+            initial = verdict is Sequence.INITIAL
+        # a writer taken up anew after one was followed: it restarted (or was replaced), and
+        # whatever state its reader's node built on the old one is gone
+        self.restarted = self.accepted > 0 and (initial or self._new_writer)
+        self.restarts += self.restarted
+        self._new_writer = False
         self.fields = fields
         self.raw = bytes(data)
         self.stamp_ns = now_ns
@@ -108,6 +118,7 @@ class RecordReader:
     def resync(self) -> None:
         """Accept the next valid record whatever its counter (its writer is known to be new)."""
         self.sequence.resync()
+        self._new_writer = True
 
     def age_s(self, now_ns: int) -> float:
         """Seconds since the last accepted record (inf if none yet)."""

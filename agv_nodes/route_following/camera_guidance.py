@@ -81,6 +81,27 @@ class ImageAnalyser:
         """Take the widest run next frame, not the one nearest the last (a new branch)."""
         self._prev_centre = None
 
+    def _runs(self, window: np.ndarray, rows: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Run passes 1 and 2 on every row at once: (row, centre column, length) of kept runs.
+
+        Rows without a run of min_run px are left out; a row with several keeps one (Table
+        4.2): the one nearest the previous frame's centre, or with none the widest, the
+        leftmost on a tie. The whole window in a few array operations: a row at a time the
+        passes cost ten times as much, most of a frame's analysis (bench/route_cpu_bench.py).
+        """
+        padded = np.zeros((window.shape[0], window.shape[1] + 2), dtype=np.int8)
+        padded[:, 1:-1] = window
+        row, col = np.nonzero(np.diff(padded, axis=1))  # row by row, a start then its end
+        row, start, length = row[::2], col[::2], col[1::2] - col[::2]
+        kept = length >= self.p.min_run
+        row, start, length = row[kept], start[kept], length[kept]
+        centre = start + length / 2.0
+        cost = -length if self._prev_centre is None else np.abs(centre - self._prev_centre)
+        order = np.lexsort((start, cost, row))  # by row, then cost, then column
+        first = order[np.unique(row[order], return_index=True)[1]]
+        return rows[row[first]].astype(float), centre[first], length[first]
+
     def analyse(self, frame: np.ndarray) -> Measurement:
         """eps_d, eps_theta and validity of one frame."""
         p = self.p
@@ -89,27 +110,14 @@ class ImageAnalyser:
         right = int(frame[:, -1].sum()) >= p.sign_rows
         if dark_fraction > p.saturated_fraction:
             return Measurement(0.0, 0.0, Validity.SATURATED, 0.0, 0, left, right)
-        rows = p.rows or range(64)
-        ys, xs, widths = [], [], []
-        for r in rows:
-            kept = [(a, n) for a, n in runs_of(frame[r]) if n >= p.min_run]  # pass 2
-            if not kept:
-                continue
-            # One run per row (Table 4.2). The thesis kept the first; nearest to the previous
-            # centre tracks the same tape through specks and signs, falling back to the widest.
-            if self._prev_centre is not None:
-                a, n = min(kept, key=lambda k: abs(k[0] + k[1] / 2 - self._prev_centre))
-            else:
-                a, n = max(kept, key=lambda k: k[1])
-            ys.append(r)
-            xs.append(a + n / 2.0)
-            widths.append(n)
+        rows = np.asarray(p.rows or range(64))
+        ys, xs, widths = self._runs(frame[rows] if p.rows else frame, rows)
         if len(ys) < 2:
             self._prev_centre = None
             return Measurement(0.0, 0.0, Validity.ABSENT, 0.0, len(ys), left, right)
         # Well-conditioned fit (Rajagopalan 1991, 4.2.2): column on row, m from the window centre.
-        y = (31.5 - np.array(ys, dtype=float)) * self.mm_row  # + ahead
-        x = (63.5 - np.array(xs, dtype=float)) * self.mm_col  # + left
+        y = (31.5 - ys) * self.mm_row  # + ahead
+        x = (63.5 - xs) * self.mm_col  # + left
         ybar, xbar = y.mean(), x.mean()
         syy = float(((y - ybar) ** 2).sum())
         a = float(((y - ybar) * (x - xbar)).sum() / syy) if syy > 0 else 0.0

@@ -7,14 +7,10 @@ for that long, reports LOST at once (the executive stops the truck) until the tr
 the wire present again. An SRM (mode srm, a new `manoeuvre`) leaves the wire at the programmed
 steering angle until the signal drops and a wire is found again, then follows it (7.2 task 7).
 
-Camera (Rajagopalan 1991, mode camera, the differential-drive CONCIC-II): each frame is analysed
-(agv_nodes.route_following.camera_guidance), the P or PI law gives the caster angle, and Eq
-5.15/5.16 the wheel speeds. Four absent frames stop the vehicle (motor off); a saturated frame
-keeps the last command. At a road sign the junction choice of route_command is taken (App. F.6):
-once the chosen branch shows at the window's edge column the vehicle stops with its axle centre
-over the crossing (by wheel odometry), spins a quarter turn toward the branch and follows it. A
-chosen branch the sign does not offer stops it ("no_branch": "the vehicle stops with a message"); a
-straight choice where the track ends stops it by the four absent frames.
+Camera (Rajagopalan 1991, mode camera, the differential-drive CONCIC-II): legs along floor tape,
+forwards or backwards, steered by the leading camera or both, with road signs and junction turns;
+RouteCore hands route_command's camera fields, wheel odometry, frames and its loop to CameraMode
+(agv_nodes.route_following.camera_mode), which says what the wheels do and what status reports.
 """
 
 import math
@@ -22,8 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from agv_nodes.odometry import Odometer
-from agv_nodes.route_following.camera_guidance import CameraSteering, ImageAnalyser, Validity
+from agv_nodes.route_following.camera_mode import CameraMode
 from agv_nodes.route_following.settings import RouteParams
 from agv_nodes.subsystem import SubsystemCore
 
@@ -55,9 +50,9 @@ class RouteCore(SubsystemCore):
 
     def __init__(self, params: RouteParams | None = None) -> None:
         super().__init__(params)
-        self.mode = self.state = 'idle'
-        self.manoeuvre, self.junction = 0, 'straight'
-        self.srm_angle = self.speed_request = self.lateral = self.signal = self.steer = 0.0
+        self.mode = self._state = 'idle'
+        self.manoeuvre = 0
+        self.srm_angle = self.lateral = self.signal = self.steer = 0.0
         self._integral = self._srm_start = self._mode_since = 0.0
         self._prev_lateral: float | None = None
         self._weak = 0
@@ -67,28 +62,38 @@ class RouteCore(SubsystemCore):
         self._found_at = -1e9
         self._wire_time: float | None = None
         self.speed = 0.0  # m/s from wheel odometry
+        self._rim_speeds = (0.0, 0.0)  # m/s, from wheel odometry
         self.steer_actual = 0.0  # model of the actuator's position
         self.heading_error = 0.0  # SRM: heading relative to the wire left (new wire parallel)
         self._aligned_since: float | None = None
         self._lateral_rate = 0.0  # filtered d(lateral)/dt, m/s
         self._following_heading = 0.0  # heading error relative to the wire, while following
         self._next_status, self._last_state = 0.0, ''
-        # camera
-        self.analyser = ImageAnalyser(self.p.image)
-        self.camera = CameraSteering(self.p.steering)
-        self.wheels = (0.0, 0.0)
-        self.motor_on = self._in_sign = False
-        self.sign = {'left': 0, 'right': 0, 'straight': 0}
-        self._frame_time: float | None = None
-        self.measurement = None
-        self.turn_phase = ''  # '' | 'approach' (to the crossing) | 'spin' | 'settle' (to rest)
-        self._rim_speeds = (0.0, 0.0)  # m/s, from wheel odometry
-        self._wheels = Odometer()  # each wheel's travel, from the encoders' counters
-        self._turn_from = (0.0, 0.0)  # each wheel's travel when the phase began, m
-        self._turn_way = 0  # +1 left, -1 right
-        self._crossing = 0.0  # m of axle travel from the sighting to the crossing
-        self._turn_began: float | None = None  # sim time the manoeuvre's first pass ran
-        self._set_off_at: float | None = None  # sim time the vehicle set off from rest
+        self.cam = CameraMode(self.p, self.notes)
+
+    @property
+    def state(self) -> str:
+        """Return the state: camera mode's own in camera mode."""
+        return self.cam.state if self.mode == 'camera' else self._state
+
+    @state.setter
+    def state(self, value: str) -> None:
+        self._state = value  # the guide wire's and the SRM's (camera mode keeps its own)
+
+    @property
+    def turn_phase(self) -> str:
+        """Return the junction manoeuvre's phase ('' when there is none)."""
+        return self.cam.turn.phase
+
+    @property
+    def motor_on(self) -> bool:
+        """Return whether camera mode drives the wheels."""
+        return self.cam.motor_on
+
+    @property
+    def wheels(self) -> tuple[float, float]:
+        """Return the (left, right) rim speeds camera mode asks for, m/s."""
+        return self.cam.wheels
 
     # -- inputs -----------------------------------------------------------------------------
     def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
@@ -101,12 +106,12 @@ class RouteCore(SubsystemCore):
         elif record == 'wheel_odometry':
             self.speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
             self._rim_speeds = (fields['left_speed'] / 1000.0, fields['right_speed'] / 1000.0)
-            self._wheels.update(fields['left_distance'], fields['right_distance'])
+            self.cam.odometry(fields)
         return None
 
     def _command(self, fields: dict[str, Any], now: float) -> dict | None:
-        self.junction = fields['junction']
         mode = fields['mode']
+        began = mode == 'camera' and self.cam.command(fields, now, self.mode != 'camera')
         new_srm = mode == 'srm' and fields['manoeuvre'] != self.manoeuvre
         self.manoeuvre = fields['manoeuvre']
         if new_srm:
@@ -117,10 +122,12 @@ class RouteCore(SubsystemCore):
             self.heading_error = self._following_heading
             return self._outputs(now, force_status=True)
         if mode != 'srm' and mode != self.mode:
+            if self.mode == 'camera':
+                self.cam.leave()
             self.mode, self._mode_since, self._integral, self._prev_lateral = mode, now, 0.0, None
             self.state = {'idle': 'idle', 'follow_wire': 'following', 'camera': 'following'}[mode]
             return self._outputs(now, force_status=True)
-        return None
+        return self._outputs(now, force_status=True) if began else None
 
     # -- guide wire -------------------------------------------------------------------------
     def _wire(self, left: int, right: int, now: float) -> None:
@@ -211,132 +218,12 @@ class RouteCore(SubsystemCore):
         steer = w.kp * self.lateral + w.ki * self._integral + w.kd * rate
         self.steer = max(-w.max_steer, min(w.max_steer, steer))
 
-    # -- camera -----------------------------------------------------------------------------
-    def on_frame(self, frame: np.ndarray, now: float) -> dict | None:
-        """Take a binary camera frame (1 = dark tape)."""
-        dt = 0.05 if self._frame_time is None else max(now - self._frame_time, 1e-3)
-        self._frame_time = now
-        m = self.measurement = self.analyser.analyse(frame)
-        self._road_sign(m)
-        if self.mode != 'camera' or self.state == 'no_branch':
-            return None
-        if self.turn_phase in ('spin', 'settle'):
-            return None  # the window sweeps the floor: nothing to steer by until the turn ends
-        if not self.turn_phase and self._in_sign and self.junction != 'straight' \
-                and (m.left_edge if self.junction == 'left' else m.right_edge):
-            self._start_turn('approach')  # the chosen branch is in sight
-            t = self.p.turning
-            self._crossing = t.camera_ahead + t.detect_lead
-        if self.turn_phase == 'approach' and self.p.turning.crossing_from == 'image':
-            edge = self.analyser.branch_edge(frame, self.junction)
-            if edge is not None:  # the crossing, measured from where the axle is now
-                half = self.analyser.normal_width * self.analyser.mm_col / 2.0
-                self._crossing = self._turned()[0] + self.p.turning.camera_ahead + edge + half
-        theta = self.camera.update(m, dt, self.speed_request or self.p.camera_speed)
-        if theta is None:
-            # four absent frames: motor-off stop
-            self.motor_on, self.state, self.wheels = False, 'lost', (0.0, 0.0)
-        else:
-            self.motor_on = self.state != 'lost'
-            self.steer = theta
-            if m.validity is not Validity.ABSENT:
-                self.lateral = m.eps_d
-            if self.turn_phase == 'approach':
-                return None  # _turn drives to the crossing with this steering angle
-            speed = self.speed_request or self.p.camera_speed
-            if self._set_off_at is None and abs(self.speed) < 0.01 \
-                    and self.p.steering.set_off_acceleration > 0:
-                self._set_off_at = now
-            if self._set_off_at is not None:
-                # Setting off from rest: our own ramp, gentler than the drive's trapezoid, which
-                # accelerates both wheels alike and cannot steer while it ramps (from 40 deg
-                # off the tape the window loses it before the wheels reach cruise).
-                speed = min(speed, self.p.steering.set_off_acceleration * (now - self._set_off_at))
-                if speed >= (self.speed_request or self.p.camera_speed):
-                    self._set_off_at = None
-            self.wheels = self.camera.wheel_speeds(speed, theta) if self.motor_on else (0, 0)
-        return None
-
-    # -- junctions (Rajagopalan 1991, App. F.6) ---------------------------------------------
-    def _start_turn(self, phase: str) -> None:
-        self.turn_phase = phase
-        self._turn_from = (self._wheels.left, self._wheels.right)
-        self._turn_way = 1 if self.junction == 'left' else -1
-        self.state = 'turning'
-
-    def _turned(self) -> tuple[float, float]:
-        """(m the axle centre has moved, rad the vehicle has turned) since the phase began."""
-        left = self._wheels.left - self._turn_from[0]
-        right = self._wheels.right - self._turn_from[1]
-        return (left + right) / 2.0, (right - left) / self.p.steering.wheel_span
-
-    def _to_crossing(self) -> float:
-        """M the axle centre still has to go to be over the crossing (< 0: past it)."""
-        return self._crossing - self._turned()[0]
-
-    def _profile(self, distance: float, top: float) -> float:
-        """Speed that comes to rest in `distance` at the turning's deceleration."""
-        return min(top, math.sqrt(2.0 * self.p.turning.stop_deceleration * max(distance, 0.0)))
-
-    def _turn(self, now: float) -> None:
-        """Approach, spin, settle: at the loop rate (the frames come at only ~20 Hz)."""
-        t = self.p.turning
-        if self._turn_began is None:
-            self._turn_began = now
-        if now - self._turn_began > t.turn_timeout:
-            # Odometry that stopped counting (or a wheel that will not turn) must not leave
-            # the vehicle spinning or creeping: motors off, as for a lost tape.
-            self.turn_phase, self._turn_began = '', None
-            self.state, self.motor_on, self.wheels = 'lost', False, (0.0, 0.0)
-            return
-        if self.turn_phase == 'approach':
-            remaining = self._to_crossing()
-            if abs(remaining) > t.position_tolerance or abs(self.speed) > 0.01:
-                if remaining >= 0:  # steered by the tape, slowing to a stop over the crossing
-                    speed = self._profile(remaining, min(t.approach_speed, self.p.camera_speed))
-                    self.wheels = self.camera.wheel_speeds(speed, self.steer)
-                else:  # braked past it (from a high cruise): straight back onto it
-                    speed = self._profile(-remaining, t.approach_speed)
-                    self.wheels = (-speed, -speed)
-                self.motor_on = True
-                return
-            self._start_turn('spin')
-        if self.turn_phase == 'spin':
-            # A wheel speed profile that ends the quarter turn at rest (the drive's trapezoid
-            # brakes at 0.3 m/s^2: cut short at full speed it would overshoot by ~8 deg), and
-            # turns back what the wheels' lag carried it past.
-            error = math.radians(t.spin_angle) - self._turn_way * self._turned()[1]
-            arc = error * self.p.steering.wheel_span / 2.0
-            w = math.copysign(self._profile(abs(arc), t.spin_speed), arc)
-            if abs(error) > math.radians(t.angle_tolerance) or \
-                    max(abs(v) for v in self._rim_speeds) > 0.005:
-                w *= self._turn_way
-                self.wheels, self.motor_on = (-w, w), True
-                return
-            self.turn_phase, self.wheels = 'settle', (0.0, 0.0)
-        if max(abs(v) for v in self._rim_speeds) > 0.005:
-            return  # still turning
-        # On the branch: follow it afresh (the fit takes the widest run, the law starts clean).
-        self.turn_phase, self._turn_began, self._set_off_at = '', None, now
-        self.camera.integral = 0.0
-        self.analyser.forget_track()
-        self._in_sign, self.state = False, 'following'
-
-    def _road_sign(self, m) -> None:
-        """Branch flags while the track is wide (Rajagopalan 1991, 4.3)."""
-        if m.validity is Validity.WIDE:
-            if not self._in_sign:
-                self._in_sign = True
-                self.sign = {'left': 0, 'right': 0, 'straight': 0}
-            self.sign['left'] |= int(m.left_edge)
-            self.sign['right'] |= int(m.right_edge)
-        elif self._in_sign and m.validity is Validity.NORMAL:
-            self._in_sign = False
-            if self.sign['left'] or self.sign['right']:
-                self.sign['straight'] = 1  # width back to normal after a turn signal
-            if self.mode == 'camera' and self.junction != 'straight' and not self.turn_phase:
-                # The sign is behind us and its branches did not include the one chosen.
-                self.state, self.motor_on, self.wheels = 'no_branch', False, (0.0, 0.0)
+    # -- camera ---------------------------------------------------------------------------
+    def on_frame(self, frame: np.ndarray, now: float, camera: str = 'front') -> dict | None:
+        """Take a binary frame (1 = dark tape) from the front or the rear camera."""
+        if self.mode == 'camera':
+            self.cam.frame(frame, now, camera)
+        return None  # the wheel speeds go out with the loop's steering_command
 
     # -- outputs ----------------------------------------------------------------------------
     def tick(self, now: float) -> dict | None:
@@ -347,14 +234,15 @@ class RouteCore(SubsystemCore):
             self.state, self.steer = 'lost', 0.0  # the pickup itself has gone quiet
         if self.state == 'wire_found' and self.mode == 'follow_wire':
             self.state = 'following'
-        if self.turn_phase and self.mode == 'camera':
-            self._turn(now)
+        if self.mode == 'camera':
+            self.cam.tick(now)
         return self._outputs(now)
 
     def _outputs(self, now: float, force_status: bool = False) -> dict:
         out: dict[str, dict[str, Any]] = {'steering_command': self.steering_command()}
-        if force_status or now >= self._next_status or self.state != self._last_state:
-            self._next_status, self._last_state = now + self.p.status_period, self.state
+        state = self.cam.reported_state() if self.mode == 'camera' else self.state
+        if force_status or now >= self._next_status or state != self._last_state:
+            self._next_status, self._last_state = now + self.p.status_period, state
             self._lost_reported = self.state == 'lost'
             out['route_status'] = self.status()
         return out
@@ -373,12 +261,13 @@ class RouteCore(SubsystemCore):
 
     def status(self) -> dict[str, Any]:
         """Return the route_status record."""
-        sign_state = self._in_sign and self.mode == 'camera' and not self.turn_phase
+        if self.mode == 'camera':
+            return {**self.cam.status(), 'manoeuvre': self.manoeuvre}
         return {
-            'state': 'sign' if sign_state else self.state,
+            'state': self.state,
             'lateral_error': int(max(-128, min(127, round(self.lateral * 1000)))),
             'signal': int(max(0, min(255, round(self.signal * 100)))),
             'steering': int(max(-128, min(127, round(math.degrees(self.steer))))),
-            'sign_left': self.sign['left'], 'sign_right': self.sign['right'],
-            'sign_straight': self.sign['straight'], 'manoeuvre': self.manoeuvre,
+            'sign_left': 0, 'sign_right': 0, 'sign_straight': 0, 'manoeuvre': self.manoeuvre,
+            **self.cam.leg_fields(),
         }

@@ -1,5 +1,6 @@
-"""route_following (ros2 run agv_nodes route_following); hw/camera/front: mono8, dark tape."""
+"""route_following (ros2 run agv_nodes route_following); hw/camera/front and rear: mono8."""
 
+from collections.abc import Callable
 import sys
 
 import numpy as np
@@ -11,20 +12,25 @@ from agv_nodes.route_following.core import RouteCore
 
 
 class RouteFollowingNode(CoreNode):
-    """RouteCore on its ports, plus the camera frames."""
+    """RouteCore on its ports, plus the two cameras' frames (dark tape)."""
 
     def __init__(self) -> None:
         super().__init__(RouteCore)
-        self.create_subscription(Image, 'hw/camera/front', self._frame, qos.STREAM_READER)
+        for camera in ('front', 'rear'):
+            self.create_subscription(Image, f'hw/camera/{camera}', self._frame(camera),
+                                     qos.STREAM_READER)
 
-    def _frame(self, msg: Image) -> None:
-        if msg.encoding != 'mono8' or msg.height * msg.width != len(msg.data):
-            self.get_logger().warn(f'camera frame rejected: {msg.encoding} '
-                                   f'{msg.width}x{msg.height}', throttle_duration_sec=5.0)
-            return
-        pixels = np.frombuffer(bytes(msg.data), dtype=np.uint8).reshape(msg.height, msg.width)
-        frame = (pixels < 128).astype(np.uint8)  # dark tape = 1, as the optic-RAM gives it
-        self.publish(self.core.on_frame(frame, self.now_s()))
+    def _frame(self, camera: str) -> Callable[[Image], None]:
+        def callback(msg: Image) -> None:
+            if msg.encoding != 'mono8' or msg.height * msg.width != len(msg.data):
+                self.get_logger().warn(f'{camera} camera frame rejected: {msg.encoding} '
+                                       f'{msg.width}x{msg.height}', throttle_duration_sec=5.0)
+                return
+            pixels = np.frombuffer(bytes(msg.data), dtype=np.uint8).reshape(msg.height,
+                                                                              msg.width)
+            frame = (pixels < 128).astype(np.uint8)  # dark tape = 1, as the optic-RAM gives it
+            self.publish(self.core.on_frame(frame, self.now_s(), camera))
+        return callback
 
 
 def main(args: list[str] | None = None) -> int:

@@ -2,8 +2,9 @@
 
 The window is 50 mm along travel by 250 mm across, thresholded by the optic-RAM itself (dark tape =
 1); row 0 is its leading edge, column 0 its left edge (4.2). A pixel is dark within half the tape
-width of a tape centreline; random specks (dark runs shorter than the noise filter) model dirt and
-pixel differences. The rear camera is the same window at -L_c, facing backwards.
+width of a tape centreline, and not past a tape's square-cut end; random specks (dark runs shorter
+than the noise filter) model dirt and pixel differences. The rear camera is the same window at
+-L_c, facing backwards.
 """
 
 import math
@@ -47,9 +48,14 @@ class BinaryCamera:
             dd = np.einsum('ij,ij->i', d, d)
             rx = pts[:, 0:1] - a[None, :, 0]  # (pixels, segments)
             ry = pts[:, 1:2] - a[None, :, 1]
-            t = np.clip((rx * d[:, 0] + ry * d[:, 1]) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+            along = (rx * d[:, 0] + ry * d[:, 1]) / np.where(dd > 0, dd, 1.0)
+            t = np.clip(along, 0.0, 1.0)
             ex, ey = rx - t * d[:, 0], ry - t * d[:, 1]
-            dark |= (ex * ex + ey * ey).min(axis=1) <= (tape.width / 2.0) ** 2
+            dist2 = ex * ex + ey * ey
+            on = dist2.min(axis=1) <= (tape.width / 2.0) ** 2
+            if any(tape.square_ends):
+                on &= ~self._past_square_end(tape, idx, dist2, along)
+            dark |= on
         frame = dark.reshape(ROWS, COLS).astype(np.uint8)
         if noise and self.p.specks:
             for _ in range(self.p.specks):
@@ -58,6 +64,25 @@ class BinaryCamera:
                 n = int(self.rng.integers(1, self.p.speck_max + 1))
                 frame[r, c:c + n] = 1
         return frame
+
+    @staticmethod
+    def _past_square_end(tape: Path2D, idx: np.ndarray, dist2: np.ndarray,
+                         along: np.ndarray) -> np.ndarray:
+        """Return the pixels beyond a square-cut end of `tape` (nearest its end segment).
+
+        A tape cut square at a junction (a road sign at a tape's end, a sign's patch) shows no
+        rounded cap past the cut: the camera would see it as a short normal-width track after
+        the branches and raise the straight flag (Rajagopalan 1991, 4.3).
+        """
+        col = dist2.argmin(axis=1)
+        nearest = idx[col]
+        rows = np.arange(len(nearest))
+        past = np.zeros(len(nearest), dtype=bool)
+        if tape.square_ends[0]:
+            past |= (nearest == 0) & (along[rows, col] < 0.0)
+        if tape.square_ends[1]:
+            past |= (nearest == len(tape.points) - 2) & (along[rows, col] > 1.0)
+        return past
 
     def truth(self, cx: float, cy: float, heading: float) -> tuple[float, float] | None:
         """Return (eps_d, eps_theta) of the nearest tape at the window centre (Rajagopalan 5.2)."""

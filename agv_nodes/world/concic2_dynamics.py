@@ -19,7 +19,7 @@ passes to the body its rolling resistance and Huang's side friction k_n N sign(a
 k_n 0.01. Pivots at x = L_a + s (front) and -(L_a - s) (rear) [D]: L_a is the axle-to-contact
 distance at zero caster angle (Eq. 5.11), the front contact trailing its pivot by s.
 
-Drive (App. B.4-B.5, C.2, 7.2): K_t 0.114 N m/A, R_a 0.602 ohm, L_a 4.7 mH, J_m 0.002 kg m^2,
+Drive (App. B.4-B.5, 7.2): K_t 0.114 N m/A, R_a 0.602 ohm, L_a 4.7 mH, J_m 0.002 kg m^2,
 gear 9.9, r 0.075 m. Departures, each [D]:
 
 - K_e = K_t = 0.114 V s/rad (SI identity of a PM motor). The thesis's 0.163 (Eq. B.8) is a
@@ -31,28 +31,32 @@ gear 9.9, r 0.075 m. Departures, each [D]:
 - Coulomb friction T_f = K_t 24 V / R_a - D w_nl = 0.486 N m, so the free motor turns 1700 rpm
   at 24 V. The printed static friction, 8.2 N m (Eq. B.10), exceeds the stall torque.
 
-Amplifier (6.3.3, App. C.2, 7.2.2): Galil ESA 15/75H, current mode with armature-voltage
-feedback (C.2.3.3), which 7.2.2-7.2.3 describe as setting the motor's terminal voltage. [D]
-Modelled as a terminal-voltage source: V_t = k_v V_in limited to the 24 V supply, behind the
-1 ms lag of the current amplifier (Eq. C.2), with the armature current limited to 36 A peak,
-falling back to 9 A continuous after 0.39 s at more than 9 A (C.2.3.1). k_v = 24 V / 4.2 V:
-4.2 V at the amplifier input is full speed (6.3.11, 7.2.1). DAC: 0.09 V per code [D], 4.2 V
-over the ~47 codes each side of mid-scale that 7.2.1 measured; amplifier input limited to
-+-7 V (C.1.7.3). A pure current-mode amplifier (11.8 A/V, C.2.3.3) with the thesis gains
-limit-cycles; with the voltage feedback the back-EMF damps the wheel.
+Amplifier (6.3.3, App. C.2, 7.2): Galil ESA 15/75H in current mode with the armature-voltage
+feedback that C.2.3.5 calls "actually a velocity feedback loop", its gain set "until the motor
+response is critically damped" (5 % overshoot) with the LM628 closing the position loop. [D]
+Modelled as that speed loop: the current asked for is G_in V_in - G_v w (w the motor speed, the
+back-EMF the feedback measures), followed behind the 1 ms lag of the current amplifier (Eq.
+C.2), limited to 36 A peak, 9 A continuous after 0.39 s above it (C.2.3.1), and no faster than
+24 V can drive the armature. G_in holds max_wheel_speed at 4.2 V in, the full speed of 7.2.1
+and 6.3.11. DAC 0.09 V per code [D] (4.2 V over the ~47 codes each side of mid-scale that
+7.2.1 measured), input limited to +-7 V (C.1.7.3). Motor off (enable false): the LM628 puts
+out zero ("a zero voltage is given as an output to the motors", 7.3.4), the speed loop brakes
+the wheels to rest. Radio stop (E-stop): the relays open the armature (6.3.11): no current,
+friction only.
 
-Motor off (enable false): the LM628 puts out zero, the amplifier holds the terminal voltage at
-zero ("a zero voltage is given as an output to the motors", 7.3.4): the back-EMF brakes.
-Radio stop (E-stop): the relays open the armature (6.3.11): no current, friction only.
-
-Motor-off stopping distance, a known discrepancy: the thesis measured 5 mm from 0.16 m/s
-(7.3.4, Fig. 7.9); this model coasts about 20 mm with the 250 lb payload, 12 mm without. 5 mm
-needs 2.5 m/s^2 on average, 2.9 N m on each motor (1.8 unloaded), against the 0.45 N m of the
-shorted back-EMF at 0.16 m/s and 0.49 N m of friction. Zero terminal voltage is the strongest
-braking any reading of the amplifier gives: pure current mode (6.3.3, "no other feedback")
-coasts about 25 mm, the armature-voltage feedback of C.2.3.3 (2.5 A/V) brakes with 0.6 of the
-short. A friction making up the rest would draw 12 A (unloaded) to 21 A just to cruise, above
-the 9 A continuous limit (6.3.3). 7.3.4 does not say from which point the distance was taken.
+Why a speed loop and G_v = 2.0 A s/rad [D]. A terminal-voltage source (V_t = 24/4.2 V_in)
+damps a wheel only by its shorted back-EMF, K_t K_e / R_a: 376 N s/m at the rim against the
+263 kg each wheel carries of the loaded truck's yaw (the yaw mode is 1.7 times heavier than the
+straight-line one). Under the thesis's LM628 gains that position loop had about 0.1 of critical
+damping: a 0.03 m/s differential step overshot the yaw rate by 79 % and rang at 1.2 Hz, and the
+camera laws locked into that ring (front and rear windows swinging +-75 mm in anti-phase,
+period 0.8 s). No gain of an armature-voltage feedback without its IR drop removed damps
+beyond that short, so C.2.3.5's critical damping needs the back-EMF itself fed back. G_v fits
+three things the thesis measured on the truck: a differential step overshoots 7 % (C.2.3.5:
+5 %), a wheel trails its ramp by 0.16 s (6.3.8: the servo loop's time constant is four 44 ms
+vision cycles, 0.18 s), and motor off stops the truck in 5.3 mm from 0.16 m/s (7.3.4, Fig.
+7.9: 5 mm), where a voltage source coasted 20 mm. G_v 1.5 stops in 6.0 mm, 2.5 in 4.6 mm; the
+speed step from rest overshoots 1 % (7.5.2.1: 1 %).
 
 Yaw inertia [D]: Table B.1 masses, the two batteries (120 lb) as points at their App. B.3
 centres, the other 153.5 lb as a uniform 1115 x 781 mm plate: 22.2 kg m^2; payload [A] a
@@ -106,7 +110,8 @@ class Concic2DynamicParams:
     rolling_k2: float = 0.01  # s/m (Eq. G.45)
     caster_side_friction: float = 0.01  # k_n (Eq. G.49)
     supply_voltage: float = 24.0  # V (Table B.4)
-    amplifier_gain: float = 24.0 / 4.2  # V at the motor per V in [D]
+    full_speed_input: float = 4.2  # V at the amplifier input for max_wheel_speed (7.2.1)
+    velocity_gain: float = 2.0  # A per rad/s of motor speed, the speed loop [D]
     amplifier_time_constant: float = 0.001  # s (Eq. C.2)
     amplifier_input_limit: float = 7.0  # V (C.1.7.3)
     peak_current: float = 36.0  # A (6.3.3)
@@ -118,7 +123,7 @@ class Concic2DynamicParams:
     kd: int = 50
     il: int = 30
     derivative_interval: int = 16  # servo samples [A]
-    output_shift: int = 14  # [A], see lm628
+    output_shift: int = 16  # [A], see lm628
 
     @classmethod
     def from_params(cls, p: Concic2Params) -> 'Concic2DynamicParams':
@@ -145,7 +150,7 @@ class Concic2Dynamic(Concic2):
         self.right_demand = 0.0
         self.v1 = self.v2 = 0.0  # wheel rim speeds, m/s
         self.i1 = self.i2 = 0.0  # armature currents, A
-        self.vt1 = self.vt2 = 0.0  # amplifier terminal voltages, V
+        self.vt1 = self.vt2 = 0.0  # motor terminal voltages (ohmic drop and back-EMF), V
         self.theta1 = self.theta2 = 0.0  # motor shaft angles, rad (the encoders)
         self.caster_front = self.caster_rear = 0.0  # from the body x axis, rad (CCW +)
         self.overcurrent_time = [0.0, 0.0]
@@ -156,7 +161,7 @@ class Concic2Dynamic(Concic2):
                                p.output_shift)
         self.right_chip = LM628(acc, p.kp, p.ki, p.kd, p.il, p.derivative_interval,
                                 p.output_shift)
-        self._target1 = self._target2 = 0.0  # last commanded terminal voltages, V
+        self._target1 = self._target2 = 0.0  # last amplifier input voltages, V
         self._caster_q = (0.0, 0.0)
         self._constants()
 
@@ -184,12 +189,11 @@ class Concic2Dynamic(Concic2):
         # + |mc| c2 <= max(ma, |mc|) (c1 + c2), with a margin for rounding.
         self._stick_margin = max(self._minv[0], abs(self._minv[1])) * (1.0 + 1e-9)
         self._lag_full = math.exp(-SAMPLE_PERIOD / p.amplifier_time_constant)
-        self._decay_full = math.exp(-SAMPLE_PERIOD * p.armature_resistance
-                                    / p.armature_inductance)
-        # Terminal voltage the amplifier is driven to for each DAC code (-128..127).
+        # Current per input volt: full_speed_input holds max_wheel_speed against the speed loop.
+        self._input_gain = p.velocity_gain * p.max_wheel_speed * n_r / p.full_speed_input
+        # Amplifier input voltage for each DAC code (-128..127).
         lim = p.amplifier_input_limit
-        self._volts = [min(max(min(max(code * p.dac_volts_per_code, -lim), lim)
-                               * p.amplifier_gain, -p.supply_voltage), p.supply_voltage)
+        self._volts = [min(max(code * p.dac_volts_per_code, -lim), lim)
                        for code in range(-128, 128)]
         self.m_v, self.m_w = m_v, m_w
 
@@ -220,27 +224,29 @@ class Concic2Dynamic(Concic2):
         """Advance by dt seconds: servo samples every 341 us, the mechanics in between.
 
         One loop for both wheels over the servo intervals the step spans; between samples the
-        DAC output is held, the amplifier lag and the armature current advance in closed form
-        (exponentials of full intervals precomputed) and the body by one explicit step.
+        DAC output is held, the current follows the speed loop's demand in closed form (the
+        lag's exponential over a full interval precomputed) and the body takes one explicit
+        step.
         """
         drive = self._gate()
         self._casters(dt)
         p = self.p
         powered = not self.radio_stop
         n_r, kt, ke, r_a = self._n_r, p.torque_constant, p.back_emf_constant, p.armature_resistance
-        b, tau, l_arm = p.viscous_friction, p.amplifier_time_constant, p.armature_inductance
+        b, l_arm, supply = p.viscous_friction, p.armature_inductance, p.supply_voltage
+        g_in, g_v = self._input_gain, p.velocity_gain
         i_cont, i_peak, t_peak = p.continuous_current, p.peak_current, p.peak_duration
         ma, mc = self._minv
         q1, q2 = self._caster_q
         tf_n, roll, k2 = self._tf_n, self._roll, p.rolling_k2
         bound = self._stick_margin
         rpc, table, span = self._rad_per_count, self._volts, p.wheel_span
-        lag_full, decay_full = self._lag_full, self._decay_full
+        lag_full, tau = self._lag_full, p.amplifier_time_constant
         left, right = self.left_chip, self.right_chip
-        v1, v2, i1, i2, vt1, vt2 = self.v1, self.v2, self.i1, self.i2, self.vt1, self.vt2
+        v1, v2, i1, i2 = self.v1, self.v2, self.i1, self.i2
         th1, th2 = self.theta1, self.theta2
         o1, o2 = self.overcurrent_time
-        tv1, tv2 = (self._target1, self._target2) if drive else (0.0, 0.0)
+        in1, in2 = (self._target1, self._target2) if drive else (0.0, 0.0)
         phase = self._phase
         x0 = h0 = 0.0  # forward travel and heading change over dt, body frame
         remaining = dt
@@ -249,27 +255,26 @@ class Concic2Dynamic(Concic2):
                 self._target1 = table[left.sample(math.floor(th1 / rpc)) + 128]
                 self._target2 = table[right.sample(math.floor(th2 / rpc)) + 128]
                 if drive:
-                    tv1, tv2 = self._target1, self._target2
+                    in1, in2 = self._target1, self._target2
             h = SAMPLE_PERIOD - phase if SAMPLE_PERIOD - phase <= remaining else remaining
-            if h == SAMPLE_PERIOD:
-                lag, decay = lag_full, decay_full
-            else:
-                lag, decay = math.exp(-h / tau), math.exp(-h * r_a / l_arm)
+            lag = lag_full if h == SAMPLE_PERIOD else math.exp(-h / tau)
             w1 = v1 * n_r  # motor speeds, rad/s
             w2 = v2 * n_r
-            vt1 = tv1 + (vt1 - tv1) * lag
-            vt2 = tv2 + (vt2 - tv2) * lag
             if powered:
-                i_ss = (vt1 - ke * w1) / r_a
-                i1 = i_ss + (i1 - i_ss) * decay
-                o1 = o1 + h if abs(i1) > i_cont else 0.0
+                # The speed loop asks for a current, the current loop follows it behind its lag
+                # within the limits, and no faster than the supply can drive the armature.
                 lim = i_peak if o1 < t_peak else i_cont
-                i1 = min(max(i1, -lim), lim)
-                i_ss = (vt2 - ke * w2) / r_a
-                i2 = i_ss + (i2 - i_ss) * decay
-                o2 = o2 + h if abs(i2) > i_cont else 0.0
+                target = min(max(g_in * in1 - g_v * w1, -lim), lim)
+                back = r_a * i1 + ke * w1
+                i1 = min(max(target + (i1 - target) * lag, i1 + (-supply - back) / l_arm * h),
+                         i1 + (supply - back) / l_arm * h)
+                o1 = o1 + h if abs(i1) > i_cont else 0.0
                 lim = i_peak if o2 < t_peak else i_cont
-                i2 = min(max(i2, -lim), lim)
+                target = min(max(g_in * in2 - g_v * w2, -lim), lim)
+                back = r_a * i2 + ke * w2
+                i2 = min(max(target + (i2 - target) * lag, i2 + (-supply - back) / l_arm * h),
+                         i2 + (supply - back) / l_arm * h)
+                o2 = o2 + h if abs(i2) > i_cont else 0.0
             else:  # relays open: the armature carries no current
                 i1 = i2 = 0.0
             f1 = (kt * i1 - b * w1) * n_r + q1
@@ -305,7 +310,9 @@ class Concic2Dynamic(Concic2):
             phase += h
             if phase >= SAMPLE_PERIOD - 1e-12:
                 phase = 0.0
-        self.v1, self.v2, self.i1, self.i2, self.vt1, self.vt2 = v1, v2, i1, i2, vt1, vt2
+        self.v1, self.v2, self.i1, self.i2 = v1, v2, i1, i2
+        self.vt1 = r_a * i1 + ke * v1 * n_r
+        self.vt2 = r_a * i2 + ke * v2 * n_r
         self.theta1, self.theta2 = th1, th2
         self.overcurrent_time = [o1, o2]
         self._phase = phase

@@ -16,6 +16,7 @@ import numpy as np
 
 from agv_nodes.markers import SNAPSHOT_FIELDS
 from agv_nodes.world.camera import BinaryCamera
+from agv_nodes.world.concic2_dynamics import Concic2Dynamic
 from agv_nodes.world.guide_wire import GuideWirePickup
 from agv_nodes.world.layout import Layout, Marker
 from agv_nodes.world.marker_sensor import MarkerSensorModel, axis_on_card, lens_position
@@ -49,6 +50,8 @@ class WorldCore:
         self.tapes = [t for t in layout.paths.values() if t.width > 0.0]
         if layout.vehicle == 'electruk':
             self.vehicle: Electruk | Concic2 = Electruk(self.p.electruk)
+        elif self.p.concic2.model == 'dynamic':
+            self.vehicle = Concic2Dynamic(self.p.concic2)
         else:
             self.vehicle = Concic2(self.p.concic2)
         self._place_vehicle()
@@ -171,8 +174,10 @@ class WorldCore:
             v.relay_closed = self.time - self._watchdog_time <= self.p.drive_watchdog
             if self.time - self._steer_time > self.p.steering_timeout:
                 v.steer_enable = False
-        elif self.time - self._steer_time > self.p.steering_timeout:
-            v.enable = False  # the 60 ms computer watchdog of CONCIC-II cuts the amplifiers
+        elif self.time - self._steer_time > self.p.concic2.watchdog:
+            # The safety supervisor's computer watchdog cuts the amplifiers: the wheels coast
+            # down together, as after a motor-off command (Rajagopalan 1991, 6.3.11).
+            v.enable = False
 
     # -- sensors --------------------------------------------------------------------------
     def lens_pose(self) -> tuple[tuple[float, float], float]:

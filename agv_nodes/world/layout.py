@@ -4,6 +4,7 @@ A path (guide wire or optical tape) is a start pose and straight and arc segment
 `step` m. Markers are placed by (path, distance along it), the card facing the path from the sensor
 side at the standoff (Baker 1983, 4.4 and 5.1: 300 mm from the lens; the route held to +-1 cm, this
 reproduction's goal: the thesis states none). Every error names the file, the key and the value.
+Paths and the road signs of tape floors are built by agv_nodes.world.tape_layout.
 """
 
 from dataclasses import dataclass, field
@@ -11,109 +12,16 @@ import math
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from agv_nodes.markers import LOCATION_PATTERNS, STOP_STRIP, WHITE_CARD
 from agv_nodes.package_share import config_dir, read_mapping
 
-
-class LayoutError(ValueError):
-    """A layout file that cannot be used; names the file, key and value."""
-
-
-@dataclass
-class Path2D:
-    """A route on the floor: a guide wire or a tape centreline, as a dense polyline."""
-
-    id: str
-    points: np.ndarray  # (n, 2)
-    s: np.ndarray  # (n,) distance along the path at each point
-    headings: np.ndarray  # (n,) tangent heading at each point, rad
-    width: float = 0.0  # tape width (m); 0 for a wire
-    current: float = 1.0  # relative line current (wires)
-    closed: bool = False
-
-    @property
-    def length(self) -> float:
-        """Total length, m."""
-        return float(self.s[-1])
-
-    def pose_at(self, s: float) -> tuple[float, float, float]:
-        """(x, y, heading) at distance s along the path (clamped to its ends)."""
-        s = min(max(s, 0.0), self.length)
-        i = int(np.searchsorted(self.s, s, side='right')) - 1
-        i = min(max(i, 0), len(self.s) - 2)
-        seg = self.s[i + 1] - self.s[i]
-        t = 0.0 if seg <= 0 else (s - self.s[i]) / seg
-        x, y = self.points[i] + t * (self.points[i + 1] - self.points[i])
-        h0, h1 = self.headings[i], self.headings[i + 1]
-        dh = math.atan2(math.sin(h1 - h0), math.cos(h1 - h0))
-        return float(x), float(y), float(h0 + t * dh)
-
-    def project(self, x: float, y: float) -> tuple[float, float, float]:
-        """(s, signed lateral offset, + = left of the path, heading) of the nearest point."""
-        p = np.array([x, y])
-        a = self.points[:-1]
-        d = self.points[1:] - a
-        dd = np.einsum('ij,ij->i', d, d)
-        t = np.clip(np.einsum('ij,ij->i', p - a, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-        foot = a + t[:, None] * d
-        dist2 = np.einsum('ij,ij->i', p - foot, p - foot)
-        i = int(np.argmin(dist2))
-        seg = math.sqrt(dd[i])
-        heading = math.atan2(d[i, 1], d[i, 0])
-        rel = p - foot[i]
-        lateral = -math.sin(heading) * rel[0] + math.cos(heading) * rel[1]
-        return float(self.s[i] + t[i] * seg), lateral, heading
-
-
-def build_path(pid: str, start: list, segments: list, step: float, file: Path, key: str,
-               width: float = 0.0, current: float = 1.0) -> Path2D:
-    """Sample a start pose + straight/arc segments into a polyline."""
-    if not (isinstance(start, list) and len(start) == 3
-            and all(isinstance(v, (int, float)) for v in start)):
-        raise LayoutError(f'{file}: key {key}.start: {start!r} must be [x, y, heading_deg]')
-    x, y, h = float(start[0]), float(start[1]), math.radians(float(start[2]))
-    pts, hs = [(x, y)], [h]
-    if not isinstance(segments, list) or not segments:
-        raise LayoutError(f'{file}: key {key}.segments: {segments!r} must be a non-empty list')
-    for j, seg in enumerate(segments):
-        where = f'{key}.segments[{j}]'
-        if not isinstance(seg, dict):
-            raise LayoutError(f'{file}: key {where}: {seg!r} must be a mapping')
-        if 'straight' in seg:
-            length = seg['straight']
-            if not isinstance(length, (int, float)) or length <= 0:
-                raise LayoutError(f'{file}: key {where}.straight: {length!r} must be > 0 m')
-            n = max(1, math.ceil(length / step))
-            for k in range(1, n + 1):
-                d = length * k / n
-                pts.append((x + d * math.cos(h), y + d * math.sin(h)))
-                hs.append(h)
-            x, y = pts[-1]
-        elif 'arc' in seg:
-            radius, angle = seg['arc'], seg.get('angle')
-            if not isinstance(radius, (int, float)) or radius <= 0:
-                raise LayoutError(f'{file}: key {where}.arc: {radius!r} must be a radius > 0 m')
-            if not isinstance(angle, (int, float)) or angle == 0:
-                raise LayoutError(f'{file}: key {where}.angle: {angle!r} must be non-zero '
-                                  'degrees (+ = left)')
-            turn = math.radians(angle)
-            sign = 1.0 if turn > 0 else -1.0
-            cx, cy = x - sign * radius * math.sin(h), y + sign * radius * math.cos(h)
-            n = max(2, math.ceil(abs(turn) * radius / step))
-            for k in range(1, n + 1):
-                hk = h + turn * k / n
-                pts.append((cx + sign * radius * math.sin(hk), cy - sign * radius * math.cos(hk)))
-                hs.append(hk)
-            x, y = pts[-1]
-            h = h + turn
-        else:
-            raise LayoutError(f'{file}: key {where}: {seg!r} needs "straight" or "arc"')
-    points = np.array(pts)
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
-    closed = bool(np.linalg.norm(points[-1] - points[0]) < 1e-6)
-    return Path2D(pid, points, s, np.array(hs), width, current, closed)
+# Paths and road signs live in tape_layout; imported here too, where callers have found them.
+from agv_nodes.world.tape_layout import SIGN_BRANCHES as SIGN_BRANCHES
+from agv_nodes.world.tape_layout import LayoutError as LayoutError
+from agv_nodes.world.tape_layout import Path2D as Path2D
+from agv_nodes.world.tape_layout import add_sign
+from agv_nodes.world.tape_layout import build_path as build_path
+from agv_nodes.world.tape_layout import num as _num
 
 
 @dataclass
@@ -189,19 +97,6 @@ class Layout:
 
 _TOP_KEYS = {'layout', 'description', 'vehicle', 'kind', 'wires', 'tapes', 'markers',
              'stations', 'start', 'sensor', 'rig', 'route_limit', 'step', 'signs', 'srm_map'}
-# Road-sign primitives (Rajagopalan 1991, 4.3): which branches a junction offers.
-SIGN_BRANCHES = {'P11': ('left',), 'P12': ('right',), 'P21': ('left', 'straight'),
-                 'P22': ('right', 'straight'), 'R1': ('left', 'right'),
-                 'R2': ('left', 'right', 'straight')}
-
-
-def _num(value: Any, file: Path, key: str, lo: float | None = None,
-         hi: float | None = None) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise LayoutError(f'{file}: key {key}: {value!r} must be a number')
-    if (lo is not None and value < lo) or (hi is not None and value > hi):
-        raise LayoutError(f'{file}: key {key}: {value!r} outside {lo}..{hi}')
-    return float(value)
 
 
 def load_layout(file: Path | str) -> Layout:
@@ -254,8 +149,8 @@ def load_layout(file: Path | str) -> Layout:
         card['yaw'] = rig.get('angle', 0.0)
     markers = [_load_marker(m, i, file, paths, stations, card, sensor_lateral)
                for i, m in enumerate(doc.get('markers') or [])]
-    signs = [_add_sign(spec, i, file, paths, step) for i, spec in enumerate(doc.get('signs')
-                                                                              or [])]
+    signs = [add_sign(spec, i, file, paths, step) for i, spec in enumerate(doc.get('signs')
+                                                                             or [])]
     start = doc.get('start') or {}
     start_path = str(start.get('path', next(iter(paths))))
     if start_path not in paths:
@@ -323,44 +218,6 @@ def _load_marker(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
     return m
 
 
-def _add_sign(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
-              step: float) -> dict[str, Any]:
-    """Draw a road sign on a tape: a wider patch before the junction, then the branches.
-
-    Each turning branch is a tape at right angles (the camera sees the width jump, then the branch
-    at column 0 or 127), `branch` m long (0.35 m).
-    """
-    key = f'signs[{i}]'
-    if not isinstance(spec, dict):
-        raise LayoutError(f'{file}: key {key}: {spec!r} must be a mapping')
-    kind = spec.get('type')
-    if kind not in SIGN_BRANCHES:
-        raise LayoutError(f'{file}: key {key}.type: {kind!r} not one of {list(SIGN_BRANCHES)}')
-    pid = str(spec.get('path', ''))
-    if pid not in paths or paths[pid].width == 0.0:
-        raise LayoutError(f'{file}: key {key}.path: {pid!r} is no tape')
-    tape = paths[pid]
-    at = _num(spec.get('at'), file, f'{key}.at', 0.3, tape.length)
-    patch = _num(spec.get('patch', 0.15), file, f'{key}.patch', 0.05, 0.5)
-    # A short stub shows the branch to the camera; a long one is a branch the truck can take.
-    branch_length = _num(spec.get('branch', 0.35), file, f'{key}.branch', 0.1, 50.0)
-    x, y, h = tape.pose_at(at - patch)
-    paths[f'sign{i}_patch'] = build_path(f'sign{i}_patch', [x, y, math.degrees(h)],
-                                         [{'straight': patch}], step, file, key,
-                                         width=tape.width * 1.6)
-    jx, jy, jh = tape.pose_at(at)
-    for branch in SIGN_BRANCHES[kind]:
-        if branch == 'straight':
-            continue
-        turn = math.pi / 2 if branch == 'left' else -math.pi / 2
-        paths[f'sign{i}_{branch}'] = build_path(
-            f'sign{i}_{branch}', [jx, jy, math.degrees(jh + turn)],
-            [{'straight': branch_length}], step,
-            file, key, width=tape.width)
-    return {'type': kind, 'path': pid, 'at': at, 'branches': SIGN_BRANCHES[kind],
-            'branch': branch_length}
-
-
 def _srm_map(entries: Any, file: Path) -> tuple[str, ...]:
     """Return the layout's route map: 'location:angle' entries, location 0-31, angle -45..45."""
     if not isinstance(entries, list):
@@ -387,9 +244,19 @@ def _check_rig(layout: Layout, file: Path) -> None:
 
 
 def layout_parameters(layout: Layout) -> dict[str, dict[str, Any]]:
-    """Return what a layout sets in its truck's nodes: the route map, route following's vehicle."""
-    return {'executive': {'srm_map': list(layout.srm_map)},
-            'route_following': {'vehicle': layout.vehicle}}
+    """Return what a layout sets in its truck's nodes: vehicle, guidance, route map, cameras.
+
+    A tape layout is driven by the CONCIC-II's cameras (both rendered: a reverse leg steers by
+    the rear one), a wire layout by the 1983 tug's guide wire.
+    """
+    camera = layout.kind == 'tape'
+    out: dict[str, dict[str, Any]] = {
+        'executive': {'srm_map': list(layout.srm_map),
+                      'guidance': 'camera' if camera else 'wire'},
+        'route_following': {'vehicle': layout.vehicle}}
+    if camera:
+        out['world'] = {'rear_camera': True}
+    return out
 
 
 def layout_path(name_or_file: str) -> Path:

@@ -7,10 +7,11 @@ likewise after an SRM's landing (7.2). So the check drives the world's Electruk 
 harness, every wire from its start and the truck by the route map twice round, and takes each
 marker's pass furthest from the sensor's working range (`READ_STANDOFF`, `READ_ANGLE`,
 agv_nodes.world.marker_sensor). On the belt rig the lens runs along the belt line itself; tape
-layouts (camera) are not checked. See docs/architecture.md, "Layout check".
+layouts (camera) have no marker check: their table lists each road sign and where its branches
+lead (agv_nodes.world.tape_layout). See docs/architecture.md, "Layout check".
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 import random
 
@@ -21,6 +22,7 @@ from agv_nodes.world.guide_wire import GuideWirePickup
 from agv_nodes.world.layout import Layout, LayoutError, Marker
 from agv_nodes.world.marker_sensor import READ_ANGLE, READ_STANDOFF, axis_on_card, lens_position
 from agv_nodes.world.settings import WorldParams
+from agv_nodes.world.tape_layout import branch_ends
 from agv_nodes.world.vehicles import Electruk
 
 # Speeds of the executive's demands (executive parameters: cruise_demand 55 % ~ 0.7 m/s, the
@@ -86,6 +88,7 @@ class Report:
     layout: Layout
     passages: list[Passage]
     note: str = ''
+    signs: list[str] = field(default_factory=list)  # tape floors: each sign and its branches
 
     def errors(self) -> list[str]:
         """Return one line per marker the sensor cannot read."""
@@ -108,6 +111,9 @@ class Report:
             angle = f'{p.angle:+.1f}' if p.passed else '-'
             lines.append(f'{m.name:8} {m.path:>5} {m.at:7.3f} {standoff:>10} {angle:>9} '
                          f'{"yes" if p.in_range else "no":>8}  {p.drive}')
+        if self.signs:
+            lines.append(f'{len(self.signs)} road signs (Rajagopalan 1991, 4.3):')
+            lines += [f'  {line}' for line in self.signs]
         return '\n'.join(lines)
 
 
@@ -116,6 +122,9 @@ def check_layout(layout: Layout, world: WorldParams | None = None,
     """Drive the layout's routes and report each marker's worst pass (see the module docstring)."""
     world = world or WorldParams()
     passages = [Passage(m) for m in layout.markers]
+    if layout.kind == 'tape':
+        return Report(layout, passages, 'markers not checked: a camera-guided floor'
+                      if layout.markers else '', branch_ends(layout.signs, layout.paths))
     if not layout.markers:
         return Report(layout, passages)
     if layout.kind == 'rig':

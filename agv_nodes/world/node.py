@@ -94,11 +94,11 @@ class WorldNode(Node):
         own_readers = {name: r.publisher_count for name, r in self.inputs.items()}
         own_readers.update({f'{sim_progress.LINK}.{node}': sub.get_publisher_count
                             for node, sub in progress.items()})
-        self.peers = LinkWatch(self, links, own_readers,
-                               {name: (lambda w=w: w.subscription_count)
-                                for name, w in self.out.items()})
-        self.create_subscription(Bool, 'hw/radio_stop', self._radio_stop, qos.RECORD_READER)
         self.clock_pub = self.create_publisher(Clock, '/clock', qos.STREAM_WRITER)
+        own_writers = {name: (lambda w=w: w.subscription_count) for name, w in self.out.items()}
+        own_writers[sim_progress.CLOCK_LINK] = self.clock_pub.get_subscription_count
+        self.peers = LinkWatch(self, links, own_readers, own_writers)
+        self.create_subscription(Bool, 'hw/radio_stop', self._radio_stop, qos.RECORD_READER)
         self.pose_pub = self.create_publisher(PoseStamped, 'world/pose', qos.STREAM_WRITER)
         self.camera_pubs = {name: self.create_publisher(Image, f'hw/camera/{name}',
                                                         qos.STREAM_WRITER)

@@ -17,16 +17,22 @@ from agv_nodes.ros_ports import LINKS_TOPIC, parse_links
 
 
 def parse_link_entry(entry: str) -> tuple[str, str, int | None] | None:
-    """'NODE:RECORD' -> (node, record, None), 'NODE>RECORD:N' (or progress) -> N; else None."""
+    """'NODE:RECORD' -> (node, record, None), 'NODE>RECORD:N' (or progress) -> N; else None.
+
+    'clock' stands for /clock: 'world>clock:N' (the world's writer), 'recorder:clock' (the
+    recorder's reader, announced by the recorder).
+    """
     if '>' in entry:
         node, _, rest = entry.partition('>')
         record, _, count = rest.partition(':')
         readers = int(count) if count.isdigit() and int(count) > 0 else None
-        if not node or readers is None or (record not in codec() and record != sim_progress.LINK):
+        if not node or readers is None or (record not in codec() and record not in (
+                sim_progress.LINK, sim_progress.CLOCK_LINK)):
             return None
         return node, record, readers
     node, _, record = entry.partition(':')
-    return (node, record, None) if node and record in codec() else None
+    known = record in codec() or record == sim_progress.CLOCK_LINK
+    return (node, record, None) if node and known else None
 
 
 class LinkWatch:

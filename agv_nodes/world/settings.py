@@ -10,7 +10,7 @@ class ElectrukParams:
 
 @settings_class
 class Concic2Params:
-    """CONCIC-II (Rajagopalan 1991, 6.3.1-6.3.2, Table 6.1, App. B.3-B.5, App. C)."""
+    """CONCIC-II (Rajagopalan 1991, 6.3.1-6.3.2, 6.3.11, Table 6.1, App. B.3-B.5, App. C)."""
 
 
 @settings_class

@@ -182,6 +182,11 @@ class Concic2:
         return (s.x + self.p.camera_distance * math.cos(s.heading),
                 s.y + self.p.camera_distance * math.sin(s.heading))
 
+    @property
+    def pushing(self) -> bool:
+        """The LM628s drive the wheels (ground truth for `drive_off`: motor off or radio stop)."""
+        return self.enable and not self.radio_stop
+
     def set_wheels(self, left: float, right: float, enable: bool) -> None:
         """Latch the wheel speed demands (m/s)."""
         lim = self.p.max_wheel_speed

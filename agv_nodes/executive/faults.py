@@ -1,0 +1,98 @@
+"""The executive's supervision: stale, rejected and faulty sub-systems end in a stop.
+
+A mixin of ExecutiveCore (agv_nodes.executive.core), kept apart because it is the safety half of
+the executive: every fault here ends the task with an emergency stop and a named cause.
+"""
+
+from typing import Any
+
+from agv_nodes.executive.itinerary import NO_TASK
+
+STATUS_RECORDS = {'navigation': 'navigation_status', 'traction': 'traction_status',
+                  'route': 'route_status', 'load': 'load_status',
+                  'communications': 'comms_status'}
+SUBSYSTEM_OF = {record: sub for sub, record in STATUS_RECORDS.items()}
+# The sub-systems each truck has: the 1983 tug's five boards, the 1991 CONCIC-II's camera
+# route following and its link to the outside.
+SUBSYSTEMS = {'wire': ('navigation', 'traction', 'route', 'load', 'communications'),
+              'camera': ('route', 'communications')}
+
+
+class FaultSupervision:
+    """Supervision and the emergency stop (see the module docstring)."""
+
+    def supervise(self, now: float) -> dict[str, dict[str, Any]] | None:
+        """Check for a stale status between two passes; on a fault send the e-stop at once.
+
+        The sub-systems report on the same 50 ms grid, so their records arrive together, and a
+        status that goes stale between two arrivals would otherwise wait for the next pass.
+        """
+        if self.mode not in ('running', 'cruising'):
+            return None
+        self._supervise(now)
+        return self._commands(now) if self.mode == 'failed' else None
+
+    def _supervise(self, now: float) -> None:
+        # First: a writer whose records are being rejected also goes stale, and the rejections
+        # are the better name for it.
+        self.rejects = [(t, sub) for t, sub in self.rejects if now - t <= 1.0]
+        if len(self.rejects) > self.p.reject_limit:
+            writers = sorted({sub for _t, sub in self.rejects})
+            return self._fail(now, 'rejected_records', writers[0] if len(writers) == 1
+                              else 'none', f'{len(self.rejects)} in 1 s')
+        # Communications too: a silent sub-system is a fault to stop on (Baker 1983, 7.2: one
+        # that failed made the others reset, which hid the fault), and without it no abort
+        # reaches the truck. Its status comes on the same 50 ms grid as the others.
+        for sub in self.subsystems:
+            t = self.status_time.get(sub)
+            if t is None:
+                if now - self.task_start > 1.0:
+                    return self._fail(now, 'stale_status', sub, 'never heard from')
+                continue
+            age = now - t
+            self.max_age[sub] = max(self.max_age.get(sub, 0.0), age)
+            others = self.arrivals - self.arrivals_at.get(sub, 0)
+            if age > self.p.status_timeout and (others >= self.p.stale_confirm
+                                                or age > 2 * self.p.status_timeout):
+                return self._fail(now, 'stale_status', sub, f'{age:.2f} s old')
+        nav = self.status.get('navigation') or {}
+        if nav.get('sensor_lost'):
+            return self._fail(now, 'sensor_lost', 'navigation', 'marker sensor lost')
+        route = self.status.get('route') or {}
+        if route.get('state') == 'lost':
+            if self.camera:
+                return self._fail(now, 'lost_track', 'route', 'tape lost')
+            return self._fail(now, 'lost_wire', 'route', 'guide wire lost')
+        if route.get('state') == 'no_branch' and self.camera:
+            return self._fail(now, 'no_branch', 'route', 'the junction lacks the branch chosen')
+        traction = self.status.get('traction') or {}
+        if traction.get('radio_stop'):
+            return self._fail(now, 'radio_stop', 'traction', 'radio stop')
+        if traction.get('tripped') and now - self.task_start > self.p.trip_grace:
+            return self._fail(now, 'tripped', 'traction', traction.get('trip_cause', ''))
+        if self.distance > self.p.route_limit:
+            return self._fail(now, 'route_limit', 'navigation',
+                              f'{self.distance:.1f} m without reaching the step goal')
+        if self.phase == 'positioning' and self.positioning_distance > self.p.positioning_limit:
+            return self._fail(now, 'route_limit', 'navigation',
+                              f'no stop marker within {self.positioning_distance:.1f} m')
+        return None
+
+    def _fail(self, now: float, cause: str, subsystem: str, detail: str) -> None:
+        self._stop_everything()
+        self.mode = 'failed'
+        self.fault = (cause, subsystem)
+        self.report = {'state': 'failed', 'cause': cause, 'subsystem': subsystem}
+        self._log(now, f'task {self.task_id}: FAILED {cause} ({subsystem}): {detail}')
+
+    def _stop_everything(self) -> None:
+        self.demand = 0  # EMERGENCY STOP: traction byte 2 = 00H
+        self.nav = (NO_TASK, 0)
+        self.load = {**self.load, 'action': 'stop'}
+        self.slow = False
+        self._srm_at = self._srm_pending = None
+        if self.route['mode'] == 'srm':  # keep steering on the wire while the truck stops
+            self.route = {**self.route, 'mode': 'follow_wire'}
+        if self.camera:  # the CONCIC-II stops by motor-off (Rajagopalan 1991, 7.3.4)
+            self.route = {**self.route, 'mode': 'idle'}
+

@@ -1,0 +1,119 @@
+"""Tape legs of the camera truck: a task's junction script through route_command, ROS-free.
+
+The CONCIC-II (Rajagopalan 1991) follows floor tape by camera; a tape task is one leg along the
+tape from where the truck stands and, with `then reverse`, a second leg back along the same tape
+with the rear camera leading. Each leg gets a new `leg` counter value in route_command, so route
+following counts its junctions and distance from 0.
+
+Junctions (App. F.6-F.7): route following counts road signs as it sights them; while it has met
+k, the executive offers the decision for junction k + 1 (the script's line for it, or the
+task's `unscripted` choice), numbered, with the line's wait. A random decision is drawn as the
+thesis drew it: an even number turns, an odd one goes straight; a turn draws again, even left
+and odd right (the thesis seeded with the time of day; here `junction_seed`, so runs repeat).
+The script belongs to the forward leg; a reverse leg goes straight on at every junction, back
+the way it came.
+
+A leg with a length ends when route following's distance reaches it: route_command goes idle
+(motors off, the thesis's motor-off stop) and the leg is done once the distance has stood still
+for `leg_rest_time`. A leg without one ends where the tape ends: route following reports
+no_track (no track in absent_frames frames, motors off). no_track before a leg's length is a
+lost tape; no_branch (the decision is not on the sign) and lost (a turn that did not finish)
+fail the task.
+"""
+
+from dataclasses import dataclass
+import random
+from typing import Any
+
+SCRIPT_JUNCTIONS = 4  # comms_status junction_1..junction_4
+
+
+@dataclass
+class LegOutcome:
+    """What a pass of a leg came to: running, done, or failed with a cause and a detail."""
+
+    state: str  # running | done | failed
+    cause: str = 'none'
+    detail: str = ''
+
+
+class TapeLegs:
+    """See the module docstring: the legs of one tape task after another."""
+
+    def __init__(self, seed: int, rest_time: float) -> None:
+        self.rng = random.Random(seed)
+        self.rest_time = rest_time
+        self.leg = 0  # the route_command leg counter (0 = none yet)
+        self.task: dict[str, Any] = {}
+        self.length_cm = 0  # 0 = to the tape's end
+        self.next_junction = 1
+        self.decision = ('straight', 0)
+        self.phase = ''  # driving | stopping
+        self._still: tuple[int, float] | None = None  # (distance, since) while stopping
+        self.log: list[str] = []
+
+    def start(self, task: dict[str, Any], reverse: bool, length_dm: int,
+              route: dict[str, Any]) -> dict[str, Any]:
+        """Begin a leg; return the route_command fields that start it."""
+        # The script is the forward leg's: the way back takes every junction straight on, as
+        # it came (a task's four script lines cannot name both ways).
+        self.task = {} if reverse else task
+        self.leg = (self.leg + 1) & 0xFF or 1
+        self.length_cm, self.next_junction, self.phase = length_dm * 10, 1, 'driving'
+        self._still = None
+        self.decision = self._decide(1)
+        return self._command(route, 'camera', 'reverse' if reverse else 'forward')
+
+    def _decide(self, n: int) -> tuple[str, int]:
+        if n <= SCRIPT_JUNCTIONS:
+            decision = self.task.get(f'junction_{n}', 'straight')
+            wait = self.task.get(f'wait_{n}', 0)
+        else:
+            decision, wait = self.task.get('unscripted', 'straight'), 0
+        if decision == 'random':
+            turn = self.rng.randrange(1 << 15) % 2 == 0
+            decision = ('left' if self.rng.randrange(1 << 15) % 2 == 0 else 'right') \
+                if turn else 'straight'
+            self.log.append(f'junction {n}: random choice {decision}')
+        return decision, int(wait)
+
+    def _command(self, route: dict[str, Any], mode: str, direction: str) -> dict[str, Any]:
+        return {**route, 'mode': mode, 'direction': direction, 'junction': self.decision[0],
+                'junction_number': self.next_junction, 'junction_wait': self.decision[1],
+                'leg': self.leg}
+
+    def update(self, status: dict[str, Any], route: dict[str, Any],
+               now: float) -> tuple[LegOutcome, dict[str, Any]]:
+        """Take route following's latest status; return the outcome and the route_command."""
+        if status.get('leg') != self.leg:
+            return LegOutcome('running'), route  # route following has not begun this leg yet
+        state, distance = status.get('state'), int(status.get('distance', 0))
+        if state == 'no_branch':
+            return LegOutcome('failed', 'no_branch', f'junction {status.get("junctions")}: '
+                              f'{self.decision[0]} is not on the sign'), route
+        if state == 'lost':
+            return LegOutcome('failed', 'lost_track', 'a junction turn did not finish'), route
+        if self.phase == 'driving':
+            met = int(status.get('junctions', 0))
+            if met >= self.next_junction:
+                self.log.append(f'junction {met} passed ({self.decision[0]})')
+                self.next_junction = met + 1
+                self.decision = self._decide(self.next_junction)
+                route = self._command(route, route['mode'], route['direction'])
+            if state == 'no_track':
+                if self.length_cm and distance < self.length_cm:
+                    return LegOutcome('failed', 'lost_track',
+                                      f'no track after {distance / 100:.2f} m of '
+                                      f'{self.length_cm / 100:.1f}'), route
+                self.phase = 'stopping'  # the tape's end: route following cut the motors
+            elif self.length_cm and distance >= self.length_cm:
+                self.phase = 'stopping'
+                route = {**route, 'mode': 'idle'}  # motor-off stop (Rajagopalan 1991, 7.3.4)
+            if self.phase == 'stopping':
+                self.log.append(f'leg {self.leg}: stopping after {distance / 100:.2f} m')
+        if self.phase == 'stopping':
+            if self._still is None or self._still[0] != distance:
+                self._still = (distance, now)
+            elif now - self._still[1] >= self.rest_time:
+                return LegOutcome('done'), route
+        return LegOutcome('running'), route

@@ -1,0 +1,246 @@
+"""Camera mode of route following: the CONCIC-II's legs along floor tape (Rajagopalan 1991).
+
+A leg begins when camera mode is entered or route_command carries a new `leg` value; its
+`direction` is read then (a change within a leg waits for the next one, so the truck is never
+thrown from cruise one way to cruise the other). A leg counts its road signs (`junctions`) and
+the axle centre's travel (`distance`, the sum of |travel| by wheel odometry, so a spin adds
+nothing and a reverse leg counts up), both from 0. Forwards the front camera leads, in reverse
+the rear one: camera_law.py steers by it (or by both cameras) and gives the wheel speeds.
+
+Each leading frame is analysed (camera_guidance.py), the law gives the caster angle and Eq.
+5.15/5.16 the wheel speeds (Rajagopalan 1991, 5.2); a saturated frame keeps the last command.
+absent_frames frames without track stop the vehicle, motor off, state no_track (4.3, App. F.5):
+so a leg ends at the end of its tape. It stays stopped until the next leg.
+
+Road signs (4.3, App. F.6-F.7). A sign is sighted when the track goes wide; the count goes up
+then, and the decision for it is taken from route_command there and then: `junction` when
+`junction_number` is 0 (the next junction) or the new count; any other number means the
+executive has not kept up, and the vehicle stops (motor off, state no_branch). A branch the
+sign does not offer also stops it with no_branch ("the vehicle stops with a message", App.
+F.7): a turn whose branch never showed by the sign's end, or a tape that ends inside the sign.
+Otherwise junction_turn.py takes the branch, holding the junction's `junction_wait` over the
+crossing (state waiting); a straight choice without a wait drives on. States while at a
+junction: sign (sighted, still on the tape), turning (the approach, spin and settle), waiting.
+Signs are met the same way in reverse, the rear camera reading them in the frame of travel: a
+reverse leg counts them and honours its decisions, left and right being those of travel.
+"""
+
+import math
+from typing import Any
+
+import numpy as np
+
+from agv_nodes.odometry import Odometer
+from agv_nodes.route_following.camera_guidance import Measurement, Validity
+from agv_nodes.route_following.camera_law import CameraLaw, View
+from agv_nodes.route_following.junction_turn import JunctionTurn
+from agv_nodes.route_following.settings import RouteParams
+from agv_nodes.subsystem import Notes
+
+STOPS = ('no_track', 'no_branch', 'lost')  # motor-off stops that hold until the next leg
+# The longest camera cycle the thesis ran was 200 ms, with track identification (Rajagopalan
+# 1991, 8.4.3): a leading camera silent for absent_frames such cycles is no track, as
+# absent_frames empty frames are (a reverse leg without a rear camera stops at once).
+LONGEST_CYCLE = 0.2  # s
+
+
+class CameraMode:
+    """See the module docstring; RouteCore delegates camera mode to it."""
+
+    def __init__(self, params: RouteParams, notes: Notes | None = None) -> None:
+        self.p = params
+        self.notes = notes or Notes()
+        self.law = CameraLaw(params)
+        self.turn = JunctionTurn(params)
+        self.odo = Odometer()  # each wheel's travel, from the encoders' counters
+        self.rims = (0.0, 0.0)  # m/s, from wheel odometry
+        self.speed = 0.0  # m/s of the axle centre, + = forwards
+        self.state = 'idle'
+        self.wheels = (0.0, 0.0)  # m/s asked of the rims
+        self.motor_on = False
+        self.steer = self.lateral = self.signal = 0.0
+        self.measurement: Measurement | None = None  # the leading camera's last frame
+        self.in_sign = False
+        self.sign = {'left': 0, 'right': 0, 'straight': 0}
+        self.leg, self.direction, self.junctions, self.travel = 0, 1, 0, 0.0
+        # route_command's latest (junction, junction_number, junction_wait)
+        self.decision: tuple[str, int, float] = ('straight', 0, 0.0)
+        self._taken: tuple[str, float] = ('straight', 0.0)  # (junction, wait) at this sign
+        self._manoeuvred = False  # this sign's manoeuvre has begun
+        self._set_off_at: float | None = None  # sim time the vehicle set off from rest
+        self._last_lead: float | None = None  # sim time of the last leading frame
+        self._rows = len(params.image.rows) or 64
+
+    # -- inputs -----------------------------------------------------------------------------
+    def command(self, fields: dict[str, Any], now: float, entering: bool) -> bool:
+        """Take a route_command in camera mode; return True when it began a leg."""
+        self.decision = (fields.get('junction', 'straight'),
+                         int(fields.get('junction_number', 0)),
+                         float(fields.get('junction_wait', 0)))
+        leg = int(fields.get('leg', 0))
+        if not entering and leg == self.leg:
+            return False
+        self.begin_leg(leg, -1 if fields.get('direction') == 'reverse' else 1, now)
+        return True
+
+    def begin_leg(self, leg: int, direction: int, now: float) -> None:
+        """Start a leg from where the vehicle is: counts from 0, the laws afresh."""
+        self.leg, self.direction, self.junctions, self.travel = leg, direction, 0, 0.0
+        self.state, self.turn.phase, self.motor_on = 'following', '', False
+        self.wheels, self.in_sign, self._set_off_at, self._last_lead = (0.0, 0.0), False, None, now
+        self.law.start(direction)
+        self.notes.add(now, f'leg {leg}: {"reverse" if direction < 0 else "forward"}, '
+                            f'{self.p.cameras} camera(s)')
+
+    def leave(self) -> None:
+        """Leave camera mode (idle, or the guide wire): motors off, any manoeuvre dropped."""
+        self.state, self.turn.phase, self.wheels, self.motor_on = 'idle', '', (0.0, 0.0), False
+
+    def odometry(self, fields: dict[str, Any]) -> None:
+        """Take a wheel_odometry record: wheel speeds, and the leg's distance."""
+        self.rims = (fields['left_speed'] / 1000.0, fields['right_speed'] / 1000.0)
+        self.speed = (self.rims[0] + self.rims[1]) / 2.0
+        before = self.odo.metres
+        self.travel += abs(self.odo.update(fields['left_distance'], fields['right_distance'])
+                           - before)
+
+    def frame(self, frame: np.ndarray, now: float, camera: str) -> None:
+        """Take a binary frame (1 = dark tape) from the front or the rear camera."""
+        if camera == self.law.lead_camera:
+            self._last_lead = now
+        for view in self.law.take(frame, now, camera):
+            self._view(view)
+
+    # -- steering ---------------------------------------------------------------------------
+    def _view(self, view: View) -> None:
+        m = self.measurement = view.lead
+        self.signal = m.rows_used / self._rows
+        if self.state in STOPS or self.turn.phase in ('wait', 'spin', 'settle'):
+            return  # stopped, or the window holds still or sweeps the floor: nothing to steer by
+        self._road_sign(m, view.time)
+        if self.state in STOPS:
+            return
+        self._junction(m, view)
+        speed = self.p.camera_speed
+        theta = self.law.steer(view, speed)
+        if theta is None:
+            if self.turn.phase == 'approach':
+                return  # past a crossing where the tape ends: odometry takes it there
+            self._stop('no_track', view.time)
+            return
+        self.motor_on, self.steer = True, theta
+        if m.validity is not Validity.ABSENT:
+            self.lateral = m.eps_d
+        if self.turn.phase == 'approach':
+            return  # the manoeuvre drives to the crossing with this steering angle
+        if self._set_off_at is None and abs(self.speed) < 0.01 \
+                and self.p.steering.set_off_acceleration > 0:
+            self._set_off_at = view.time
+        if self._set_off_at is not None:
+            # Setting off from rest: our own ramp, gentler than the drive's trapezoid, which
+            # accelerates both wheels alike and cannot steer while it ramps (from 40 deg off
+            # the tape the window loses it before the wheels reach cruise).
+            ramp = self.p.steering.set_off_acceleration * (view.time - self._set_off_at)
+            if ramp >= speed:
+                self._set_off_at = None
+            speed = min(speed, ramp)
+        self.wheels = self.law.wheel_speeds(speed, theta)
+
+    def _stop(self, state: str, now: float) -> None:
+        """Motor-off stop, held until the next leg."""
+        if self.state != state:
+            self.notes.add(now, f'leg {self.leg}: {state} after {self.travel:.2f} m, '
+                                f'{self.junctions} junction(s)', 'warn')
+        self.state, self.motor_on, self.wheels, self.turn.phase = state, False, (0.0, 0.0), ''
+
+    # -- junctions (Rajagopalan 1991, 4.3, App. F.6-F.7) ------------------------------------
+    def _road_sign(self, m: Measurement, now: float) -> None:
+        """Branch flags while the track is wide (4.3); the junction count and its decision."""
+        if m.validity is Validity.WIDE:
+            if not self.in_sign:
+                self._sighted(now)
+            self.sign['left'] |= int(m.left_edge)
+            self.sign['right'] |= int(m.right_edge)
+        elif self.in_sign and m.validity is Validity.NORMAL:
+            self.in_sign = False
+            if self.sign['left'] or self.sign['right']:
+                self.sign['straight'] = 1  # width back to normal after a turn signal
+            if self._taken[0] != 'straight' and not self.turn.phase:
+                self._stop('no_branch', now)  # the sign is behind us without the chosen branch
+        elif self.in_sign and m.validity is Validity.ABSENT and (
+                self._taken[0] == 'straight' or not self.turn.phase):
+            self._stop('no_branch', now)  # the tape ends at the sign, the chosen branch unseen
+
+    def _sighted(self, now: float) -> None:
+        self.in_sign, self._manoeuvred = True, False
+        self.sign = {'left': 0, 'right': 0, 'straight': 0}
+        self.junctions = min(self.junctions + 1, 255)
+        junction, number, wait = self.decision
+        self._taken = (junction, wait)
+        if number not in (0, self.junctions):
+            self.notes.add(now, f'junction {self.junctions}: the decision is for junction '
+                                f'{number}', 'warn')
+            self._stop('no_branch', now)
+
+    def _junction(self, m: Measurement, view: View) -> None:
+        """Begin the sign's manoeuvre once its branch shows; place the crossing from frames."""
+        way, wait = self._taken
+        if self.in_sign and not self._manoeuvred:
+            if way != 'straight':
+                side = way if (m.left_edge if way == 'left' else m.right_edge) else ''
+            else:  # straight on: a stop over the crossing only for a wait
+                side = ('left' if m.left_edge else 'right' if m.right_edge else '') \
+                    if wait > 0 else ''
+            if side:
+                self._manoeuvred, self.state = True, 'turning'
+                self.turn.begin(way, side, wait, self.direction, self.odo)
+        if self.turn.phase == 'approach':
+            analyser = self.law.analysers[self.law.lead_camera]
+            half = analyser.normal_width * analyser.mm_col / 2.0
+            self.turn.place_crossing(analyser.branch_edge(view.frame, self.turn.side), half,
+                                     self.odo)
+
+    # -- the loop ---------------------------------------------------------------------------
+    def tick(self, now: float) -> None:
+        """Run the junction manoeuvre at the loop rate; stop when the leading camera is silent."""
+        if self.state in STOPS or self.state == 'idle':
+            return
+        if not self.turn.phase:
+            silent = now - (self._last_lead if self._last_lead is not None else now)
+            if silent > self.p.steering.absent_frames * LONGEST_CYCLE:
+                self._stop('no_track', now)
+            return
+        result = self.turn.step(now, self.odo, self.rims, self.speed, self.steer, self.law)
+        self.wheels, self.motor_on = self.turn.wheels, True
+        if result == 'timeout':
+            self._stop('lost', now)
+        elif result == 'done':
+            if self.turn.way != 'straight':  # on the branch: follow it afresh
+                self.law.start(self.direction)
+                self.in_sign = False
+            self.state, self._set_off_at = 'following', now
+        else:
+            self.state = 'waiting' if self.turn.phase == 'wait' else 'turning'
+
+    # -- outputs ----------------------------------------------------------------------------
+    def reported_state(self) -> str:
+        """Return the state route_status carries: `sign` while on a sign's tape."""
+        if self.in_sign and self.state == 'following':
+            return 'sign'
+        return self.state
+
+    def status(self) -> dict[str, Any]:
+        """Return camera mode's route_status fields."""
+        return {
+            'state': self.reported_state(),
+            'lateral_error': int(max(-128, min(127, round(self.lateral * 1000)))),
+            'signal': int(max(0, min(255, round(self.signal * 100)))),
+            'steering': int(max(-128, min(127, round(math.degrees(self.steer))))),
+            'sign_left': self.sign['left'], 'sign_right': self.sign['right'],
+            'sign_straight': self.sign['straight'], **self.leg_fields(),
+        }
+
+    def leg_fields(self) -> dict[str, int]:
+        """Return route_status's leg fields: junctions met, distance (cm, saturating), leg."""
+        return {'junctions': self.junctions, 'distance': min(round(self.travel * 100), 0xFFFF),
+                'leg': self.leg}

@@ -1,0 +1,166 @@
+"""Tape tasks of the camera truck: the grammar, the itinerary and the legs' junction script."""
+
+import pytest
+
+from agv_nodes.communications.task_language import TaskError, parse_task
+from agv_nodes.executive.core import ExecutiveCore
+from agv_nodes.executive.itinerary import itinerary
+from agv_nodes.executive.settings import ExecutiveParams
+from agv_nodes.executive.tape_legs import TapeLegs
+
+pytestmark = pytest.mark.timeout(30)
+
+
+def test_a_script_with_waits_otherwise_and_a_reverse_leg() -> None:
+    task = parse_task('Tape junctions 1 left, 2 straight wait 3 s, 4 right otherwise random '
+                      'for 4.5 m then reverse for 1.5 m').record()
+    assert task['op'] == 'tape' and task['then'] == 'reverse'
+    assert [task[f'junction_{n}'] for n in range(1, 5)] == ['left', 'straight', 'random', 'right']
+    assert [task[f'wait_{n}'] for n in range(1, 5)] == [0, 3, 0, 0]
+    assert (task['unscripted'], task['leg_distance'], task['reverse_distance']) == \
+        ('random', 45, 15)
+
+
+def test_a_bare_tape_task_runs_to_the_tape_end_straight_through() -> None:
+    task = parse_task('tape').record()
+    assert (task['leg_distance'], task['then'], task['unscripted'], task['junction_1']) == \
+        (0, 'stay', 'straight', 'straight')
+    assert [s.kind for s in itinerary(task)] == ['tape']
+    assert [s.kind for s in itinerary(parse_task('tape junctions random then reverse').record())] \
+        == ['tape', 'tape_reverse']
+
+
+@pytest.mark.parametrize('text, column, reason', [
+    ('tape junctions 5 left', 16, 'junction number 5 outside 1..4'),
+    ('tape junctions 1 up', 18, "expected 'straight' or 'left' or 'right' or 'random', got 'up'"),
+    ('tape junctions 1 left, 1 right', 24, 'junction 1 scripted twice'),
+    ('tape junctions 1 left wait 16', 28, 'seconds 16 outside 0..15'),
+    ('tape for 30 m', 10, 'leg length 30 m outside 0.1..25.5'),
+    ('tape for 1.25 m', 10, 'expected leg length in m (e.g. 2.5), got'),
+    ('tape then continue', 11, "expected 'reverse', got 'continue'"),
+    ('tape junctions 1 left then reverse for 2 m now', 44, "unexpected 'now'"),
+])
+def test_bad_tape_tasks_name_the_column_and_reason(text: str, column: int, reason: str) -> None:
+    with pytest.raises(TaskError) as err:
+        parse_task(text)
+    assert err.value.column == column and err.value.reason.startswith(reason), err.value
+
+
+def status(leg: int, state: str = 'following', junctions: int = 0, distance: int = 0) -> dict:
+    return {'leg': leg, 'state': state, 'junctions': junctions, 'distance': distance}
+
+
+def test_each_junction_gets_its_scripted_decision_numbered_in_time() -> None:
+    legs = TapeLegs(seed=1, rest_time=0.3)
+    task = parse_task('tape junctions 1 left wait 2, 2 right otherwise straight').record()
+    route = legs.start(task, reverse=False, length_dm=0, route={'manoeuvre': 0})
+    assert (route['mode'], route['direction'], route['junction'], route['junction_number'],
+            route['junction_wait']) == ('camera', 'forward', 'left', 1, 2)
+    outcome, route = legs.update(status(legs.leg, 'turning', junctions=1), route, 1.0)
+    assert outcome.state == 'running'
+    assert (route['junction'], route['junction_number'], route['junction_wait']) == \
+        ('right', 2, 0)
+    outcome, route = legs.update(status(legs.leg, 'following', junctions=2), route, 2.0)
+    assert (route['junction'], route['junction_number']) == ('straight', 3)
+
+
+def test_a_status_of_the_previous_leg_is_not_taken_for_this_one() -> None:
+    legs = TapeLegs(seed=1, rest_time=0.3)
+    route = legs.start(parse_task('tape').record(), False, 0, {'manoeuvre': 0})
+    outcome, _ = legs.update(status(legs.leg - 1, 'no_track', distance=300), route, 1.0)
+    assert outcome.state == 'running' and legs.phase == 'driving'
+
+
+def test_random_choices_follow_the_thesis_draw_and_repeat_with_the_seed() -> None:
+    def draws(seed: int) -> list[str]:
+        legs = TapeLegs(seed=seed, rest_time=0.3)
+        route = legs.start(parse_task('tape junctions random').record(), False, 0, {})
+        out = [route['junction']]
+        for k in range(1, 40):
+            _, route = legs.update(status(legs.leg, junctions=k), route, float(k))
+            out.append(route['junction'])
+        return out
+
+    first = draws(7)
+    assert first == draws(7) and first != draws(8)
+    # even -> turn (then even/odd -> left/right), odd -> straight: about half go straight
+    assert 10 <= first.count('straight') <= 30 and 'left' in first and 'right' in first
+
+
+def test_a_leg_with_a_length_stops_at_it_and_is_done_at_rest() -> None:
+    legs = TapeLegs(seed=1, rest_time=0.3)
+    route = legs.start(parse_task('tape for 2.0 m').record(), False, 20, {})
+    outcome, route = legs.update(status(legs.leg, distance=150), route, 1.0)
+    assert outcome.state == 'running' and route['mode'] == 'camera'
+    outcome, route = legs.update(status(legs.leg, distance=200), route, 2.0)
+    assert route['mode'] == 'idle'  # motor-off stop
+    outcome, route = legs.update(status(legs.leg, 'idle', distance=202), route, 2.1)
+    outcome, route = legs.update(status(legs.leg, 'idle', distance=202), route, 2.3)
+    assert outcome.state == 'running'
+    outcome, route = legs.update(status(legs.leg, 'idle', distance=202), route, 2.45)
+    assert outcome.state == 'done'
+
+
+@pytest.mark.parametrize('length_dm, state, expected', [
+    (0, 'no_track', 'done'),  # the tape's end ends a leg without a length
+    (20, 'no_track', 'lost_track'),  # short of the length: the tape was lost
+    (0, 'no_branch', 'no_branch'),
+    (0, 'lost', 'lost_track'),
+])
+def test_how_a_leg_ends(length_dm: int, state: str, expected: str) -> None:
+    legs = TapeLegs(seed=1, rest_time=0.3)
+    route = legs.start(parse_task('tape').record(), False, length_dm, {})
+    outcome = None
+    for t in (1.0, 1.2, 1.4):
+        outcome, route = legs.update(status(legs.leg, state, distance=120), route, t)
+        if outcome.state != 'running':
+            break
+    assert outcome is not None
+    assert (outcome.state if outcome.state == 'done' else outcome.cause) == expected
+
+
+def executive(guidance: str) -> ExecutiveCore:
+    return ExecutiveCore(ExecutiveParams(guidance=guidance))
+
+
+def task_record(text: str, task_id: int = 1) -> dict:
+    task = parse_task(text)
+    task.task_id = task_id
+    return task.record()
+
+
+@pytest.mark.parametrize('guidance, text', [('wire', 'tape'), ('camera', 'stop at 2 first')])
+def test_a_task_for_the_other_truck_is_rejected(guidance: str, text: str) -> None:
+    ex = executive(guidance)
+    ex.on_record('comms_status', task_record(text), 0.0)
+    assert ex.report['state'] == 'rejected' and ex.report['cause'] == 'bad_task'
+    assert ex.mode == 'idle'
+
+
+def test_the_camera_truck_supervises_route_following_and_communications_only() -> None:
+    ex = executive('camera')
+    assert ex.route['mode'] == 'idle'
+    for t in (0.0, 0.05, 0.1):
+        ex.on_record('route_status', status(0, 'idle'), t)
+        ex.on_record('comms_status', task_record('tape'), t)
+    assert ex.mode == 'running' and ex.route['mode'] == 'camera'
+    for k in range(3, 40):  # two seconds without navigation, traction or load: no fault
+        t = k * 0.05
+        ex.on_record('route_status', status(ex.tape.leg), t)
+        ex.on_record('comms_status', task_record('tape'), t)
+        ex.tick(t)
+    assert ex.mode == 'running', ex.report
+    ex.tick(2.5)  # route following silent for 0.55 s
+    assert ex.mode == 'failed' and ex.report['cause'] == 'stale_status'
+    assert ex.report['subsystem'] == 'route' and ex.route['mode'] == 'idle'
+
+
+def test_the_reverse_leg_goes_straight_on_whatever_the_forward_script() -> None:
+    legs = TapeLegs(seed=1, rest_time=0.3)
+    task = parse_task('tape junctions 1 left, 2 right otherwise random then reverse').record()
+    assert legs.start(task, False, 0, {})['junction'] == 'left'
+    route = legs.start(task, True, 0, {})
+    assert (route['direction'], route['junction']) == ('reverse', 'straight')
+    for k in range(1, 6):
+        _, route = legs.update(status(legs.leg, junctions=k), route, float(k))
+        assert route['junction'] == 'straight'
