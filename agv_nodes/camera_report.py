@@ -23,7 +23,7 @@ from agv_nodes.world.settings import WorldParams
 # lateral error measures the following; turning, waiting and stopped phases would swamp it.
 STEERED = ('following', 'sign')
 # States in which route following switched the motors off: the cause of the stop that follows.
-HALTS = ('lost', 'no_track', 'no_branch')
+HALTS = ('lost', 'no_track', 'no_branch', 'drive_fault')
 JUNCTION_PHASES = ('turning', 'waiting')
 TASK_ENDS = (': completed', ': FAILED', ': rejected')
 FAILURE_WINDOW_S = 2.0  # a FAILED report this close to a stop is that stop's failure
@@ -176,12 +176,16 @@ def events(data: dict[str, Any], layout: Layout, track: Track,
                              for flag in ('left', 'right', 'straight')},
                           'where': where(layout, track, run['start'])})
         elif run['state'] in JUNCTION_PHASES:
-            before = [f for t, f in commands if t <= run['start']]
+            # The decision offered for this junction: the executive moves on to the next
+            # junction's as soon as route following counts this one.
+            n = max(f['junctions'] for f in run['records'])
+            mine = [f for t, f in commands if t <= run['end']
+                    and f.get('junction_number', 0) in (0, n)]
             junction.append({'kind': run['state'], 'time': run['start'],
                              'leg': leg_at(legs, run['start']),
                              'duration_s': run['end'] - run['start'],
-                             'junctions': max(f['junctions'] for f in run['records']),
-                             'decision': before[-1]['junction'] if before else None,
+                             'junctions': n,
+                             'decision': mine[-1]['junction'] if mine else None,
                              'where': where(layout, track, run['start'])})
     reports = data['strings'].get('report', [])
     tasks = [{'time': t, 'text': line} for t, line in reports

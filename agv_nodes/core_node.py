@@ -183,9 +183,16 @@ class CoreNode(Node):
         self.publish(self.core.tick(self.now_s()))
 
     def say(self, text: str, level: str) -> None:
-        """Log one of the core's notes."""
+        """Log one of the core's notes.
+
+        One call site per severity: rclpy keys a log call's settings on where it is made and
+        raises if one site logs at two severities.
+        """
         logger = self.get_logger()
-        (logger.warn if level == 'warn' else logger.info)(text)
+        if level == 'warn':
+            logger.warning(text)
+        else:
+            logger.info(text)
 
     def publish(self, outputs: dict[str, dict[str, Any]] | None) -> None:
         """Publish the records a core returned (and what it noted, in words)."""

@@ -9,7 +9,7 @@ the signs_1991 tape, legs through every road sign with scripted turns and a reve
 """
 
 import argparse
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 import json
 import os
 from pathlib import Path
@@ -43,8 +43,11 @@ def comms_handshake(spin_once: Callable[[], None], send: Callable[[str], None],
         spin_once()
 
 
-def silent_links(links: list[str], accepted: dict[str, dict[str, int]]) -> list[str]:
+def silent_links(links: list[str], accepted: dict[str, dict[str, int]],
+                 quiet: Iterable[str] = ()) -> list[str]:
     """Return the 'reader:record' links whose reader has accepted nothing yet (`accepted`).
+
+    Records in `quiet` carry nothing on this layout (Launch.silent_records) and are left out.
 
     `accepted` (node -> record -> count) is from the readers' `/diagnostics` inputs rows, which
     list only the records a node decodes; a node not heard from yet has every link silent.
@@ -52,7 +55,7 @@ def silent_links(links: list[str], accepted: dict[str, dict[str, int]]) -> list[
     silent = []
     for link in links:
         node, sep, record = link.partition(':')
-        if not sep or '>' in node or record == CLOCK_LINK:
+        if not sep or '>' in node or record == CLOCK_LINK or record in quiet:
             continue  # a writer's end ('node>record:N'), or /clock (not a record)
         row = accepted.get(node)
         if row is None or row.get(record, 1 if node == 'world' else 0) == 0:
@@ -150,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
         # (The CONCIC-II has no navigation; the same holds for its camera route following.)
         links = wait_links(launch.graph, recording=True)
         deadline = time.monotonic() + 60
-        while silent := silent_links(links, accepted):
+        while silent := silent_links(links, accepted, launch.silent_records):
             if launch.poll() or time.monotonic() > deadline:
                 raise RuntimeError(f'no record yet on {", ".join(silent)} (the readers\' '
                                    '/diagnostics inputs rows)')

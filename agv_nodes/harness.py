@@ -235,12 +235,16 @@ DEMO_PROGRAMME = (  # thesis 7.2 tasks 1-7 and fig 3.1 on demo_1983, in an order
     'stop at 2 second',  # task 5: the second stop marker
     'stop at 2 first then second',  # task 6: first, then advance to the second
 )
-# The CONCIC-II's programme on signs_1991 (Rajagopalan 1991, App. F.6-F.7): every road sign met,
-# scripted left and right turns, the R = 2.95 m curve, and a reverse leg led by the rear camera.
+# The CONCIC-II's programme on signs_1991 (Rajagopalan 1991, App. F.6-F.7; the layout's header
+# walks it): every road sign met, scripted left and right turns at crosses, T-junctions and
+# corners, a wait over a crossing, the R = 2.95 m curve, and a reverse leg led by the rear camera.
 CONCIC2_PROGRAMME = (
-    'tape junctions 1 left then reverse for 1.0 m',
+    'tape junctions 1 right then reverse for 5 m',  # R2 right, the bay's P21, back out
+    'tape junctions 1 left for 21 m',  # R2 left, P22, the curve, the P21 of north_c's T
+    'tape junctions 1 left, 2 right, 3 left, 4 left for 20 m',  # R2, P12, P11, R1: the chord
+    'tape junctions 1 straight wait 2, 2 right, 3 right, 4 left',  # R2, P22, P12, R1: the bay
 )
-CONCIC2_QUICK = CONCIC2_PROGRAMME[:1]
+CONCIC2_QUICK = CONCIC2_PROGRAMME[:1]  # a scripted turn and a reverse leg, ~43 s simulated
 
 
 def truck(layout_name: str = 'demo_1983', *, seed: int = 1,

@@ -145,12 +145,12 @@ class GraphProbe:
                         alive=lambda: not [n for n in self.launch.poll()
                                            if n not in self.expected_dead])
         # as agv-demo: every link has carried a record before the task goes
-        links = wait_links(self.launch.graph)
+        links, quiet = wait_links(self.launch.graph), self.launch.silent_records
         try:
-            self.spin_until(lambda: not silent_links(links, self.accepted()), 60,
+            self.spin_until(lambda: not silent_links(links, self.accepted(), quiet), 60,
                             'every link to carry a record')
         except AssertionError as exc:
-            silent = silent_links(links, self.accepted())
+            silent = silent_links(links, self.accepted(), self.launch.silent_records)
             raise AssertionError(f'silent: {silent}; {exc}') from None
         self.task_pub.publish(String(data=text))
         if cruise is not None:

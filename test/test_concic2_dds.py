@@ -1,4 +1,4 @@
-"""The 1991 camera truck as a graph over DDS: a scripted junction turn, a reverse leg, a kill.
+"""The 1991 camera truck over DDS: a scripted junction turn, a reverse leg, a kill, the demo.
 
 The layout's vehicle picks the graph (config/graph.yaml `trucks`): on a tape layout agv-launch
 starts the world, route following, executive and communications, each in its own process. A tape
@@ -11,10 +11,12 @@ while the truck drives must stop it: the world's 60 ms steering watchdog turns t
 
 from __future__ import annotations
 
+import json
 import signal
 
 from graph_probe import GraphProbe
 import pytest
+from test_graph_dds import node_warnings, run_demo
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
@@ -65,3 +67,19 @@ def test_killing_route_following_stops_the_camera_truck(tmp_path, fault_table) -
                         f'{moved * 1000:.0f} mm travelled, FAILED: stale status (route)')
     finally:
         g.close()
+
+
+@pytest.mark.timeout(600)
+def test_quick_camera_demo_runs_a_scripted_turn_and_a_reverse_leg(tmp_path) -> None:
+    """`agv-demo --truck concic2 --quick`, the CI variant: bag, report, every task completed."""
+    res = run_demo(tmp_path, '--truck', 'concic2', '--quick', timeout=480)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:] + node_warnings(tmp_path)
+    summary = json.loads((tmp_path / 'demo.json').read_text())
+    assert summary['truck'] == 'concic2' and summary['processes'] == 5  # with the recorder
+    assert [t['result'] for t in summary['tasks']] == ['completed'] * len(summary['tasks'])
+    report = json.loads((tmp_path / 'report' / 'report.json').read_text())
+    directions = [leg['direction'] for leg in report['legs']]
+    assert 'forward' in directions and 'reverse' in directions, report['legs']
+    assert report['signs'] and any(j['kind'] == 'turning' for j in report['junction_phases'])
+    for png in ('camera_path.png', 'camera_timeline.png'):
+        assert (tmp_path / 'report' / png).stat().st_size > 1000  # a real PNG, drawn

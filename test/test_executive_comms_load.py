@@ -338,8 +338,8 @@ def test_demonstration_programme_completes_in_lock_step():
     moved = [e['marker'] for e in h.events if e['event'] == 'load_moved']
     assert moved == ['W0.1', 'W2.1', 'W1.1', 'W3.1']  # tasks 1, 2 and the fig 3.1 transfer
     world = h.world
-    assert world.station_loads == {'W0': 0, 'W1': 0, 'W2': 1, 'W3': 1}
-    assert world.loads == [False, False]
+    assert world.conveyors.station_loads == {'W0': 0, 'W1': 0, 'W2': 1, 'W3': 1}
+    assert world.conveyors.loads == [False, False]
     reports = ' '.join(comms.notes.texts())
     assert reports.index("task 1 'load at 0") < reports.index("task 6 'load A at 1")
     assert h.cores['executive'].mode == 'idle' and world.vehicle.state.speed == 0.0

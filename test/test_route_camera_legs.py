@@ -18,8 +18,11 @@ from agv_nodes.route_following.core import RouteCore
 from agv_nodes.route_following.settings import ImageParams, RouteParams
 from agv_nodes.world.core import WorldCore
 from agv_nodes.world.layout import Layout, layout_path, load_layout
-from agv_nodes.world.settings import WorldParams
+from agv_nodes.world.settings import Concic2Params, WorldParams
 
+# Camera-mode runs here time and place the truck as the kinematic CONCIC-II drives (the default
+# is the dynamic model): pinned, not given looser tolerances.
+KINEMATIC = Concic2Params(model='kinematic')
 L_C = 0.64  # m, camera window centre from the axle (the world's CONCIC-II)
 
 
@@ -65,7 +68,8 @@ class Truth:
 
 
 def truck(layout: Layout, cameras: str = 'lead', rear: bool = False, seed: int = 3, **command):
-    world = WorldCore(layout, WorldParams(seed=seed, rear_camera=rear))
+    # The branch reached and the distance along it in a set time: the kinematic model's pace.
+    world = WorldCore(layout, WorldParams(seed=seed, rear_camera=rear, concic2=KINEMATIC))
     script = LegExec(**command)
     route = RouteCore(RouteParams(vehicle='concic2', cameras=cameras))
     return world, script, route, Harness(world, [script, route], seed=seed)

@@ -164,3 +164,23 @@ def test_the_reverse_leg_goes_straight_on_whatever_the_forward_script() -> None:
     for k in range(1, 6):
         _, route = legs.update(status(legs.leg, junctions=k), route, float(k))
         assert route['junction'] == 'straight'
+
+
+@pytest.mark.timeout(120)
+def test_a_decision_the_sign_lacks_fails_the_task_and_stops_the_truck() -> None:
+    """tape_1991's second junction is a P22 (right and straight): a scripted left is not there."""
+    from agv_nodes.harness import submit, truck
+
+    h = truck('tape_1991', overrides={'world': {'concic2.model': 'kinematic'}})
+    ex, comms = h.cores['executive'], h.cores['communications']
+    h.run(0.5)
+    submit(h, 'tape junctions 1 straight, 2 left')
+    assert h.run(40.0, until=lambda: ex.mode == 'failed')
+    assert (ex.report['cause'], ex.report['subsystem']) == ('no_branch', 'route')
+    h.run(2.0)
+    assert abs(h.world.vehicle.state.speed) < 1e-3 and not h.world.vehicle.enable
+    assert comms.results[-1][1:] == ('failed', 'no_branch')
+    # Stopped just past the P22 (9 m along the tape, the truck set off 0.5 m along): the window,
+    # 0.64 m ahead of the axle, saw the sign end without the left branch, within a metre.
+    window_at = 0.5 + h.world.vehicle.state.distance + 0.64
+    assert 9.0 < window_at < 10.0, window_at

@@ -341,11 +341,11 @@ def test_conveyor_transfer_only_when_aligned_and_commanded(drive_codec):
     lay = layout('straight_track')
     world = _at_stop_marker(lay, 0.02)
     _command_conveyors(world, 5.0)
-    assert world.loads[0] and world.station_loads['S0'] == 0
+    assert world.conveyors.loads[0] and world.conveyors.station_loads['S0'] == 0
     # Not aligned: 0.3 m off, nothing moves.
     world2 = _at_stop_marker(lay, 0.3)
     _command_conveyors(world2, 5.0)
-    assert not world2.loads[0] and world2.station_loads['S0'] == 1
+    assert not world2.conveyors.loads[0] and world2.conveyors.station_loads['S0'] == 1
 
 
 def test_conveyors_stop_when_their_commands_stop(drive_codec):
@@ -353,18 +353,19 @@ def test_conveyors_stop_when_their_commands_stop(drive_codec):
     world = _at_stop_marker(layout('straight_track'), 0.02)
     _command_conveyors(world, 1.0)  # a 3.2 s transfer, a third done
     world.on_record('conveyor_command', LOAD_FIRST, world.time)  # the last command
-    started = world.transfer
+    started = world.conveyors.transfer
     assert 0.25 < started < 0.4
     for _ in range(round(340 * world.p.conveyor_timeout) + 1):
         world.step()  # within the timeout the last command still runs them
-    held = world.transfer
+    held = world.conveyors.transfer
     assert held - started == pytest.approx(world.p.conveyor_timeout * world.p.conveyor_speed
                                            / world.p.transfer_length, abs=0.002)
     for _ in range(340 * 5):
         world.step()
-    assert world.transfer == held and not world.loads[0] and world.station_loads['S0'] == 1
+    c = world.conveyors
+    assert c.transfer == held and not c.loads[0] and c.station_loads['S0'] == 1
     _command_conveyors(world, 3.0)  # commands again: the transfer completes
-    assert world.loads[0]
+    assert world.conveyors.loads[0]
 
 
 # -- camera ----------------------------------------------------------------------------------

@@ -72,6 +72,8 @@ class CommunicationsCore(SubsystemCore):
             line += f': {fields["cause"].replace("_", " ")}'
             if fields['subsystem'] != 'none':
                 line += f' ({fields["subsystem"]})'
+            if fields.get('detail', 'none') != 'none':  # which drive fault
+                line += f': {fields["detail"].replace("_", " ")}'
         if fields['location'] != 0xFF:
             line += f' [last marker L{fields["location"]}]'
         self.notes.add(now, line)

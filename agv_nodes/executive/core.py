@@ -379,5 +379,6 @@ class ExecutiveCore(FaultSupervision, SubsystemCore):
             'comms_command': {'task_id': self.task_id, 'state': self.report['state'],
                               'step': self.index if self.mode == 'running' else 0,
                               'cause': self.report['cause'], 'subsystem': self.report['subsystem'],
+                              'detail': self.report.get('detail', 'none'),
                               'location': self.last_marker if self.last_marker <= 31 else 0xFF},
         }

@@ -59,6 +59,9 @@ class FaultSupervision:
         if nav.get('sensor_lost'):
             return self._fail(now, 'sensor_lost', 'navigation', 'marker sensor lost')
         route = self.status.get('route') or {}
+        fault = route.get('drive_fault', 'none')
+        if fault != 'none':  # the CONCIC-II's safety supervisor (Rajagopalan 1991, 6.3.11)
+            return self._fail(now, 'drive_fault', 'route', fault.replace('_', ' '), fault)
         if route.get('state') == 'lost':
             if self.camera:
                 return self._fail(now, 'lost_track', 'route', 'tape lost')
@@ -78,11 +81,14 @@ class FaultSupervision:
                               f'no stop marker within {self.positioning_distance:.1f} m')
         return None
 
-    def _fail(self, now: float, cause: str, subsystem: str, detail: str) -> None:
+    def _fail(self, now: float, cause: str, subsystem: str, detail: str,
+              drive_fault: str = 'none') -> None:
+        """Stop and fail the task; `drive_fault` is comms_command's detail (cause drive_fault)."""
         self._stop_everything()
         self.mode = 'failed'
         self.fault = (cause, subsystem)
-        self.report = {'state': 'failed', 'cause': cause, 'subsystem': subsystem}
+        self.report = {'state': 'failed', 'cause': cause, 'subsystem': subsystem,
+                       'detail': drive_fault}
         self._log(now, f'task {self.task_id}: FAILED {cause} ({subsystem}): {detail}')
 
     def _stop_everything(self) -> None:

@@ -127,6 +127,22 @@ def truck_graph(graph: Graph, options: Options) -> Graph:
     return graph.for_truck(vehicle)
 
 
+def silent_records(graph: Graph, options: Options) -> set[str]:
+    """Return the records whose links match but carry nothing here (no wire on taped floor).
+
+    The world writes `guide_wire` only from wires, and the CONCIC-II's route following (camera
+    guidance) does not read it; a start-up check that waits for every link to carry a record
+    leaves these out.
+    """
+    name = layout_name(graph, options)
+    try:
+        layout = load_layout(layout_path(name))
+    except (LayoutError, FileNotFoundError) as exc:
+        raise GraphError(f'layout {name!r}: {exc}') from None
+    wires = any(path.width == 0.0 for path in layout.paths.values())
+    return set() if wires else {'guide_wire'}
+
+
 def from_layout(graph: Graph, options: Options) -> dict[str, dict[str, object]]:
     """Return what the layout sets in the nodes (layout_parameters, as the harness applies it)."""
     name = layout_name(graph, options)
@@ -153,6 +169,7 @@ def node_parameters(graph: Graph, spec: NodeSpec, options: Options,
                            fault_corrupt=fault.get('corrupt', 0.0),
                            fault_seed=int(fault.get('seed', 1)))
     if spec.role == 'world':
+        out.update(from_layout(graph, options).get('world', {}))  # e.g. the rear camera
         paced = paced_nodes(graph, options)
         out.update(time_factor=float(options.time_factor), publish_clock=options.use_sim_time,
                    wait_for_links=wait_links(graph, options.bag is not None, paced),

@@ -32,6 +32,7 @@ from agv_nodes.graph.parameters import (
     check_realtime,
     override_parameters,
     realtime_priority,
+    silent_records,
     truck_graph,
 )
 
@@ -88,6 +89,7 @@ class Launch:
     def __init__(self, options: Options) -> None:
         self.o = options
         self.graph = truck_graph(load_graph(options.graph), options)
+        self.silent_records = silent_records(self.graph, options)
         check_realtime(options)
         self.params = Path(options.params) if options.params else self.graph.parameters
         if not self.params.is_file():

@@ -37,7 +37,8 @@ from agv_nodes.route_following.junction_turn import JunctionTurn
 from agv_nodes.route_following.settings import RouteParams
 from agv_nodes.subsystem import Notes
 
-STOPS = ('no_track', 'no_branch', 'lost')  # motor-off stops that hold until the next leg
+# motor-off stops that hold until the next leg (drive_fault: the safety supervisor's, 6.3.11)
+STOPS = ('no_track', 'no_branch', 'lost', 'drive_fault')
 # The longest camera cycle the thesis ran was 200 ms, with track identification (Rajagopalan
 # 1991, 8.4.3): a leading camera silent for absent_frames such cycles is no track, as
 # absent_frames empty frames are (a reverse leg without a rear camera stops at once).
@@ -89,6 +90,7 @@ class CameraMode:
         self.state, self.turn.phase, self.motor_on = 'following', '', False
         self.wheels, self.in_sign, self._set_off_at, self._last_lead = (0.0, 0.0), False, None, now
         self.law.start(direction)
+        self.turn.trace.reset(self.odo, direction)
         self.notes.add(now, f'leg {leg}: {"reverse" if direction < 0 else "forward"}, '
                             f'{self.p.cameras} camera(s)')
 
@@ -131,8 +133,11 @@ class CameraMode:
         self.motor_on, self.steer = True, theta
         if m.validity is not Validity.ABSENT:
             self.lateral = m.eps_d
+        if m.validity is Validity.NORMAL and not (self.in_sign or self.turn.phase
+                                                  or m.left_edge or m.right_edge):
+            self.turn.trace.saw(m.eps_d, self.odo)  # the plain tape's line, for the approach
         if self.turn.phase == 'approach':
-            return  # the manoeuvre drives to the crossing with this steering angle
+            return  # the manoeuvre drives to the crossing (approach_steer: how it steers)
         if self._set_off_at is None and abs(self.speed) < 0.01 \
                 and self.p.steering.set_off_acceleration > 0:
             self._set_off_at = view.time
@@ -145,6 +150,10 @@ class CameraMode:
                 self._set_off_at = None
             speed = min(speed, ramp)
         self.wheels = self.law.wheel_speeds(speed, theta)
+
+    def drive_fault(self, now: float) -> None:
+        """Stop for a drive fault the safety supervisor found (Rajagopalan 1991, 6.3.11)."""
+        self._stop('drive_fault', now)
 
     def _stop(self, state: str, now: float) -> None:
         """Motor-off stop, held until the next leg."""
@@ -217,6 +226,7 @@ class CameraMode:
         elif result == 'done':
             if self.turn.way != 'straight':  # on the branch: follow it afresh
                 self.law.start(self.direction)
+                self.turn.trace.reset(self.odo, self.direction)
                 self.in_sign = False
             self.state, self._set_off_at = 'following', now
         else:

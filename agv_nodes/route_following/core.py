@@ -11,6 +11,8 @@ Camera (Rajagopalan 1991, mode camera, the differential-drive CONCIC-II): legs a
 forwards or backwards, steered by the leading camera or both, with road signs and junction turns;
 RouteCore hands route_command's camera fields, wheel odometry, frames and its loop to CameraMode
 (agv_nodes.route_following.camera_mode), which says what the wheels do and what status reports.
+DriveSafety (drive_safety.py) checks the drive (Rajagopalan 1991, 6.3.11): on a fault camera
+mode stops, motor off, and route_status names it (`drive_fault`).
 """
 
 import math
@@ -19,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from agv_nodes.route_following.camera_mode import CameraMode
+from agv_nodes.route_following.drive_safety import DriveSafety
 from agv_nodes.route_following.settings import RouteParams
 from agv_nodes.subsystem import SubsystemCore
 
@@ -70,6 +73,7 @@ class RouteCore(SubsystemCore):
         self._following_heading = 0.0  # heading error relative to the wire, while following
         self._next_status, self._last_state = 0.0, ''
         self.cam = CameraMode(self.p, self.notes)
+        self.safety = DriveSafety(self.p.drive_safety)
 
     @property
     def state(self) -> str:
@@ -97,7 +101,7 @@ class RouteCore(SubsystemCore):
 
     # -- inputs -----------------------------------------------------------------------------
     def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
-        """route_command, guide_wire or wheel_odometry."""
+        """route_command, guide_wire, wheel_odometry or drive_status."""
         if record == 'route_command':
             return self._command(fields, now)
         if record == 'guide_wire':
@@ -107,11 +111,16 @@ class RouteCore(SubsystemCore):
             self.speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
             self._rim_speeds = (fields['left_speed'] / 1000.0, fields['right_speed'] / 1000.0)
             self.cam.odometry(fields)
+            self.safety.odometry(fields, self.wheels, self.motor_on and self.mode == 'camera', now)
+        elif record == 'drive_status':
+            self.safety.drive_status(fields)
         return None
 
     def _command(self, fields: dict[str, Any], now: float) -> dict | None:
         mode = fields['mode']
         began = mode == 'camera' and self.cam.command(fields, now, self.mode != 'camera')
+        if began or mode != 'camera':  # a new leg, or out of camera mode: the software reloaded
+            self.safety.clear()
         new_srm = mode == 'srm' and fields['manoeuvre'] != self.manoeuvre
         self.manoeuvre = fields['manoeuvre']
         if new_srm:
@@ -239,6 +248,8 @@ class RouteCore(SubsystemCore):
         return self._outputs(now)
 
     def _outputs(self, now: float, force_status: bool = False) -> dict:
+        if self.mode == 'camera' and self.safety.fault != 'none':
+            self.cam.drive_fault(now)
         out: dict[str, dict[str, Any]] = {'steering_command': self.steering_command()}
         state = self.cam.reported_state() if self.mode == 'camera' else self.state
         if force_status or now >= self._next_status or state != self._last_state:
@@ -250,7 +261,10 @@ class RouteCore(SubsystemCore):
     def steering_command(self) -> dict[str, Any]:
         """Return the steering_command record for the configured vehicle."""
         if self.p.vehicle == 'concic2':
-            left, right = self.wheels
+            # Within the DAC's full-speed level, or the safety PAL trips on over-voltage
+            # (Rajagopalan 1991, 6.3.11); each wheel on its own, as the drive's limit did before.
+            top = self.p.drive_safety.full_speed
+            left, right = (max(-top, min(top, v)) for v in self.wheels)
             return {'mode': 'wheel_speeds', 'enable': int(self.motor_on and self.mode == 'camera'),
                     'angle': 0, 'left_speed': int(round(left * 1000)),
                     'right_speed': int(round(right * 1000))}
@@ -262,12 +276,13 @@ class RouteCore(SubsystemCore):
     def status(self) -> dict[str, Any]:
         """Return the route_status record."""
         if self.mode == 'camera':
-            return {**self.cam.status(), 'manoeuvre': self.manoeuvre}
+            return {**self.cam.status(), 'manoeuvre': self.manoeuvre,
+                    'drive_fault': self.safety.fault}
         return {
             'state': self.state,
             'lateral_error': int(max(-128, min(127, round(self.lateral * 1000)))),
             'signal': int(max(0, min(255, round(self.signal * 100)))),
             'steering': int(max(-128, min(127, round(math.degrees(self.steer))))),
             'sign_left': 0, 'sign_right': 0, 'sign_straight': 0, 'manoeuvre': self.manoeuvre,
-            **self.cam.leg_fields(),
+            **self.cam.leg_fields(), 'drive_fault': self.safety.fault,
         }

@@ -40,5 +40,10 @@ class DualCameraParams:
 
 
 @settings_class
+class DriveSafetyParams:
+    """The software checks of the safety supervisor (Rajagopalan 1991, 6.3.11; drive_safety.py)."""
+
+
+@settings_class
 class RouteParams:
     """All route-following settings."""

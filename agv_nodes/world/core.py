@@ -3,6 +3,7 @@
 Stepped once per marker-sensor sample (340 Hz by default, Baker 1983, 5.3.5.2). Inputs are the
 hardware-side records (traction_drive, steering_command, conveyor_command) and the radio stop;
 outputs are the hardware-side records due at this step, camera frames, and ground-truth events.
+The CONCIC-II's amplifiers are powered by its safety PAL (agv_nodes/world/safety_pal.py).
 Everything is seeded: the same seed and inputs give the same samples.
 """
 
@@ -17,9 +18,11 @@ import numpy as np
 from agv_nodes.markers import SNAPSHOT_FIELDS
 from agv_nodes.world.camera import BinaryCamera
 from agv_nodes.world.concic2_dynamics import Concic2Dynamic
+from agv_nodes.world.conveyors import Conveyors
 from agv_nodes.world.guide_wire import GuideWirePickup
 from agv_nodes.world.layout import Layout, Marker
 from agv_nodes.world.marker_sensor import MarkerSensorModel, axis_on_card, lens_position
+from agv_nodes.world.safety_pal import SafetyPal, encoder_reading
 from agv_nodes.world.settings import WorldParams
 from agv_nodes.world.vehicles import Concic2, Electruk
 
@@ -62,17 +65,14 @@ class WorldCore:
         self._odo_every = _Every(self.p.odometry_rate, self.p.sample_rate)
         self._conv_every = _Every(self.p.conveyor_rate, self.p.sample_rate)
         self._cam_every = _Every(self.p.camera_rate, self.p.sample_rate)
+        self._drive_every = _Every(self.p.drive_status_rate, self.p.sample_rate)
+        self.pal = SafetyPal(self.p.concic2) if isinstance(self.vehicle, Concic2) else None
         self.radio_stop = False
         self.wire_powered = True  # the guide-wire generator (a fault test switches it off)
         self._last_watchdog: int | None = None
         self._watchdog_time = -1e9
-        self._conveyor_time = -1e9
         self._steer_time = -1e9
-        self.conveyor_command: dict[str, Any] = {'first': 'off', 'second': 'off',
-                                                 'station_request': 0}
-        self.loads = [name in self.p.start_loaded for name in ('first', 'second')]
-        self.station_loads = {sid: int(st.has_load) for sid, st in layout.stations.items()}
-        self.transfer = 0.0  # fraction of the transfer in progress
+        self.conveyors = Conveyors(layout, self.p)
         # records published, whole counts (the records carry the low byte)
         self.counters = {'guide_wire': 0, 'wheel_odometry': 0}
         self._odo_dist = [0.0, 0.0]  # m per driven wheel
@@ -122,6 +122,8 @@ class WorldCore:
                                    bool(fields['field_enable']), bool(fields['contactor']))
         elif record == 'steering_command':
             self._steer_time = now
+            if self.pal is not None:
+                self.pal.command(fields, now)
             if isinstance(self.vehicle, Electruk):
                 self.vehicle.steer_demand = fields['angle'] / 1000.0
                 self.vehicle.steer_enable = bool(fields['enable'])
@@ -131,8 +133,12 @@ class WorldCore:
             else:
                 self.vehicle.set_wheels(0.0, 0.0, False)
         elif record == 'conveyor_command':
-            self.conveyor_command = dict(fields)
-            self._conveyor_time = now
+            self.conveyors.on_command(fields, now)
+
+    def hardware_reset(self) -> None:
+        """Press the CONCIC-II's reset: the safety PAL's latches clear, its tests run again."""
+        if self.pal is not None:
+            self.pal.hardware_reset(self.time)
 
     def set_radio_stop(self, on: bool) -> None:
         """Set the radio-control stop input (hw/radio_stop): no drive torque while set."""
@@ -155,9 +161,14 @@ class WorldCore:
             records['guide_wire'] = self._guide_wire()
         if self._odo_every.due(self.sample):
             records['wheel_odometry'] = self._odometry()
-        self._conveyors()
+        if self.pal is not None and self._drive_every.due(self.sample):
+            records['drive_status'] = self.pal.record()
+        at_rest = abs(self.vehicle.state.speed) <= 0.01
+        moved = self.conveyors.step(self.time, self.dt, at_rest, self.lens_pose)
+        if moved is not None:
+            self._event('load_moved', marker=moved)
         if self._conv_every.due(self.sample):
-            records['conveyor_status'] = self._conveyor_status()
+            records['conveyor_status'] = self.conveyors.status(at_rest, self.lens_pose)
         frames = {}
         if self.camera is not None and self._cam_every.due(self.sample):
             frames = self._frames()
@@ -174,10 +185,13 @@ class WorldCore:
             v.relay_closed = self.time - self._watchdog_time <= self.p.drive_watchdog
             if self.time - self._steer_time > self.p.steering_timeout:
                 v.steer_enable = False
-        elif self.time - self._steer_time > self.p.concic2.watchdog:
-            # The safety supervisor's computer watchdog cuts the amplifiers: the wheels coast
-            # down together, as after a motor-off command (Rajagopalan 1991, 6.3.11).
-            v.enable = False
+        elif self.pal is not None:
+            # The safety PAL powers the amplifiers only in its ready state: a fault (its
+            # watchdog among them) cuts them and the wheels coast down together, as after a
+            # motor-off command (Rajagopalan 1991, 6.3.11).
+            self.pal.step(self.time)
+            if not self.pal.powered:
+                v.enable = False
 
     # -- sensors --------------------------------------------------------------------------
     def lens_pose(self) -> tuple[tuple[float, float], float]:
@@ -214,6 +228,8 @@ class WorldCore:
 
     def _odometry(self) -> dict[str, int]:
         left, right = self.vehicle.wheel_speeds()
+        if self.pal is not None:  # an injected encoder fault: that wheel's count stands still
+            left, right = encoder_reading(self.p.concic2.encoder_fault, left, right)
         self.counters['wheel_odometry'] += 1
         period = self.time - self._odo_time
         self._odo_time = self.time
@@ -237,63 +253,6 @@ class WorldCore:
             heading = s.heading if sign > 0 else s.heading + math.pi
             frames[name] = self.camera.render(cx, cy, heading)
         return frames
-
-    # -- conveyors ------------------------------------------------------------------------
-    def _aligned(self) -> tuple[Marker, int] | None:
-        """Return the stop marker (and truck conveyor index) the truck is aligned with, if any."""
-        if abs(self.vehicle.state.speed) > 0.01:
-            return None
-        lens, heading = self.lens_pose()
-        fx, fy = math.cos(heading), math.sin(heading)
-        for m in self.layout.markers:
-            if m.kind != 'stop' or not m.station:
-                continue
-            dx, dy = lens[0] - m.centre[0], lens[1] - m.centre[1]
-            along = dx * fx + dy * fy
-            across = abs(-dx * fy + dy * fx) - m.standoff
-            if abs(along) <= self.p.align_tolerance and abs(across) < 0.1:
-                return m, m.identity
-        return None
-
-    def _conveyors(self) -> None:
-        cmd = self.conveyor_command
-        aligned = self._aligned()
-        if self.time - self._conveyor_time > self.p.conveyor_timeout:
-            return  # the conveyor drives' own watchdog: no fresh command, no motion
-        if aligned is None or not cmd.get('station_request'):
-            return
-        marker, j = aligned
-        action = cmd['first' if j == 0 else 'second']
-        station = self.layout.stations[marker.station]
-        if action == 'load' and self.station_loads[station.id] > 0 and not self.loads[j]:
-            pass
-        elif action == 'unload' and self.loads[j] and \
-                self.station_loads[station.id] < station.capacity:
-            pass
-        else:
-            return
-        self.transfer += self.p.conveyor_speed * self.dt / self.p.transfer_length
-        if self.transfer >= 1.0:
-            self.transfer = 0.0
-            if action == 'load':
-                self.station_loads[station.id] -= 1
-                self.loads[j] = True
-            else:
-                self.station_loads[station.id] += 1
-                self.loads[j] = False
-            self._event('load_moved', marker=marker)
-
-    def _conveyor_status(self) -> dict[str, int]:
-        aligned = self._aligned()
-        fields = {'load_first': int(self.loads[0]), 'load_second': int(self.loads[1]),
-                  'station_aligned': 0, 'station_load': 0, 'station_full': 0,
-                  'transfer': int(min(self.transfer, 1.0) * 100)}
-        if aligned is not None:
-            station = self.layout.stations[aligned[0].station]
-            fields['station_aligned'] = 1
-            fields['station_load'] = int(self.station_loads[station.id] > 0)
-            fields['station_full'] = int(self.station_loads[station.id] >= station.capacity)
-        return fields
 
     # -- ground truth -----------------------------------------------------------------------
     def _cards_near(self, lens: tuple[float, float]) -> None:

@@ -11,6 +11,11 @@ The world is the clock: it does not run on a ROS timer (a sim-time timer cannot 
 (0 = as fast as the graph keeps up: it waits for any node whose sim/progress lags,
 agv_nodes/world/pacing.py). It moves once every link named in `wait_for_links` has matched at
 both ends (agv_nodes/world/peers.py), then writes `ready_file` (when one is named).
+
+Faults switched at run time: `sensor.ambient`, `wire_powered` and the CONCIC-II's `concic2.estop`,
+`concic2.controller_fault`, `concic2.encoder_fault`, `concic2.battery_voltage`; the service
+`~/hardware_reset` (std_srvs/Trigger) presses the CONCIC-II's reset, which clears the safety
+PAL's latches (Rajagopalan 1991, 6.3.11).
 """
 
 from __future__ import annotations
@@ -42,6 +47,7 @@ from agv_nodes.ros_ports import (
     RecordSubscription,
     clock_time_ns,
 )
+from agv_nodes.settings import SettingError, convert, parameters
 from agv_nodes.world.core import WorldCore
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
 from agv_nodes.world.layout_check import enforce
@@ -107,7 +113,7 @@ class WorldNode(Node):
         self.create_publisher(PathMsg, 'world/route', qos.LATCHED).publish(route)
         self.create_publisher(MarkerArray, 'world/markers', qos.LATCHED).publish(markers)
         self.add_on_set_parameters_callback(self._set_at_run_time)
-        for name in ('pause', 'resume', 'step'):
+        for name in ('pause', 'resume', 'step', 'hardware_reset'):
             self.create_service(Trigger, f'~/{name}', getattr(self, f'_service_{name}'))
         self._step_requests = 0
         self._work = 0
@@ -141,12 +147,23 @@ class WorldNode(Node):
         return on_progress
 
     def _set_at_run_time(self, params: list) -> SetParametersResult:
-        """Faults switched while the world runs: ambient light and the wire generator."""
+        """Faults switched while the world runs: light, the wire generator, the CONCIC-II's."""
+        concic2 = {p.name: p for p in parameters(WorldParams)
+                   if p.name.startswith('concic2.') and not p.spec.read_only}
+        for param in params:
+            if param.name in concic2:  # choices and ranges checked before any is applied
+                try:
+                    convert(concic2[param.name], param.value)
+                except SettingError as exc:
+                    return SetParametersResult(successful=False, reason=str(exc))
         for param in params:
             if param.name == 'sensor.ambient':
                 self.core.sensor.p.ambient = float(param.value)
             elif param.name == 'wire_powered':
                 self.core.wire_powered = bool(param.value)
+            elif param.name in concic2:
+                setattr(self.core.p.concic2, param.name.split('.', 1)[1],
+                        convert(concic2[param.name], param.value))
         return SetParametersResult(successful=True)
 
     def _radio_stop(self, msg: Bool) -> None:
@@ -163,6 +180,14 @@ class WorldNode(Node):
         self._work += 1
         self.paused = False
         res.success, res.message = True, f'resumed at {self.core.time:.3f} s'
+        return res
+
+    def _service_hardware_reset(self, _req: Any, res: Any) -> Any:
+        self._work += 1
+        self.core.hardware_reset()
+        res.success = self.core.pal is not None
+        res.message = (f'hardware reset at {self.core.time:.3f} s' if res.success
+                       else 'no safety PAL on this vehicle (the CONCIC-II has one)')
         return res
 
     def _service_step(self, _req: Any, res: Any) -> Any:
