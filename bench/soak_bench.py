@@ -553,7 +553,8 @@ def run_dds(seconds: float, spec: LoopSpec = FULL_LOOP, out: Path | None = None,
         wait(lambda: not silent_links(links, {n: {k[:-len(' accepted')]: int(v)
                                                   for k, v in vals.items()
                                                   if k.endswith(' accepted')}
-                                              for n, (_t, vals) in watch.rows.items()}),
+                                              for n, (_t, vals) in watch.rows.items()},
+                                          launch.silent_records),
              60, 'record on every link')
         progress(f'DDS: graph up in {time.monotonic() - wall0:.1f} s; looping from '
                  f'{watch.sim:.1f} s sim')

@@ -128,11 +128,11 @@ def truck_graph(graph: Graph, options: Options) -> Graph:
 
 
 def silent_records(graph: Graph, options: Options) -> set[str]:
-    """Return the records whose links match but carry nothing here (no wire on taped floor).
+    """Return the records whose links match but carry nothing on this layout's truck.
 
-    The world writes `guide_wire` only from wires, and the CONCIC-II's route following (camera
-    guidance) does not read it; a start-up check that waits for every link to carry a record
-    leaves these out.
+    The world writes `guide_wire` only from wires (the CONCIC-II's camera route following does
+    not read it) and `drive_status` only for the CONCIC-II (its safety PAL; the 1983 tug has
+    none); a start-up check that waits for every link to carry a record leaves these out.
     """
     name = layout_name(graph, options)
     try:
@@ -140,7 +140,8 @@ def silent_records(graph: Graph, options: Options) -> set[str]:
     except (LayoutError, FileNotFoundError) as exc:
         raise GraphError(f'layout {name!r}: {exc}') from None
     wires = any(path.width == 0.0 for path in layout.paths.values())
-    return set() if wires else {'guide_wire'}
+    return ({'guide_wire'} if not wires else set()) | \
+        ({'drive_status'} if layout.vehicle != 'concic2' else set())
 
 
 def from_layout(graph: Graph, options: Options) -> dict[str, dict[str, object]]:
