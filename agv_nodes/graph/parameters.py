@@ -16,7 +16,13 @@ from agv_nodes.records import codec
 from agv_nodes.settings import ParameterFileError, parameter_file_values
 from agv_nodes.sim_progress import CLOCK_LINK as CLOCK
 from agv_nodes.sim_progress import LINK as PROGRESS
-from agv_nodes.world.layout import LayoutError, layout_parameters, layout_path, load_layout
+from agv_nodes.world.layout import (
+    Layout,
+    LayoutError,
+    layout_parameters,
+    layout_path,
+    load_layout,
+)
 from agv_nodes.world.settings import WorldNodeSettings
 
 
@@ -117,14 +123,18 @@ def layout_name(graph: Graph, options: Options) -> str:
     return str(own.get('layout', shared.get('layout', WorldNodeSettings().layout)))
 
 
-def truck_graph(graph: Graph, options: Options) -> Graph:
-    """Return the graph of the truck the layout names (the CONCIC-II has fewer nodes)."""
+def launch_layout(graph: Graph, options: Options) -> Layout:
+    """Load the layout the world loads (a GraphError naming it if it cannot be used)."""
     name = layout_name(graph, options)
     try:
-        vehicle = load_layout(layout_path(name)).vehicle
+        return load_layout(layout_path(name))
     except (LayoutError, FileNotFoundError) as exc:
         raise GraphError(f'layout {name!r}: {exc}') from None
-    return graph.for_truck(vehicle)
+
+
+def truck_graph(graph: Graph, options: Options) -> Graph:
+    """Return the graph of the truck the layout names (the CONCIC-II has fewer nodes)."""
+    return graph.for_truck(launch_layout(graph, options).vehicle)
 
 
 def silent_records(graph: Graph, options: Options) -> set[str]:
@@ -134,11 +144,7 @@ def silent_records(graph: Graph, options: Options) -> set[str]:
     not read it) and `drive_status` only for the CONCIC-II (its safety PAL; the 1983 tug has
     none); a start-up check that waits for every link to carry a record leaves these out.
     """
-    name = layout_name(graph, options)
-    try:
-        layout = load_layout(layout_path(name))
-    except (LayoutError, FileNotFoundError) as exc:
-        raise GraphError(f'layout {name!r}: {exc}') from None
+    layout = launch_layout(graph, options)
     wires = any(path.width == 0.0 for path in layout.paths.values())
     return ({'guide_wire'} if not wires else set()) | \
         ({'drive_status'} if layout.vehicle != 'concic2' else set())
@@ -146,11 +152,7 @@ def silent_records(graph: Graph, options: Options) -> set[str]:
 
 def from_layout(graph: Graph, options: Options) -> dict[str, dict[str, object]]:
     """Return what the layout sets in the nodes (layout_parameters, as the harness applies it)."""
-    name = layout_name(graph, options)
-    try:
-        return layout_parameters(load_layout(layout_path(name)))
-    except (LayoutError, FileNotFoundError) as exc:
-        raise GraphError(f'layout {name!r}: {exc}') from None
+    return layout_parameters(launch_layout(graph, options))
 
 
 def node_parameters(graph: Graph, spec: NodeSpec, options: Options,
