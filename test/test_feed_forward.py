@@ -22,6 +22,7 @@ from agv_nodes.track_geometry import settings
 from agv_nodes.track_geometry.criteria import CRITERIA, centre_side, desired_offsets
 from agv_nodes.track_geometry.feed_forward import (
     FeedForwardSteering,
+    Geometry,
     effective_wheelbase,
     feed_forward_angle,
 )
@@ -34,6 +35,7 @@ HALF_WINDOW = 0.125  # m: the tape leaves the 250 mm window beyond this
 HOLD = 0.01  # m: both caster contacts this near the tape in steady state (our claim)
 SPEEDS = (0.3, 0.6, 0.9)
 P = FeedForwardParams()
+G = Geometry()  # the CONCIC-II's L_c, L_a, s and caster angle limit
 CONIC = (1.0, 0.0, 1.0, 0.0, 0.0, -R * R)  # the tape, centred on the origin
 
 
@@ -75,21 +77,21 @@ def run(v: float, params: FeedForwardParams = P, *, side: int = 1, metres: float
     side +1 runs counter-clockwise (centre on the left); `truck_caster` is the truck's own L_a
     where it differs from the law's; `lag` samples delay every command.
     """
-    la = truck_caster or params.caster_distance
-    trail = params.caster_trail
+    la = truck_caster or G.caster_distance
+    trail = G.caster_trail
     law = FeedForwardSteering(params)
     law.reset(theta_s)
     x, y, h = 0.0, -side * (R - lateral), askew
     queue = [theta_s] * lag
     out = Run(v)
     for n in range(round(metres / (v * DT))):
-        seen = camera_offsets(x, y, h, params.camera_ahead)
+        seen = camera_offsets(x, y, h, G.camera_ahead)
         if seen is None or abs(seen[0]) > HALF_WINDOW:
             out.lost_at = n * v * DT
             return out
         eps_d, eps_theta = seen
-        px = x + params.camera_ahead * math.cos(h) - eps_d * math.sin(h)
-        py = y + params.camera_ahead * math.sin(h) + eps_d * math.cos(h)
+        px = x + G.camera_ahead * math.cos(h) - eps_d * math.sin(h)
+        py = y + G.camera_ahead * math.sin(h) + eps_d * math.cos(h)
         circle = osculating_implicit(CONIC, px, py, heading=h + eps_theta)
         queue.append(law.update(eps_d, eps_theta, circle.radius,
                                 centre_side(circle.h, circle.k, x, y, h), DT))
@@ -148,7 +150,7 @@ def test_settles_from_off_the_track(v: float, lateral: float, askew: float) -> N
 def test_feed_forward_alone_holds_the_circle(v: float) -> None:
     """Started on the criterion's path at theta_ff with no feedback, nothing moves."""
     eps_dd, eps_thetad = desired_offsets(R, 1)
-    rho = math.sqrt(R * R - P.caster_distance ** 2)
+    rho = math.sqrt(R * R - G.caster_distance ** 2)
     still = replace(P, gain_d=0.0, gain_theta=0.0, gain_i=0.0)
     r = run(v, still, lateral=R - rho, theta_s=feed_forward_angle(R, 1))
     assert max(abs(e - eps_dd) for e in r.eps_d) < 1e-9
@@ -187,8 +189,10 @@ def test_straight_track_steers_to_zero() -> None:
 
 def test_caster_angle_is_clipped() -> None:
     law = FeedForwardSteering()
-    assert law.update(1.0, 0.0, math.inf, 0, DT) == P.max_angle
-    assert law.update(-5.0, 0.0, math.inf, 0, DT) == -P.max_angle
+    assert law.update(1.0, 0.0, math.inf, 0, DT) == G.max_angle
+    assert law.update(-5.0, 0.0, math.inf, 0, DT) == -G.max_angle
+    narrow = FeedForwardSteering(geometry=Geometry(max_angle=0.2))
+    assert narrow.update(1.0, 0.0, math.inf, 0, DT) == 0.2
 
 
 def test_bad_options_raise() -> None:
@@ -196,6 +200,16 @@ def test_bad_options_raise() -> None:
         FeedForwardSteering(FeedForwardParams(form='velocity'))
     with pytest.raises(ValueError):
         FeedForwardSteering(FeedForwardParams(criterion='wheels'))
+    with pytest.raises(ValueError, match='no truck'):
+        Geometry(caster_distance=0.0)
+
+
+def test_the_geometry_given_is_the_one_used() -> None:
+    """A longer L_a asks a larger angle for the same circle, and moves the casters' offsets."""
+    longer = Geometry(caster_distance=0.40)
+    assert feed_forward_angle(R, 1, P, longer) > feed_forward_angle(R, 1, P) + 0.02
+    assert FeedForwardSteering(P, longer).desired(R, 1)[0] < \
+        FeedForwardSteering(P).desired(R, 1)[0]
 
 
 def test_track_geometry_settings_build_and_check() -> None:
@@ -241,7 +255,7 @@ def test_incremental_form_diverges() -> None:
         swing = [max(abs(e - eps_dd) for e in r.eps_d[k * per_metre:(k + 5) * per_metre])
                  for k in (40, 70)]
         growth = math.log(swing[1] / swing[0]) / 30.0
-        assert growth == pytest.approx(0.02 / (2.0 * (0.02 * P.camera_ahead + 0.2)), rel=0.2)
+        assert growth == pytest.approx(0.02 / (2.0 * (0.02 * G.camera_ahead + 0.2)), rel=0.2)
     assert 80.0 < min(lost) and max(lost) < 1.03 * min(lost)
 
 

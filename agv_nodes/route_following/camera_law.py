@@ -31,6 +31,14 @@ axle, so the loop backwards is the forward loop mirrored: the same gains and dam
         onto a branch, so a stop for it (the dual law's trailing_lost = stop) would end those
         legs: here it hands over to the leading camera instead.
 
+`camera_law` feed_forward adds the identified track's law (track_guidance.py, Rajagopalan 1991,
+5.4) going forwards: every leading frame feeds the identification, and once it has converged
+the feed-forward law steers instead of the law `cameras` chose; before that, in reverse, and
+after the fitter restarts on a new primitive of the route, that law steers. A hand-back carries
+the angle over: the PI law's integral is set to give the angle the feed-forward law last gave,
+so the caster does not jump. With the tape out of the leading window while following, the
+truck keeps to the identified track for identification.gap_distance before the stop.
+
 Frames of one instant: the world renders both cameras in the same step and stamps them alike,
 but they arrive one after the other, in either order. A leading frame is steered from at once
 when the trailing frame of its instant is already in; otherwise it waits for it. A leading frame
@@ -49,6 +57,7 @@ from agv_nodes.route_following.camera_guidance import (
 )
 from agv_nodes.route_following.dual_camera import DualCameraGuidance
 from agv_nodes.route_following.settings import RouteParams
+from agv_nodes.route_following.track_guidance import TrackGuidance
 
 # Frames this close in time are one instant: the node stamps each with its arrival, and the two
 # of one world step arrive within a sample or two (3 ms apiece); frames come 40-60 ms apart
@@ -76,8 +85,9 @@ class CameraLaw:
         self.analysers = {name: ImageAnalyser(params.image) for name in ('front', 'rear')}
         self.single = CameraSteering(params.steering)
         self.dual = DualCameraGuidance(params.dual, params.steering)
+        self.track = TrackGuidance(params) if params.camera_law == 'feed_forward' else None
         self.direction = 1
-        self.law = 'lead'  # the law of the last frame: lead or dual
+        self.law = 'lead'  # the law of the last frame: lead, dual, feed_forward or bridge
         self._waiting: tuple[np.ndarray, Measurement, float] | None = None  # a lead frame
         self._trail: tuple[Measurement, float] | None = None  # the latest trailing reading
         self._trail_seen = False  # the trailing window has shown the tape since the start
@@ -99,6 +109,14 @@ class CameraLaw:
         self._share_width()
         self._waiting = self._trail = None
         self._trail_seen = False
+        if self.track is not None:  # the feedback law starts each leg and branch
+            self.track.reset()
+            self.law = 'lead'
+
+    def odometry(self, d_left: float, d_right: float) -> None:
+        """Take one wheel_odometry record's travel of each wheel, m (the identified track's)."""
+        if self.track is not None:
+            self.track.odometry(d_left, d_right)
 
     def take(self, frame: np.ndarray, now: float, camera: str) -> list[View]:
         """Take one camera's frame; return the instants now ready to steer by, oldest first."""
@@ -142,14 +160,43 @@ class CameraLaw:
         self._waiting = self._trail = None
         return [View(lead, frame, trail, t_lead)]
 
-    def steer(self, view: View, speed: float) -> float | None:
+    def steer(self, view: View, speed: float, bridge: bool = False) -> float | None:
         """Return the caster angle in the frame of travel (rad), or None: stop, no track.
 
         None after absent_frames leading frames without the tape (Rajagopalan 1991, 4.3); a
-        saturated leading frame keeps the last angle.
+        saturated leading frame keeps the last angle. `bridge`: the truck is following plain
+        tape (no sign, no manoeuvre), so camera_law feed_forward may carry it across a gap.
         """
         dt = 0.05 if self._last_time is None else max(view.time - self._last_time, 1e-3)
         self._last_time = view.time
+        if self.track is not None and self.direction == 1:
+            if view.lead.validity is Validity.ABSENT and bridge and self.track.ready:
+                self.law = 'bridge'
+                return self.track.bridge(dt)  # None past gap_distance: the motor-off stop
+            normal = self.analysers[self.lead_camera].normal_width
+            theta = self.track.steer(view.lead, dt, normal)
+            if theta is not None:
+                self.law = 'feed_forward'
+                self.single.absent = 0
+                return theta
+            if self.law in ('feed_forward', 'bridge'):
+                self._hand_back(speed)
+        return self._feedback(view, dt, speed)
+
+    def _hand_back(self, speed: float) -> None:
+        """Start the feedback law from the feed-forward law's last angle (see the docstring)."""
+        theta, single, p = self.track.law.theta_s, self.single, self.single.p
+        single.theta_s, single.absent = theta, 0
+        self.dual.reset()
+        if p.law == 'pi' and p.gain_i > 0 and self.track.measured is not None:
+            eps_d, eps_theta = self.track.measured
+            gain_d = p.gain_d  # as CameraSteering.update schedules it
+            if p.schedule_speed > 0 and speed > p.schedule_speed:
+                gain_d *= p.schedule_speed / speed
+            single.integral = (theta - p.gain_theta * eps_theta - gain_d * eps_d) / p.gain_i
+
+    def _feedback(self, view: View, dt: float, speed: float) -> float | None:
+        """Steer by the law `cameras` chose: the leading camera's P / PI or the dual law."""
         trail = view.trail
         if trail is not None and trail.validity is Validity.WIDE:
             # A road sign under the trailing window: its patch and branches shift the fit by

@@ -10,7 +10,10 @@ the rear one: camera_law.py steers by it (or by both cameras) and gives the whee
 Each leading frame is analysed (camera_guidance.py), the law gives the caster angle and Eq.
 5.15/5.16 the wheel speeds (Rajagopalan 1991, 5.2); a saturated frame keeps the last command.
 absent_frames frames without track stop the vehicle, motor off, state no_track (4.3, App. F.5):
-so a leg ends at the end of its tape. It stays stopped until the next leg.
+so a leg ends at the end of its tape. It stays stopped until the next leg. With camera_law
+feed_forward and the track identified, a gap in plain tape is driven across along the identified
+track for identification.gap_distance first (App. F.5: identification mode does not stop);
+inside a road sign or a junction manoeuvre the stops are as ever.
 
 Road signs (4.3, App. F.6-F.7). A sign is sighted when the track goes wide; the count goes up
 then, and the decision for it is taken from route_command there and then: `junction` when
@@ -102,9 +105,10 @@ class CameraMode:
         """Take a wheel_odometry record: wheel speeds, and the leg's distance."""
         self.rims = (fields['left_speed'] / 1000.0, fields['right_speed'] / 1000.0)
         self.speed = (self.rims[0] + self.rims[1]) / 2.0
-        before = self.odo.metres
+        before, left, right = self.odo.metres, self.odo.left, self.odo.right
         self.travel += abs(self.odo.update(fields['left_distance'], fields['right_distance'])
                            - before)
+        self.law.odometry(self.odo.left - left, self.odo.right - right)
 
     def frame(self, frame: np.ndarray, now: float, camera: str) -> None:
         """Take a binary frame (1 = dark tape) from the front or the rear camera."""
@@ -124,7 +128,9 @@ class CameraMode:
             return
         self._junction(m, view)
         speed = self.p.camera_speed
-        theta = self.law.steer(view, speed)
+        # Only plain following may be carried across a gap: a sign or a manoeuvre stops as ever.
+        theta = self.law.steer(view, speed, bridge=self.state == 'following'
+                               and not (self.in_sign or self.turn.phase))
         if theta is None:
             if self.turn.phase == 'approach':
                 return  # past a crossing where the tape ends: odometry takes it there

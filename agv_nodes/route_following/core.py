@@ -8,9 +8,11 @@ the wire present again. An SRM (mode srm, a new `manoeuvre`) leaves the wire at 
 steering angle until the signal drops and a wire is found again, then follows it (7.2 task 7).
 
 Camera (Rajagopalan 1991, mode camera, the differential-drive CONCIC-II): legs along floor tape,
-forwards or backwards, steered by the leading camera or both, with road signs and junction turns;
-RouteCore hands route_command's camera fields, wheel odometry, frames and its loop to CameraMode
-(agv_nodes.route_following.camera_mode), which says what the wheels do and what status reports.
+forwards or backwards, steered by the leading camera or both (or, with camera_law feed_forward,
+by the track identified from odometry and the camera, track_guidance.py), with road signs and
+junction turns; RouteCore hands route_command's camera fields, wheel odometry, frames and its
+loop to CameraMode (agv_nodes.route_following.camera_mode), which says what the wheels do and
+what status reports.
 DriveSafety (drive_safety.py) checks the drive (Rajagopalan 1991, 6.3.11): on a fault camera
 mode stops, motor off, and route_status names it (`drive_fault`).
 """
@@ -23,6 +25,7 @@ import numpy as np
 from agv_nodes.route_following.camera_mode import CameraMode
 from agv_nodes.route_following.drive_safety import DriveSafety
 from agv_nodes.route_following.settings import RouteParams
+from agv_nodes.route_following.track_guidance import TrackGuidance
 from agv_nodes.subsystem import SubsystemCore
 
 
@@ -88,6 +91,11 @@ class RouteCore(SubsystemCore):
     def turn_phase(self) -> str:
         """Return the junction manoeuvre's phase ('' when there is none)."""
         return self.cam.turn.phase
+
+    @property
+    def track_guidance(self) -> TrackGuidance | None:
+        """Return the identified track's guidance (camera_law feed_forward), else None."""
+        return self.cam.law.track
 
     @property
     def motor_on(self) -> bool:

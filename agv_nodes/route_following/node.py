@@ -1,14 +1,64 @@
-"""route_following (ros2 run agv_nodes route_following); hw/camera/front and rear: mono8."""
+"""route_following (ros2 run agv_nodes route_following); hw/camera/front and rear: mono8.
+
+With camera_law feed_forward it also draws the identified track (Rajagopalan 1991, 5.4) at
+VIEW_RATE: route/identified_track, a nav_msgs/Path, and route/osculating_circle, a
+visualization_msgs/Marker line strip, both in the odometry frame the track was identified in
+(`odom`: the truck's pose integrated from wheel odometry, starting at the origin).
+"""
 
 from collections.abc import Callable
+import math
 import sys
 
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Point, PoseStamped
+from nav_msgs.msg import Path
 import numpy as np
 from sensor_msgs.msg import Image
+from visualization_msgs.msg import Marker
 
 from agv_nodes import qos
 from agv_nodes.core_node import CoreNode, spin_main
 from agv_nodes.route_following.core import RouteCore
+from agv_nodes.track_geometry.osculating import Circle
+
+FRAME = 'odom'
+VIEW_RATE = 2.0  # Hz
+CIRCLE_POINTS = 72
+
+
+def track_path(points: list[tuple[float, float]], stamp: Time) -> Path:
+    """route/identified_track: the identified track's points, headed along the track."""
+    msg = Path()
+    msg.header.stamp, msg.header.frame_id = stamp, FRAME
+    for k, (x, y) in enumerate(points):
+        a, b = points[max(k - 1, 0)], points[min(k + 1, len(points) - 1)]
+        heading = math.atan2(b[1] - a[1], b[0] - a[0])
+        pose = PoseStamped()
+        pose.header = msg.header
+        pose.pose.position.x, pose.pose.position.y = float(x), float(y)
+        pose.pose.orientation.z = math.sin(heading / 2.0)
+        pose.pose.orientation.w = math.cos(heading / 2.0)
+        msg.poses.append(pose)
+    return msg
+
+
+def circle_marker(circle: Circle | None, stamp: Time) -> Marker:
+    """route/osculating_circle: the circle as a closed line strip; DELETE without one."""
+    msg = Marker(ns='osculating_circle', id=0, type=Marker.LINE_STRIP)
+    msg.header.stamp, msg.header.frame_id = stamp, FRAME
+    msg.pose.orientation.w = 1.0
+    if circle is None or circle.straight:  # a straight track has no circle to draw
+        msg.action = Marker.DELETE
+        return msg
+    msg.action = Marker.ADD
+    msg.scale.x = 0.02
+    msg.color.a, msg.color.r, msg.color.g, msg.color.b = 1.0, 0.2, 0.8, 1.0
+    for k in range(CIRCLE_POINTS + 1):
+        phi = 2.0 * math.pi * k / CIRCLE_POINTS
+        msg.points.append(Point(x=circle.h + circle.radius * math.cos(phi),
+                                y=circle.k + circle.radius * math.sin(phi)))
+    return msg
 
 
 class RouteFollowingNode(CoreNode):
@@ -19,6 +69,13 @@ class RouteFollowingNode(CoreNode):
         for camera in ('front', 'rear'):
             self.create_subscription(Image, f'hw/camera/{camera}', self._frame(camera),
                                      qos.STREAM_READER)
+        if self.core.track_guidance is not None:
+            # Pictures that change as the truck goes, as the world's pose is.
+            self.track_pub = self.create_publisher(Path, 'route/identified_track',
+                                                   qos.STREAM_WRITER)
+            self.circle_pub = self.create_publisher(Marker, 'route/osculating_circle',
+                                                    qos.STREAM_WRITER)
+            self.periodic(1.0 / VIEW_RATE, self._draw_track)
 
     def _frame(self, camera: str) -> Callable[[Image], None]:
         def callback(msg: Image) -> None:
@@ -31,6 +88,14 @@ class RouteFollowingNode(CoreNode):
             frame = (pixels < 128).astype(np.uint8)  # dark tape = 1, as the optic-RAM gives it
             self.publish(self.core.on_frame(frame, self.now_s(), camera))
         return callback
+
+    def _draw_track(self) -> None:
+        guidance = self.core.track_guidance
+        stamp = self.get_clock().now().to_msg()
+        points = guidance.track()
+        if points:  # nothing identified yet (or since a reset): keep the last picture
+            self.track_pub.publish(track_path(points, stamp))
+        self.circle_pub.publish(circle_marker(guidance.circle, stamp))
 
 
 def main(args: list[str] | None = None) -> int:

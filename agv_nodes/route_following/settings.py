@@ -2,6 +2,12 @@
 
 from agv_nodes.settings import settings_class
 
+# The track identification's groups: settings_class finds a nested group by name in this module.
+from agv_nodes.track_geometry.settings import FeedForwardParams, IdentificationParams
+
+__all__ = ['DriveSafetyParams', 'DualCameraParams', 'FeedForwardParams', 'IdentificationParams',
+           'ImageParams', 'RouteParams', 'SteeringParams', 'TurningParams', 'WireParams']
+
 
 @settings_class
 class WireParams:

@@ -67,11 +67,37 @@ diverge.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 import math
 
 from agv_nodes.settings import build, values_of
-from agv_nodes.track_geometry.criteria import desired_offsets, path_radius
+from agv_nodes.track_geometry.criteria import (
+    CAMERA_AHEAD,
+    CASTER_DISTANCE,
+    desired_offsets,
+    path_radius,
+)
 from agv_nodes.track_geometry.settings import FeedForwardParams
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """The truck's dimensions the law needs, m (and its caster angle limit, rad).
+
+    Not settings of the law: the truck's own, given by whoever drives it (route following takes
+    them from its steering and turning groups, so there is one source for each).
+    """
+
+    camera_ahead: float = CAMERA_AHEAD  # L_c: the camera window's centre ahead of the axle
+    caster_distance: float = CASTER_DISTANCE  # L_a: from the axle to a caster contact
+    caster_trail: float = 0.05  # s of Eq. 5.11
+    max_angle: float = math.pi / 3  # the caster angle's limit, rad
+
+    def __post_init__(self) -> None:
+        if not (self.caster_distance > 0.0 and self.caster_trail >= 0.0
+                and self.max_angle > 0.0):
+            raise ValueError(f'{self} is no truck: L_a and the angle limit must be positive, '
+                             'the trail not negative')
 
 
 def effective_wheelbase(theta_s: float, caster_distance: float, caster_trail: float) -> float:
@@ -79,33 +105,35 @@ def effective_wheelbase(theta_s: float, caster_distance: float, caster_trail: fl
     return caster_distance + caster_trail * (1.0 - math.cos(theta_s))
 
 
-def feed_forward_angle(radius: float, side: int, params: FeedForwardParams | None = None
-                       ) -> float:
+def feed_forward_angle(radius: float, side: int, params: FeedForwardParams | None = None,
+                       geometry: Geometry | None = None) -> float:
     """Caster angle that alone keeps the truck on the criterion's circle about the centre.
 
     The axle centre O runs on rho = criteria.path_radius(R_1, criterion), so the yaw rate is
     v / rho and Eq. 5.10 gives tan(theta_s) = L_ae(theta_s) / rho; L_ae changes by s (1 - cos)
     only, and a few fixed-point steps solve it to rounding. side +1: centre on the left.
     """
-    p = params or FeedForwardParams()
-    rho = path_radius(radius, p.criterion, camera_ahead=p.camera_ahead,
-                      caster_distance=p.caster_distance, half_length=p.half_length)
+    p, g = params or FeedForwardParams(), geometry or Geometry()
+    rho = path_radius(radius, p.criterion, camera_ahead=g.camera_ahead,
+                      caster_distance=g.caster_distance, half_length=p.half_length)
     if not math.isfinite(rho) or side == 0:
         return 0.0
     if rho <= 0.0:
         return math.copysign(math.pi / 2.0, side)
-    theta = math.atan(p.caster_distance / rho)
+    theta = math.atan(g.caster_distance / rho)
     for _ in range(4):
-        theta = math.atan(effective_wheelbase(theta, p.caster_distance, p.caster_trail) / rho)
+        theta = math.atan(effective_wheelbase(theta, g.caster_distance, g.caster_trail) / rho)
     return theta if side > 0 else -theta
 
 
 class FeedForwardSteering:
     """The law of Eq. 5.89-5.91 in either form; one `update` per camera sample."""
 
-    def __init__(self, params: FeedForwardParams | None = None) -> None:
+    def __init__(self, params: FeedForwardParams | None = None,
+                 geometry: Geometry | None = None) -> None:
         self.p = params or FeedForwardParams()
         build(FeedForwardParams, values_of(self.p))  # SettingError: a value out of its range
+        self.geometry = geometry or Geometry()
         self.theta_s = 0.0
         self.integral = 0.0  # m s: sum of e_d dT
 
@@ -116,28 +144,31 @@ class FeedForwardSteering:
 
     def desired(self, radius: float, side: int) -> tuple[float, float]:
         """(eps_dd, eps_thetad) for the osculating circle (radius R_1, centre side)."""
-        p = self.p
-        return desired_offsets(radius, side, p.criterion, camera_ahead=p.camera_ahead,
-                               caster_distance=p.caster_distance, half_length=p.half_length)
+        p, g = self.p, self.geometry
+        return desired_offsets(radius, side, p.criterion, camera_ahead=g.camera_ahead,
+                               caster_distance=g.caster_distance, half_length=p.half_length)
 
     def update(self, eps_d: float, eps_theta: float, radius: float, side: int,
-               dt: float) -> float:
+               dt: float, share: float = 1.0) -> float:
         """Return the caster angle for the next sample.
 
         eps_d, eps_theta: the offsets measured now (eps_da(n), eps_thetaa(n)); radius, side:
         the osculating circle where the camera will look next (R_1 at (n+1) dT; inf for a
-        straight track); dt: the sample period.
+        straight track); dt: the sample period. `share` (0-1) of eps_dd is aimed at: the
+        window criterion's 0 blended into the criterion's own, for a law that takes over from
+        one that held the window on the tape (every criterion has the same eps_thetad).
         """
         p = self.p
         eps_dd, eps_thetad = self.desired(radius, side)
-        e_d = eps_d - eps_dd  # -delta_eps_d(n+1), Eq. 5.90
+        e_d = eps_d - share * eps_dd  # -delta_eps_d(n+1), Eq. 5.90
         e_theta = eps_theta - eps_thetad  # -delta_eps_theta(n+1), Eq. 5.91
         self.integral += e_d * dt
         if p.form == 'incremental':
             theta = self.theta_s + (p.step_gain_d * e_d + p.step_gain_theta * e_theta
                                     + p.step_gain_i * self.integral)
         else:
-            theta = (feed_forward_angle(radius, side, p) + p.gain_d * e_d
+            theta = (feed_forward_angle(radius, side, p, self.geometry) + p.gain_d * e_d
                      + p.gain_theta * e_theta + p.gain_i * self.integral)
-        self.theta_s = max(-p.max_angle, min(p.max_angle, theta))
+        limit = self.geometry.max_angle
+        self.theta_s = max(-limit, min(limit, theta))
         return self.theta_s

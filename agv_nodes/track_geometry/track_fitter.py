@@ -99,3 +99,19 @@ class TrackFitter:
     def residual_rms(self) -> float | None:
         """Return the residual RMS of the model in use, m."""
         return None if (fit := self.fit) is None else fit.residual_rms
+
+    @property
+    def ready(self) -> bool:
+        """Whether the identification has converged enough to steer by.
+
+        At least ready_distance m since the start or the last reset, the model in use holding
+        ready_samples samples, and its residual RMS within ready_residual. The thesis judged
+        convergence by eye on its plots of the coefficients (Rajagopalan 1991, 7.5.1.4,
+        7.5.2.5); this is the test a running truck can make. An automatic reset (a new
+        primitive) makes it false again until the new fit passes.
+        """
+        p, fit = self.params, self.fit
+        if fit is None or self.travelled < p.ready_distance or fit.n < p.ready_samples:
+            return False
+        rms = fit.residual_rms
+        return rms is not None and rms <= p.ready_residual
