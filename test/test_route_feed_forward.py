@@ -238,7 +238,9 @@ def test_on_the_circle_both_casters_hold_the_tape(model: str, speed: float) -> N
 
     The feedback law holds the window on the tape and leaves the casters inside the circle
     (5.3 cm); feed_forward holds them on it and the window CASTERS_WINDOW outside. Each law's
-    window is compared with where its own criterion puts it.
+    window is compared with where its own criterion puts it: both sit 0.9 mm off on average,
+    the image analyser's half column (it takes a run's centre at start + length / 2 in pixel
+    indices, half a column from its pixels' middle), so the comparison allows 0.5 mm.
     """
     seconds = 40.0
     ff, route, script = drive_circle(model, speed, 'feed_forward', seconds)
@@ -289,7 +291,7 @@ def test_entering_a_curve_off_a_straight(model: str) -> None:
 
     No law sees a curve before the window reaches it. On the straight the feed-forward law
     steers by the identified line: its G1 = 3.0 and the eps_theta term G2 = 0.4 answer the
-    tape turning in the window before the offset has grown. The first 0.5-0.7 m of the arc
+    tape turning in the window before the offset has grown. The first 0.7 m of the arc
     make the line's residual too large, and the feedback law takes over (with the caster
     angle carried over) until the window holds mostly the arc (identification.window).
     """
@@ -333,13 +335,13 @@ def test_a_gap_in_the_tape_is_bridged_along_the_identified_track(model: str) -> 
     while route.cam.travel < 10.0 and h.now < 20.0:
         h.step()
         bridged = max(bridged, guidance.bridged)
-        if world.sample % 17 == 0 and route.cam.travel > 5.0:
+        if world.sample % 17 == 0 and route.cam.travel > 7.0:  # from 1 m before the gap
             errors.append(max(abs(math.hypot(s.x + k * L_A * math.cos(s.heading),
                                              s.y + k * L_A * math.sin(s.heading)) - R)
                               for k in (1, -1)))
     assert script.states == ['following'] and route.motor_on and route.cam.travel >= 10.0
     assert 0.1 < bridged < route.p.identification.gap_distance
-    assert max(errors) < HOLD  # the casters stay on the tape across it and after
+    assert max(errors) < 0.004  # across it and after: 1.3-1.8 mm on both models, 0.3-0.6 m/s
     assert route.cam.law.law == 'feed_forward' and guidance.ready
 
 
