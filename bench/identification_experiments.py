@@ -198,7 +198,9 @@ def e5(vehicle: str, n: int) -> dict:
     speed = 0.63
     run = drive(circle_floor(), vehicle, speed, n * DT + set_off(speed) + 1.0)
     samples = run.upto(n)
-    fit, fitter = ConicFit(), TrackFitter(IdentificationParams(model='conic'))
+    # All the data since the start, as the thesis fitted (route following's default is a
+    # sliding window, for routes of several shapes).
+    fit, fitter = ConicFit(), TrackFitter(IdentificationParams(model='conic', memory='all'))
     errors, radius = [], {}
     for k, (p, _o, _f) in enumerate(samples):
         fit.add(p.x, p.y, p.theta, p.s)

@@ -242,7 +242,10 @@ def i2(seeds: int) -> dict:
 def line_run(speed: float, dt: float, rng: np.random.Generator | None) -> dict:
     """Slope errors of y = m x + c (plain) and of the polynomial's tangent, sample by sample."""
     line, poly = LineFit(form='plain'), PolynomialFit()
-    fitter = TrackFitter(IdentificationParams(model='line', line_form='plain'))
+    # All the data since the start, as the thesis fitted (route following's default is a
+    # sliding window, for routes of several shapes).
+    fitter = TrackFitter(IdentificationParams(model='line', line_form='plain',
+                                             memory='all'))
     line_err, poly_err, switched = [], [], None
     for k, point in enumerate(line_points(speed, dt)):
         q = across(point, rng)
