@@ -21,6 +21,8 @@ from pathlib import Path
 import sys
 import time
 
+from graph_bench import cpu_seconds
+
 from agv_nodes.graph.parameters import Options
 from agv_nodes.graph.supervisor import Launch
 
@@ -41,12 +43,6 @@ keep-alive took one point off and let the CONCIC-II's 60 ms steering watchdog tr
 time under this load, so the node still sends it every pass. The goal needs fewer events (a
 40 ms cycle, as the thesis's computer ran, with 25 Hz odometry) or a cheaper rclpy path.
 """
-
-
-def cpu_seconds(pid: int) -> float:
-    """User plus system CPU seconds of a process so far."""
-    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
 def measure(cameras: str, seconds: float, time_factor: float, sim_time: bool = True
