@@ -2,10 +2,12 @@
 
 Reads the bag with `agv_nodes.report.read_bag` and writes into the output directory report.json,
 summary.md and two plots: camera_path.png, the ground-truth path over the tape layout with both
-camera windows and the road signs, and camera_timeline.png, the lateral error and the speed
+camera windows and the road signs (and, from a feed_forward run, route/identified_track placed in
+the world at the first pose), and camera_timeline.png, the lateral error and the speed
 against time with the sign, junction and stop events. The events (signs met, junction turns and
 waits, stops, task results) and the numbers per leg (distance, duration, RMS and max |lateral
-error| while the tape steers the truck) go into both text files.
+error| while the tape steers the truck) go into both text files, and the identified track's
+distance from the tape.
 """
 
 import json
@@ -16,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from agv_nodes.report import read_bag
+from agv_nodes.track_report import identified_track_messages, identified_track_numbers
 from agv_nodes.world.layout import Layout, layout_path, load_layout
 from agv_nodes.world.settings import WorldParams
 
@@ -213,7 +216,7 @@ def analyse_camera(data: dict[str, Any], layout: Layout) -> dict[str, Any]:
     steered = [abs(f['lateral_error']) for _t, f in data['records'].get('route_status', [])
                if f['state'] in STEERED]
     legs = leg_numbers(data, track)
-    return {
+    result = {
         'layout': layout.name, 'start': data['start'], 'end': data['end'],
         'duration_s': (data['end'] or 0) - (data['start'] or 0),
         'camera': {'distance_m': camera.concic2.camera_distance,
@@ -225,6 +228,9 @@ def analyse_camera(data: dict[str, Any], layout: Layout) -> dict[str, Any]:
         if steered else None,
         'lateral_max_mm': max(steered, default=None),
         **events(data, layout, track, legs)}
+    if identified := identified_track_numbers(data, layout):
+        result['identified_track'] = identified
+    return result
 
 
 def window_corners(x: float, y: float, h: float, ahead: float, depth: float,
@@ -257,6 +263,10 @@ def plots(data: dict[str, Any], result: dict[str, Any], layout: Layout, out: Pat
         ax.annotate(s['type'], (x, y), xytext=(6, 6), textcoords='offset points',
                     color='tab:orange', weight='bold')
     ax.plot(track.x, track.y, lw=1, color='tab:blue')
+    identified = identified_track_messages(data)
+    for _t, points in identified:
+        ax.plot(points[:, 0], points[:, 1], '.-', lw=0.6, ms=1.5, color='tab:green', alpha=0.8,
+                zorder=3)
     # Regular instants while a leg runs: the truck at rest would pile the windows on one spot.
     legs = result['legs'] or ([{'start': track.t[0], 'end': track.t[-1]}] if len(track.t) else [])
     instants = list(np.linspace(legs[0]['start'], legs[-1]['end'], WINDOW_INSTANTS)) if legs \
@@ -274,7 +284,10 @@ def plots(data: dict[str, Any], result: dict[str, Any], layout: Layout, out: Pat
                        Line2D([], [], color='tab:red', label='front window'),
                        Line2D([], [], color='tab:purple', label='rear window'),
                        Line2D([], [], color='tab:orange', marker='D', ls='',
-                              label='road sign')], loc='best', fontsize=8)
+                              label='road sign')]
+              + ([Line2D([], [], color='tab:green', marker='.', lw=0.6, ms=3,
+                         label='identified track (odom, placed at the start pose)')]
+                 if identified else []), loc='best', fontsize=8)
     ax.set(aspect='equal', xlabel='x (m)', ylabel='y (m)',
            title=f'Path on {layout.name}: camera windows at regular instants and at junctions')
     written = [_save(plt, fig, out / 'camera_path.png')]
@@ -330,9 +343,17 @@ def summary_markdown(result: dict[str, Any], pictures: list[str]) -> str:
     lines = [f'# Camera run summary ({result["layout"]})', '',
              f'- duration {result["duration_s"]:.1f} s (sim time); lateral error while the '
              f'tape steers: RMS {_num(result["lateral_rms_mm"])} mm, max '
-             f'{_num(result["lateral_max_mm"], "")} mm', '', '## Legs', '',
-             '| leg | direction | start (s) | duration (s) | distance (m) | odometry (m) | '
-             'junctions | RMS lateral (mm) | max lateral (mm) |', '|---' * 9 + '|']
+             f'{_num(result["lateral_max_mm"], "")} mm']
+    if track := result.get('identified_track'):
+        lines.append(
+            f'- identified track (route/identified_track): {track["messages"]} messages, '
+            f'{track["points"]} points, from the nearest tape centreline mean '
+            f'{_num(track["mean_mm"])} mm, max {_num(track["max_mm"])} mm. Each message is '
+            'placed in the world by the first truck pose, where its odom frame starts: these '
+            "are the fit's error and the wheel odometry's drift since the start together.")
+    lines += ['', '## Legs', '',
+              '| leg | direction | start (s) | duration (s) | distance (m) | odometry (m) | '
+              'junctions | RMS lateral (mm) | max lateral (mm) |', '|---' * 9 + '|']
     lines += [f'| {g["leg"]} | {g["direction"]} | {g["start"]:.1f} | {g["duration_s"]:.1f} | '
               f'{g["distance_m"]:.2f} | {g["odometry_distance_m"]:.2f} | {g["junctions"]} | '
               f'{_num(g["lateral_rms_mm"])} | {_num(g["lateral_max_mm"], "")} |'

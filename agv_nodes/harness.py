@@ -237,14 +237,42 @@ DEMO_PROGRAMME = (  # thesis 7.2 tasks 1-7 and fig 3.1 on demo_1983, in an order
 )
 # The CONCIC-II's programme on signs_1991 (Rajagopalan 1991, App. F.6-F.7; the layout's header
 # walks it): every road sign met, scripted left and right turns at crosses, T-junctions and
-# corners, a wait over a crossing, the R = 2.95 m curve, and a reverse leg led by the rear camera.
+# corners, a wait over a crossing, the R = 2.95 m curve, and a reverse leg led by the rear camera;
+# the curve is driven by the feed-forward law on the track it identifies (Rajagopalan 1991, 5.4).
 CONCIC2_PROGRAMME = (
     'tape junctions 1 right then reverse for 5 m',  # R2 right, the bay's P21, back out
-    'tape junctions 1 left for 21 m',  # R2 left, P22, the curve, the P21 of north_c's T
+    # R2 left, P22, the curve, the P21 of north_c's T
+    'tape with feed_forward junctions 1 left for 21 m',
     'tape junctions 1 left, 2 right, 3 left, 4 left for 20 m',  # R2, P12, P11, R1: the chord
     'tape junctions 1 straight wait 2, 2 right, 3 right, 4 left',  # R2, P22, P12, R1: the bay
 )
 CONCIC2_QUICK = CONCIC2_PROGRAMME[:1]  # a scripted turn and a reverse leg, ~43 s simulated
+
+
+class CameraLegScript:
+    """Stand-in executive for route following alone in lock step: one route_command.
+
+    Camera mode, forwards, straight on at junctions, leg 1, unless `command` says otherwise
+    (its fields; change them between the phases of a run). `states`: the states route_status
+    went through, each once in a row.
+    """
+
+    node, period = 'executive', 0.05
+
+    def __init__(self, **command: Any) -> None:
+        self.command = {'mode': 'camera', 'srm_angle': 0, 'junction': 'straight',
+                        'manoeuvre': 0, 'direction': 'forward', 'junction_number': 0,
+                        'junction_wait': 0, 'leg': 1, **command}
+        self.states: list[str] = []
+
+    def on_record(self, record: str, fields: dict[str, Any], now: float) -> None:
+        """Note route_status's state when it changes."""
+        if record == 'route_status' and (not self.states or self.states[-1] != fields['state']):
+            self.states.append(fields['state'])
+
+    def tick(self, now: float) -> dict[str, dict[str, Any]]:
+        """Send the route_command."""
+        return {'route_command': dict(self.command)}
 
 
 def truck(layout_name: str = 'demo_1983', *, seed: int = 1,

@@ -14,12 +14,16 @@ from pathlib import Path
 import sys
 from typing import Any
 
+import numpy as np
+
 from agv_nodes.records import RecordError, codec
 from agv_nodes.records.carrier import uint8_array_data
 
 SUBSYSTEM_OF = {'navigation': 'navigation', 'position_sensor': 'position sensor',
                 'traction': 'traction', 'route': 'route following', 'load': 'load handling',
                 'comms': 'communications', 'hw': 'hardware', 'world': 'world'}
+ROUTE_TOPIC = 'world/route'  # the layout's wires and tapes (agv_nodes.world.viz), latched
+MARKER_ADD, MARKER_LINE_STRIP = 0, 4  # visualization_msgs/Marker's action and type constants
 
 
 def _record_for(topic: str, by_topic: dict[str, Any]) -> Any:
@@ -30,15 +34,51 @@ def _record_for(topic: str, by_topic: dict[str, Any]) -> Any:
     return None
 
 
+def is_route_topic(topic: str) -> bool:
+    """Whether a nav_msgs/Path topic is the world's route (world/route), in any namespace."""
+    return topic == '/' + ROUTE_TOPIC or topic.endswith('/' + ROUTE_TOPIC)
+
+
+def path_points(msg: Any) -> list[tuple[float, float]]:
+    """(x, y) of each pose of a nav_msgs/Path."""
+    return [(p.pose.position.x, p.pose.position.y) for p in msg.poses]
+
+
+def circle_through(points: list[tuple[float, float]]) -> tuple[float, float, float] | None:
+    """(centre x, centre y, radius) of the least-squares circle through `points` (Kasa).
+
+    Exact for points on a circle, however spaced (a closed line strip repeats its first point:
+    no matter); None for fewer than three points or points in a line.
+    """
+    if len(points) < 3:
+        return None
+    xy = np.asarray(points, dtype=float)
+    a = np.column_stack([2.0 * xy, np.ones(len(xy))])
+    (cx, cy, c), _res, rank, _sv = np.linalg.lstsq(a, (xy * xy).sum(axis=1), rcond=None)
+    if rank < 3 or not c + cx * cx + cy * cy > 0.0:
+        return None
+    return float(cx), float(cy), math.sqrt(c + cx * cx + cy * cy)
+
+
 def read_bag(bag: Path) -> dict[str, Any]:
-    """Decode a bag: records per topic (time, fields), poses, route, strings, diagnostics."""
+    """Decode a bag: records per topic (time, fields), poses, route, paths, strings, diagnostics.
+
+    data['route']: the layout's wires and tapes, (x, y) of the first message on world/route.
+    data['paths']: every other nav_msgs/Path topic, {topic: [(t, [(x, y), ...]), ...]} (such as
+    route/identified_track, in the odometry frame). data['markers']: each visualization_msgs/
+    Marker topic's line strips drawn as circles, {topic: [(t, centre x, centre y, radius)]}
+    (route/osculating_circle; a DELETE, a straight track, adds nothing). data['pose']: (t, x,
+    y, heading) of each geometry_msgs/PoseStamped (the world's truck pose, world/pose).
+    """
     from rosbags.highlevel import AnyReader
 
     c = codec()
     by_topic = {s.topic: s for s in c}
     data: dict[str, Any] = {'records': defaultdict(list), 'pose': [], 'route': [],
+                            'paths': defaultdict(list), 'markers': defaultdict(list),
                             'strings': defaultdict(list), 'diagnostics': [], 'counts': Counter(),
                             'types': {}, 'rejected': Counter(), 'start': None, 'end': None}
+    route_read = False
     paths = [bag] + sorted(bag.parent.glob(f'{bag.name}_[0-9]*'))
     schemas: dict[str, Any] = {}  # topic -> record schema (None: not a record topic)
     with AnyReader(paths) as reader:
@@ -69,9 +109,18 @@ def read_bag(bag: Path) -> dict[str, Any]:
                 q = msg.pose.orientation
                 data['pose'].append((t, msg.pose.position.x, msg.pose.position.y,
                                      2 * math.atan2(q.z, q.w)))
-            elif conn.msgtype == 'nav_msgs/msg/Path' and not data['route']:
+            elif conn.msgtype == 'nav_msgs/msg/Path':
+                if not is_route_topic(conn.topic):
+                    msg = reader.deserialize(raw, conn.msgtype)
+                    data['paths'][conn.topic].append((t, path_points(msg)))
+                elif not route_read:  # latched: drawn once, maybe recorded again
+                    data['route'] = path_points(reader.deserialize(raw, conn.msgtype))
+                    route_read = True
+            elif conn.msgtype == 'visualization_msgs/msg/Marker':
                 msg = reader.deserialize(raw, conn.msgtype)
-                data['route'] = [(p.pose.position.x, p.pose.position.y) for p in msg.poses]
+                if msg.action == MARKER_ADD and msg.type == MARKER_LINE_STRIP and (
+                        circle := circle_through([(q.x, q.y) for q in msg.points])):
+                    data['markers'][conn.topic].append((t, *circle))
             elif conn.msgtype == 'std_msgs/msg/String':
                 msg = reader.deserialize(raw, conn.msgtype)
                 data['strings'][conn.topic.rsplit('/', 1)[-1]].append((t, msg.data))

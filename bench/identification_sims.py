@@ -20,7 +20,7 @@ from concic2_thesis_bench import VEHICLES
 import numpy as np
 
 from agv_nodes.track_geometry.fitting import ConicFit, LineFit, PolynomialFit
-from agv_nodes.track_geometry.pose import RULES, PoseIntegrator
+from agv_nodes.track_geometry.pose import RULES, ChordOdometry, PoseIntegrator
 from agv_nodes.track_geometry.settings import IdentificationParams
 from agv_nodes.track_geometry.track_fitter import TrackFitter
 from agv_nodes.world.settings import WorldParams
@@ -50,27 +50,6 @@ def median(values: Sequence[float]) -> float:
     return statistics.median(values)
 
 # -- I1: pose integration against the vehicle model's own path -----------------------------------
-
-class ChordOdometry:
-    """Pose from each wheel's travel: the heading from the travel difference, steps on chords.
-
-    Not a rule of PoseIntegrator: the heading is the counters' own, (right - left) / span,
-    and each step goes along the mean of the headings before and after it, the chord of an
-    arc. It shows what the wheel counts themselves are worth on a turn.
-    """
-
-    def __init__(self, span: float, x: float, y: float, heading: float) -> None:
-        self.span, self.x, self.y, self.heading = span, x, y, heading
-
-    def update(self, d_left: float, d_right: float) -> tuple[float, float, float]:
-        """Take the wheels' travel over one sample (m); return the pose."""
-        turn = (d_right - d_left) / self.span
-        mid = self.heading + turn / 2.0
-        step = (d_left + d_right) / 2.0
-        self.x, self.y = self.x + step * math.cos(mid), self.y + step * math.sin(mid)
-        self.heading += turn
-        return self.x, self.y, self.heading
-
 
 def i1(vehicle: str) -> dict[str, tuple[float, float]]:
     """Lateral error (mm) after 1.5 m and the largest on the way, per rule, for one model.

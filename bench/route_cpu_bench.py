@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from agv_nodes.harness import Harness
+from agv_nodes.harness import CameraLegScript, Harness
 from agv_nodes.route_following.camera_guidance import ImageAnalyser, runs_of
 from agv_nodes.route_following.core import RouteCore
 from agv_nodes.route_following.settings import RouteParams
@@ -61,23 +61,6 @@ class TimedRoute(RouteCore):
         return out
 
 
-class Script:
-    """The executive's part: one route_command, changed between the phases of a run."""
-
-    node, period = 'executive', 0.05
-
-    def __init__(self) -> None:
-        self.command = {'mode': 'camera', 'srm_angle': 0, 'junction': 'straight',
-                        'manoeuvre': 0, 'direction': 'forward', 'junction_number': 0,
-                        'junction_wait': 0, 'leg': 1}
-
-    def on_record(self, record, fields, now):  # noqa: D102
-        return None
-
-    def tick(self, now):  # noqa: D102
-        return {'route_command': dict(self.command)}
-
-
 def windows(world: WorldCore) -> tuple[tuple[float, float], tuple[float, float]]:
     """Return the (front, rear) window centres, m."""
     s = world.vehicle.state
@@ -95,7 +78,7 @@ def run(cameras: str, direction: str, seconds: float) -> dict[str, float]:
     """Drive one leg for `seconds`; return CPU ms per simulated second and offsets, mm."""
     lay = load_layout(layout_path('tape_1991'))
     world = WorldCore(lay, WorldParams(seed=2, rear_camera=True))
-    script, route = Script(), TimedRoute(RouteParams(vehicle='concic2', cameras=cameras))
+    script, route = CameraLegScript(), TimedRoute(RouteParams(vehicle='concic2', cameras=cameras))
     h = Harness(world, [script, route], seed=2)
     if direction == 'reverse':  # out along the tape, a motor-off stop, then back
         h.run(6.0)

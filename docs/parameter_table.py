@@ -42,10 +42,13 @@ def _limits(entry: dict) -> str:
 def page() -> str:
     """Return the whole page."""
     out = [HEADER]
-    for path in sorted((REPO / 'agv_nodes').rglob('parameters.yaml')):
-        sections = yaml.safe_load(path.read_text())
-        prefixes = {group: f'{name}.' for section in sections.values()
-                    for name, group in section.items() if isinstance(group, str)}
+    files = {path: yaml.safe_load(path.read_text())
+             for path in sorted((REPO / 'agv_nodes').rglob('parameters.yaml'))}
+    # A group may be declared in one file and nested in another's settings (route following's
+    # identification and feed_forward are track_geometry's): the prefixes come from them all.
+    prefixes = {group: f'{name}.' for sections in files.values() for section in sections.values()
+                for name, group in section.items() if isinstance(group, str)}
+    for path, sections in files.items():
         out.append(f'\n## `{path.relative_to(REPO)}`')
         for cls, section in sections.items():
             prefix = prefixes.get(cls, '')

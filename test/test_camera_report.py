@@ -9,6 +9,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from agv_nodes.camera_report import STEERED, make_camera_report
@@ -206,3 +207,215 @@ def test_camera_report_without_commands_or_world_events(tmp_path: Path, capsys) 
     end, leg_end = result['stops']
     assert 5.0 < end['time'] <= 5.3 and end['cause'] == 'no_track'
     assert 8.0 < leg_end['time'] <= 8.3 and leg_end['cause'] == 'idle (leg end)'
+
+
+# -- the identified track (camera_law feed_forward) against the tape ---------------------------
+
+TRACK_LAYOUT = 'tape_1991'  # the circle of R = 2.95 m; its first road sign is 4 m along
+START_S = 0.2  # m along the circle where route following starts: odom's origin
+
+
+def _tape_1991():
+    from agv_nodes.world.layout import layout_path, load_layout
+
+    return load_layout(layout_path(TRACK_LAYOUT))
+
+
+def _odom_windows(start: tuple[float, float, float], lateral: float = 0.0
+                  ) -> list[list[tuple[float, float]]]:
+    """Windows of the circle tape 1.5 m long, 0.5 m apart, `lateral` m left of it, in odom.
+
+    odom: the frame whose origin and x axis are the pose `start` (x, y, heading) in the world.
+    """
+    tape = _tape_1991().paths['circle']
+    x0, y0, h0 = start
+    c, s = math.cos(h0), math.sin(h0)
+    windows = []
+    for k in range(4):  # 0.5 .. 3.0 m along: clear of the first sign's branches
+        points = []
+        for j in range(76):
+            x, y, h = tape.pose_at(START_S + 0.3 + 0.5 * k + 0.02 * j)
+            x, y = x - lateral * math.sin(h) - x0, y + lateral * math.cos(h) - y0
+            points.append((c * x + s * y, -s * x + c * y))
+        windows.append(points)
+    return windows
+
+
+def _track_data(windows: list, topic: str = '/route/identified_track') -> dict:
+    """Return a data dict as read_bag gives it: the start pose first, the windows at 2 Hz."""
+    from collections import defaultdict
+
+    start = _tape_1991().paths['circle'].pose_at(START_S)
+    return {'records': defaultdict(list), 'strings': defaultdict(list), 'start': 0.0,
+            'end': 3.0, 'pose': [(0.0, *start), (3.0, *start)],
+            'paths': {topic: [(1.0 + k / 2, w) for k, w in enumerate(windows)]}}
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize('topic', ['/route/identified_track', '/truck1/route/identified_track'])
+def test_identified_track_is_placed_on_the_tape_by_the_start_pose(topic: str) -> None:
+    from agv_nodes.camera_report import analyse_camera, summary_markdown
+    from agv_nodes.track_report import identified_track_messages, tape_distance
+
+    layout = _tape_1991()
+    start = layout.paths['circle'].pose_at(START_S)
+    assert abs(start[2]) > 0.05  # odom is turned against the world: the rotation counts
+    on = analyse_camera(_track_data(_odom_windows(start), topic), layout)['identified_track']
+    assert on['messages'] == 4 and on['points'] == 4 * 76
+    # the tape's polyline (0.02 m chords of R = 2.95 m) lies 0.02 mm inside the arc at most
+    assert on['mean_mm'] < 1.0 and on['max_mm'] < 0.05
+    # 20 mm left of the tape (towards the centre): 20 mm from it
+    shifted = _track_data(_odom_windows(start, lateral=0.02), topic)
+    off = analyse_camera(shifted, layout)['identified_track']
+    assert off['mean_mm'] == pytest.approx(20.0, abs=0.05)
+    assert off['max_mm'] == pytest.approx(20.0, abs=0.05)
+    # beside a tape the distance is project()'s |lateral|
+    points = np.concatenate([p for _t, p in identified_track_messages(shifted)])
+    lateral = [layout.paths['circle'].project(x, y)[1] for x, y in points[::25]]
+    assert tape_distance(layout, points[::25]) == pytest.approx(np.abs(lateral), abs=1e-9)
+    summary = summary_markdown(analyse_camera(shifted, layout), [])
+    assert '- identified track (route/identified_track): 4 messages, 304 points, from the ' \
+        'nearest tape centreline mean 20.0 mm, max 20.0 mm.' in summary
+    # placed at a start pose 10 mm left of the true one: every point 10 mm that way (up to
+    # 10 mm from the tape, less where the circle has turned away from that direction)
+    wrong = _track_data(_odom_windows(start), topic)
+    t, x, y, h = wrong['pose'][0]
+    wrong['pose'][0] = (t, x - 0.01 * math.sin(h), y + 0.01 * math.cos(h), h)
+    moved = analyse_camera(wrong, layout)['identified_track']
+    assert 5.0 < moved['mean_mm'] < 10.0 and moved['max_mm'] == pytest.approx(10.0, abs=0.1)
+
+
+@pytest.mark.timeout(60)
+def test_without_the_identified_track_nothing_changes() -> None:
+    from agv_nodes.camera_report import analyse_camera, summary_markdown
+
+    layout = _tape_1991()
+    data = _track_data(_odom_windows(layout.paths['circle'].pose_at(START_S)))
+    with_track = analyse_camera(data, layout)
+    for paths in ({}, {'/elsewhere/path': data['paths']['/route/identified_track']}, None):
+        if paths is None:
+            del data['paths']  # a hand-made data dict of before
+        else:
+            data['paths'] = paths
+        result = analyse_camera(data, layout)
+        assert 'identified_track' not in result
+        assert result == {k: v for k, v in with_track.items() if k != 'identified_track'}
+        assert 'identified track' not in summary_markdown(result, [])
+
+
+def write_track_bag(path: Path) -> tuple[float, float, float]:
+    """Write a feed_forward run's pictures as the recorder does; return the start pose.
+
+    The node's own messages (route_following.node's track_path and circle_marker), serialized
+    by rclpy as the recorder receives them. An identified track arrives before the world's
+    route; the route is published twice (a late-joining recorder gets the latched one again).
+    """
+    from builtin_interfaces.msg import Time
+    from rclpy.serialization import serialize_message
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from agv_nodes.route_following.node import circle_marker, track_path
+    from agv_nodes.track_geometry.osculating import Circle
+    from agv_nodes.world.viz import layout_messages, pose_message
+
+    layout = _tape_1991()
+    start = layout.paths['circle'].pose_at(START_S)
+    store = get_typestore(Stores.ROS2_JAZZY)
+    route, _cards = layout_messages(layout)
+    other, _ = layout_messages(_junction_1991())
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        def write(topic: str, msgtype: str, t: float, msg) -> None:
+            if topic not in conns:
+                conns[topic] = writer.add_connection(topic, msgtype, typestore=store)
+            writer.write(conns[topic], _ns(t), serialize_message(msg))
+
+        conns: dict = {}
+        for k in range(31):
+            t = k / 10
+            write('/world/pose', 'geometry_msgs/msg/PoseStamped', t,
+                  pose_message(*start, Time(sec=int(t), nanosec=_ns(t) % 10**9)))
+        for k, window in enumerate(_odom_windows(start)):
+            t = 0.5 + k / 2
+            stamp = Time(sec=int(t), nanosec=_ns(t) % 10**9)
+            write('/route/identified_track', 'nav_msgs/msg/Path', t, track_path(window, stamp))
+            circle = Circle(0.1 * k, -2.95, 2.95, 1 / 2.95) if k % 2 == 0 else \
+                Circle(math.nan, math.nan, math.inf, 0.0)  # a straight: DELETE
+            write('/route/osculating_circle', 'visualization_msgs/msg/Marker', t,
+                  circle_marker(circle, stamp))
+            if k < 2:
+                write('/world/route', 'nav_msgs/msg/Path', 0.7 + k, route if k == 0 else other)
+    return start
+
+
+def _junction_1991():
+    from agv_nodes.world.layout import layout_path, load_layout
+
+    return load_layout(layout_path('junction_1991'))
+
+
+@pytest.mark.timeout(60)
+def test_read_bag_keys_paths_and_circles_by_topic(tmp_path: Path) -> None:
+    from agv_nodes.report import read_bag
+    from agv_nodes.world.viz import layout_messages
+
+    bag = tmp_path / 'bag'
+    start = write_track_bag(bag)
+    data = read_bag(bag)
+    # the route: the first message of world/route (tape_1991's, not junction_1991's after it)
+    route, _cards = layout_messages(_tape_1991())
+    assert data['route'] == [(p.pose.position.x, p.pose.position.y) for p in route.poses]
+    assert set(data['paths']) == {'/route/identified_track'}
+    windows = _odom_windows(start)
+    track = data['paths']['/route/identified_track']
+    assert [t for t, _p in track] == [_s(0.5), _s(1.0), _s(1.5), _s(2.0)]
+    for (_t, points), window in zip(track, windows, strict=True):
+        assert np.array(points) == pytest.approx(np.array(window), abs=1e-12)
+    assert set(data['markers']) == {'/route/osculating_circle'}
+    circles = data['markers']['/route/osculating_circle']
+    assert [c[0] for c in circles] == [_s(0.5), _s(1.5)]  # the DELETEs add nothing
+    for (_t, *circle), h in zip(circles, (0.0, 0.2), strict=True):
+        assert circle == pytest.approx([h, -2.95, 2.95], abs=1e-9)
+    assert data['pose'][0] == (_s(0.0), *(pytest.approx(v, abs=1e-12) for v in start))
+
+
+@pytest.mark.timeout(120)
+def test_camera_report_draws_and_measures_the_identified_track(tmp_path: Path) -> None:
+    bag = tmp_path / 'bag'
+    write_track_bag(bag)
+    result = make_camera_report(bag, tmp_path / 'out', TRACK_LAYOUT)
+    track = result['identified_track']
+    assert track['messages'] == 4 and track['points'] == 4 * 76
+    assert track['mean_mm'] < 1.0 and track['max_mm'] < 0.05
+    out = tmp_path / 'out'
+    assert json.loads((out / 'report.json').read_text())['identified_track'] == track
+    assert '- identified track (route/identified_track): 4 messages' in \
+        (out / 'summary.md').read_text()
+    assert (out / 'camera_path.png').stat().st_size > 10_000
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize('name', ['signs_1991', 'tape_1991'])
+def test_tape_distance_is_the_nearest_point_of_any_tape(name: str) -> None:
+    """Against every segment of every tape, at random and near the tapes (closed ones' seam)."""
+    from agv_nodes.track_report import tape_distance
+    from agv_nodes.world.layout import layout_path, load_layout
+
+    layout = load_layout(layout_path(name))
+    tapes = [p for pid, p in layout.paths.items() if 'patch' not in pid]
+    rng = np.random.default_rng(3)
+    on = np.concatenate([p.points for p in tapes])
+    points = np.concatenate([rng.uniform(-4.0, 5.0, (300, 2)),
+                             on[rng.integers(0, len(on), 300)] + rng.normal(0, 0.03, (300, 2)),
+                             [p.points[0] + (0.004, -0.06) for p in tapes]])
+    truth = np.full(len(points), np.inf)
+    for tape in tapes:
+        a, d = tape.points[:-1], np.diff(tape.points, axis=0)
+        rel = points[:, None, :] - a[None]
+        t = np.clip(np.einsum('pij,ij->pi', rel, d) / np.einsum('ij,ij->i', d, d), 0.0, 1.0)
+        truth = np.minimum(truth, np.linalg.norm(rel - t[..., None] * d, axis=2).min(axis=1))
+    assert tape_distance(layout, points) == pytest.approx(truth, abs=1e-12)
+    # beyond a tape's end the distance to the end, not project()'s lateral (0 in line with it)
+    end = _junction_1991()
+    assert tape_distance(end, np.array([[6.1, 0.0]])) == pytest.approx([0.1])
+    assert end.paths['main'].project(6.1, 0.0)[1] == 0.0

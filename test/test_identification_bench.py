@@ -1,7 +1,8 @@
 """bench/identification_bench.py --quick against the thesis's figures (Rajagopalan 1991, 7.5).
 
 The quick run is the simulations I1-I7 (5 seeds of 3 mm noise) and the R = 2.95 m circle (E5,
-E6) driven by the camera truck on the kinematic model and reconstructed off line: about 15 s.
+E6) driven by the camera truck on the kinematic model and reconstructed off line, then E8's
+three closed-loop runs (each law on the circle course at 0.6 m/s, kinematic): about 50 s.
 A regression in the identification core (pose integration, the fits, the criteria) or in the
 camera loop that feeds it moves these numbers past the thesis's tolerances.
 """
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+import re
 import sys
 
 import pytest
@@ -101,3 +103,25 @@ def test_e6_desired_offsets_on_the_identified_circle(quick: tuple[list[str], dic
         assert eps_theta == pytest.approx(0.22, abs=0.005)  # measured 0.2189-0.2191
     assert abs(e5['osc_radius'] / bench.E_RADIUS - 1.0) < 0.01
     assert math.isfinite(e5['measured'][1])
+
+
+@pytest.mark.timeout(300)
+def test_e8_ratio_line_is_the_last_line_main_prints(
+        quick: tuple[list[str], dict], monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """The quick E8 in the report; main prints its feed-forward / feedback ratio last.
+
+    main is given the fixture's run (monkeypatched) so the quick bench runs once in this file.
+    """
+    text = '\n'.join(quick[0])
+    assert '### E8a' in text and 'E8b' not in text  # steady state and top speed: the full run's
+    drives = quick[1]['e8']['results']['drives']
+    assert len(drives) == 3 and all(d.completed for d in drives.values())
+    ff = drives['circle', 'feed_forward', 'kinematic', 0.6]
+    assert ff.ff_before == [True]  # identified on the 4 m lead-in before the curve
+    monkeypatch.setattr(bench, 'run', lambda *_args, **_kw: quick)
+    assert bench.main(['--quick']) == 0
+    last = capsys.readouterr().out.splitlines()[-1]
+    match = re.fullmatch(r'feed-forward / feedback peak curve error: (\d+\.\d\d)', last)
+    assert match and 0.0 < float(match.group(1)) < 10.0
+    assert last == quick[1]['e8']['line'] == quick[0][-2]  # the report's E8 ends with it

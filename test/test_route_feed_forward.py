@@ -19,7 +19,7 @@ import random
 from builtin_interfaces.msg import Time
 import pytest
 
-from agv_nodes.harness import Harness
+from agv_nodes.harness import CameraLegScript, Harness
 from agv_nodes.route_following.core import RouteCore
 from agv_nodes.route_following.node import circle_marker, track_path
 from agv_nodes.route_following.settings import RouteParams
@@ -39,28 +39,6 @@ MODELS = ('kinematic', 'dynamic')
 # The window centre's offset from the tape when both caster contacts are on it: O then runs
 # on sqrt(R^2 - L_a^2) about the centre and the window sqrt(R^2 - L_a^2 + L_c^2) from it.
 CASTERS_WINDOW = math.sqrt(R * R - L_A * L_A + L_C * L_C) - R
-
-
-class Executive:
-    """Stand-in executive: one route_command; the states route_status went through.
-
-    Camera mode, forwards, straight on at junctions, unless changed.
-    """
-
-    node, period = 'executive', 0.05
-
-    def __init__(self, **command: object) -> None:
-        self.command = {'mode': 'camera', 'srm_angle': 0, 'junction': 'straight',
-                        'manoeuvre': 0, 'direction': 'forward', 'junction_number': 0,
-                        'junction_wait': 0, 'leg': 1, **command}
-        self.states: list[str] = []
-
-    def on_record(self, record, fields, now):
-        if record == 'route_status' and (not self.states or self.states[-1] != fields['state']):
-            self.states.append(fields['state'])
-
-    def tick(self, now):
-        return {'route_command': dict(self.command)}
 
 
 def circle_floor() -> Layout:
@@ -105,11 +83,11 @@ def gap_floor(at: float = 8.0, gap: float = 0.2) -> Layout:
 
 
 def truck(lay: Layout, model: str, speed: float, law: str, seed: int = 2, rear: bool = False,
-          **command: object) -> tuple[Harness, WorldCore, RouteCore, Executive]:
+          **command: object) -> tuple[Harness, WorldCore, RouteCore, CameraLegScript]:
     world = WorldCore(lay, WorldParams(seed=seed, rear_camera=rear,
                                        concic2=Concic2Params(model=model)))
     route = RouteCore(RouteParams(vehicle='concic2', camera_speed=speed, camera_law=law))
-    script = Executive(**command)
+    script = CameraLegScript(**command)
     return Harness(world, [script, route], seed=seed), world, route, script
 
 
@@ -136,8 +114,8 @@ class Run:
         return [v for t, v in zip(self.t, values, strict=True) if t >= self.t[-1] - seconds]
 
 
-def drive_circle(model: str, speed: float, law: str, seconds: float) -> tuple[Run, RouteCore,
-                                                                             Executive]:
+def drive_circle(model: str, speed: float, law: str,
+                 seconds: float) -> tuple[Run, RouteCore, CameraLegScript]:
     h, world, route, script = truck(circle_floor(), model, speed, law)
     guidance, run, travel = route.track_guidance, Run(), 0.0
     s = world.vehicle.state
@@ -260,7 +238,7 @@ def test_on_the_circle_both_casters_hold_the_tape(model: str, speed: float) -> N
 # -- a line, an arc, a line -----------------------------------------------------------------------
 
 def drive_stadium(model: str, speed: float, law: str, seconds: float
-                  ) -> tuple[list[tuple[float, float, str]], RouteCore, Executive]:
+                  ) -> tuple[list[tuple[float, float, str]], RouteCore, CameraLegScript]:
     """(window's distance along the loop, its offset from the tape, the law) every frame."""
     lay = stadium_floor()
     loop = lay.paths['loop']

@@ -53,7 +53,7 @@ def status(leg: int, state: str = 'following', junctions: int = 0, distance: int
 def test_each_junction_gets_its_scripted_decision_numbered_in_time() -> None:
     legs = TapeLegs(seed=1, rest_time=0.3)
     task = parse_task('tape junctions 1 left wait 2, 2 right otherwise straight').record()
-    route = legs.start(task, reverse=False, length_dm=0, route={'manoeuvre': 0})
+    route = legs.start(task, kind='tape', length_dm=0, route={'manoeuvre': 0})
     assert (route['mode'], route['direction'], route['junction'], route['junction_number'],
             route['junction_wait']) == ('camera', 'forward', 'left', 1, 2)
     outcome, route = legs.update(status(legs.leg, 'turning', junctions=1), route, 1.0)
@@ -66,7 +66,7 @@ def test_each_junction_gets_its_scripted_decision_numbered_in_time() -> None:
 
 def test_a_status_of_the_previous_leg_is_not_taken_for_this_one() -> None:
     legs = TapeLegs(seed=1, rest_time=0.3)
-    route = legs.start(parse_task('tape').record(), False, 0, {'manoeuvre': 0})
+    route = legs.start(parse_task('tape').record(), 'tape', 0, {'manoeuvre': 0})
     outcome, _ = legs.update(status(legs.leg - 1, 'no_track', distance=300), route, 1.0)
     assert outcome.state == 'running' and legs.phase == 'driving'
 
@@ -74,7 +74,7 @@ def test_a_status_of_the_previous_leg_is_not_taken_for_this_one() -> None:
 def test_random_choices_follow_the_thesis_draw_and_repeat_with_the_seed() -> None:
     def draws(seed: int) -> list[str]:
         legs = TapeLegs(seed=seed, rest_time=0.3)
-        route = legs.start(parse_task('tape junctions random').record(), False, 0, {})
+        route = legs.start(parse_task('tape junctions random').record(), 'tape', 0, {})
         out = [route['junction']]
         for k in range(1, 40):
             _, route = legs.update(status(legs.leg, junctions=k), route, float(k))
@@ -89,7 +89,7 @@ def test_random_choices_follow_the_thesis_draw_and_repeat_with_the_seed() -> Non
 
 def test_a_leg_with_a_length_stops_at_it_and_is_done_at_rest() -> None:
     legs = TapeLegs(seed=1, rest_time=0.3)
-    route = legs.start(parse_task('tape for 2.0 m').record(), False, 20, {})
+    route = legs.start(parse_task('tape for 2.0 m').record(), 'tape', 20, {})
     outcome, route = legs.update(status(legs.leg, distance=150), route, 1.0)
     assert outcome.state == 'running' and route['mode'] == 'camera'
     outcome, route = legs.update(status(legs.leg, distance=200), route, 2.0)
@@ -109,7 +109,7 @@ def test_a_leg_with_a_length_stops_at_it_and_is_done_at_rest() -> None:
 ])
 def test_how_a_leg_ends(length_dm: int, state: str, expected: str) -> None:
     legs = TapeLegs(seed=1, rest_time=0.3)
-    route = legs.start(parse_task('tape').record(), False, length_dm, {})
+    route = legs.start(parse_task('tape').record(), 'tape', length_dm, {})
     outcome = None
     for t in (1.0, 1.2, 1.4):
         outcome, route = legs.update(status(legs.leg, state, distance=120), route, t)
@@ -158,8 +158,8 @@ def test_the_camera_truck_supervises_route_following_and_communications_only() -
 def test_the_reverse_leg_goes_straight_on_whatever_the_forward_script() -> None:
     legs = TapeLegs(seed=1, rest_time=0.3)
     task = parse_task('tape junctions 1 left, 2 right otherwise random then reverse').record()
-    assert legs.start(task, False, 0, {})['junction'] == 'left'
-    route = legs.start(task, True, 0, {})
+    assert legs.start(task, 'tape', 0, {})['junction'] == 'left'
+    route = legs.start(task, 'tape_reverse', 0, {})
     assert (route['direction'], route['junction']) == ('reverse', 'straight')
     for k in range(1, 6):
         _, route = legs.update(status(legs.leg, junctions=k), route, float(k))

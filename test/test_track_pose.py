@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from agv_nodes.odometry import counter_step
-from agv_nodes.track_geometry.pose import RULES, PoseIntegrator, track_point
+from agv_nodes.track_geometry.pose import RULES, ChordOdometry, PoseIntegrator, track_point
 
 SPAN = 0.52  # m between the drive wheels, as the package's vehicle has it
 V, DT = 0.3, 0.05  # the thesis's identification runs (Rajagopalan 1991, 7.5.1)
@@ -165,6 +165,52 @@ def test_bad_arguments_are_refused() -> None:
         PoseIntegrator(0.0)
     with pytest.raises(ValueError, match='period'):
         PoseIntegrator(SPAN).update(V, V, 0.0)
+
+
+# -- the counters' own heading (ChordOdometry) -------------------------------------------------
+
+def test_chord_odometry_on_a_circle_and_a_straight() -> None:
+    """R = 2.95 m (tape_1991) from exact wheel travels: the heading exact, the chords' direction.
+
+    Each step lays the arc's length along the chord's direction, (dpsi / 2) / sin(dpsi / 2)
+    times the chord: the path is the true circle scaled by that factor about the start, 6 um
+    off it after a half lap, where the trapezoid (Eq. 5.38) lags half a step's turn, 15 mm.
+    """
+    radius = 2.95
+    rate = V / radius
+    left, right = wheels(V, rate)
+    n = round(math.pi * radius / (V * DT))  # a half lap: 618 steps of 15 mm
+    x0, y0, h0 = 1.0, -2.0, 0.4
+    centre = (x0 - radius * math.sin(h0), y0 + radius * math.cos(h0))
+    chord = ChordOdometry(SPAN, x0, y0, h0)
+    trapezoid = PoseIntegrator(SPAN, v_left=left, v_right=right, x=x0, y=y0, heading=h0)
+    turn = rate * DT
+    scale = (turn / 2) / math.sin(turn / 2)
+    worst = 0.0
+    for k in range(1, n + 1):
+        x, y, heading = chord.update(left * DT, right * DT)
+        angle = h0 + k * turn
+        assert heading == pytest.approx(angle, abs=1e-12)
+        tx, ty = centre[0] + radius * math.sin(angle), centre[1] - radius * math.cos(angle)
+        assert (x, y) == pytest.approx((x0 + scale * (tx - x0), y0 + scale * (ty - y0)),
+                                       abs=1e-9)
+        worst = max(worst, abs(math.hypot(x - centre[0], y - centre[1]) - radius))
+    assert chord.pose == (x, y, heading)
+    assert 2 * radius * (scale - 1) == pytest.approx(6.4e-6, abs=0.1e-6)
+    assert worst <= 2 * radius * (scale - 1) + 1e-9
+    for _ in range(n):
+        tx, ty, _ = trapezoid.update(left, right, DT)
+    lag = math.hypot(tx - x, ty - y)
+    assert lag == pytest.approx(turn / 2 * 2 * radius, rel=1e-3)  # 15 mm
+    # A straight: exact.
+    chord = ChordOdometry(SPAN, x0, y0, h0)
+    for k in range(1, 201):
+        x, y, heading = chord.update(V * DT, V * DT)
+        assert heading == h0
+        assert (x, y) == pytest.approx((x0 + k * V * DT * math.cos(h0),
+                                        y0 + k * V * DT * math.sin(h0)), abs=1e-12)
+    with pytest.raises(ValueError, match='wheel_span'):
+        ChordOdometry(0.0)
 
 
 # -- the track point ---------------------------------------------------------------------------

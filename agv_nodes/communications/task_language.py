@@ -2,7 +2,8 @@
 
 Syntax only, as communications passes tasks on without interpreting them (Baker 1983, 3.5.3):
 the 1983 tasks of 7.2 and fig 3.1, and the 1991 camera truck's tape legs with their junction
-scripts (Rajagopalan 1991, App. F.6-F.7). A text that does not parse raises TaskError naming the
+scripts and law (Rajagopalan 1991, App. F.5-F.7) and its dead-reckoning legs along a stored
+trajectory (App. F.9). A text that does not parse raises TaskError naming the
 column and the reason.
 """
 
@@ -12,6 +13,8 @@ from typing import Any
 
 SCRIPT_JUNCTIONS = 4  # script lines the comms_status record has room for (bytes 10-12)
 DECISIONS = ('straight', 'left', 'right', 'random')
+CAMERA_LAWS = ('feedback', 'feed_forward')
+TRAJECTORIES = 15  # stored trajectories a reckon task can name (comms_status byte 9, 4 bits)
 
 
 class TaskError(ValueError):
@@ -42,6 +45,8 @@ class Task:
     unscripted: str = 'straight'
     leg_distance: int = 0
     reverse_distance: int = 0
+    camera_law: str = 'default'  # a tape leg's law forwards (default: route following's own)
+    trajectory: int = 0  # a reckon leg's stored trajectory (0 = the track identified last)
 
     def record(self) -> dict[str, Any]:
         """Return the comms_status fields."""
@@ -49,7 +54,8 @@ class Task:
                'marker': self.marker, 'destination': self.destination, 'dwell': self.dwell,
                'srm_angle': self.srm_angle, 'then': self.then, 'conveyor': self.conveyor,
                'unscripted': self.unscripted, 'leg_distance': self.leg_distance,
-               'reverse_distance': self.reverse_distance}
+               'reverse_distance': self.reverse_distance, 'camera_law': self.camera_law,
+               'trajectory': self.trajectory}
         for n in range(1, SCRIPT_JUNCTIONS + 1):
             decision, wait = self.junctions.get(n, (self.unscripted, 0))
             out[f'junction_{n}'], out[f'wait_{n}'] = decision, wait
@@ -111,7 +117,8 @@ def parse_task(text: str, locations: tuple[int, ...] = (0, 1, 2, 3)) -> Task:
     """Parse one task of the task language (TaskError on anything else)."""
     t = _Tokens(text)
     verb = t.peek()
-    verbs = ('load', 'unload', 'wait', 'stop', 'srm', 'leave', 'tape', 'abort', 'status')
+    verbs = ('load', 'unload', 'wait', 'stop', 'srm', 'leave', 'tape', 'reckon', 'abort',
+             'status')
     if verb not in verbs:
         what = 'empty task' if verb is None else f'unknown task {verb!r}'
         raise TaskError(text, t.column(), f'{what} (expected one of {", ".join(verbs)})')
@@ -129,6 +136,8 @@ def parse_task(text: str, locations: tuple[int, ...] = (0, 1, 2, 3)) -> Task:
         task = Task(text, verb)
     elif verb == 'tape':
         task = _tape(t)
+    elif verb == 'reckon':
+        task = _reckon(t)
     elif verb == 'load' and t.peek() not in (None, 'at'):  # load A at B and take to C
         name = t.take()
         t.take('at')
@@ -177,13 +186,18 @@ def parse_task(text: str, locations: tuple[int, ...] = (0, 1, 2, 3)) -> Task:
 
 
 def _tape(t: _Tokens) -> Task:
-    """`tape [junctions SCRIPT | junctions random] [for D m] [then reverse [for D m]]`.
+    """`tape [with LAW] [junctions SCRIPT | junctions random] [for D m] [then reverse [for D m]]`.
 
-    SCRIPT: `N DECISION [wait S]` items, comma-separated, N the N-th junction met on the leg
-    (Rajagopalan 1991, App. F.7: junction number, decision, wait time), optionally followed by
-    `otherwise straight|random` for the junctions it does not name.
+    LAW: feedback or feed_forward, the leg's law going forwards (App. F.5's keys chose it);
+    without `with`, route following's camera_law parameter (or the layout's). SCRIPT: `N
+    DECISION [wait S]` items, comma-separated, N the N-th junction met on the leg (Rajagopalan
+    1991, App. F.7: junction number, decision, wait time), optionally followed by `otherwise
+    straight|random` for the junctions it does not name.
     """
     task = Task(t.text, 'tape')
+    if t.peek() == 'with':
+        t.take()
+        task.camera_law = t.take(*CAMERA_LAWS)
     if t.peek() == 'junctions':
         t.take()
         if t.peek() == 'random':
@@ -220,3 +234,18 @@ def _tape(t: _Tokens) -> Task:
             task.reverse_distance = t.decimetres('reverse length')
     return task
 
+
+
+def _reckon(t: _Tokens) -> Task:
+    """`reckon (trajectory N | track) for D m`: a dead-reckoning leg (Rajagopalan 1991, App. F.9).
+
+    Without the camera, along stored trajectory N (route following's dead_reckoning.trajectories)
+    placed at the truck's pose, or along the track it identified last; the length is required,
+    since nothing but the distance ends the leg.
+    """
+    task = Task(t.text, 'reckon')
+    if t.take('trajectory', 'track') == 'trajectory':
+        task.trajectory = t.number('trajectory', 1, TRAJECTORIES)
+    t.take('for')
+    task.leg_distance = t.decimetres('reckon length')
+    return task

@@ -33,7 +33,8 @@ from agv_nodes.executive.tape_legs import TapeLegs
 from agv_nodes.subsystem import SubsystemCore
 
 EXPLORE = 31  # a location identity no marker carries: "cruise and report every landmark"
-TAPE_STEPS = ('tape', 'tape_reverse')
+TAPE_STEPS = ('tape', 'tape_reverse', 'reckon')
+CAMERA_OPS = ('tape', 'reckon')  # the camera truck's tasks
 
 
 class ExecutiveCore(FaultSupervision, SubsystemCore):
@@ -134,7 +135,7 @@ class ExecutiveCore(FaultSupervision, SubsystemCore):
             self._log(now, f'task {self.task_id}: abort')
             return
         steps = itinerary(fields)
-        if not steps or (fields['op'] == 'tape') != self.camera:
+        if not steps or (fields['op'] in CAMERA_OPS) != self.camera:
             self.report = {'state': 'rejected', 'cause': 'bad_task', 'subsystem': 'none'}
             why = 'no itinerary' if not steps else \
                 f'a {fields["op"]} task, on a truck with {self.p.guidance} guidance'
@@ -227,8 +228,7 @@ class ExecutiveCore(FaultSupervision, SubsystemCore):
         elif step.kind == 'wait':
             self.phase = 'dwell'
         elif step.kind in TAPE_STEPS:
-            self.route = self.tape.start(self.task or {}, step.kind == 'tape_reverse', step.value,
-                                         self.route)
+            self.route = self.tape.start(self.task or {}, step.kind, step.value, self.route)
             self.phase = 'leg'
 
     def _advance(self, now: float) -> None:

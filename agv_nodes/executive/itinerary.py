@@ -1,7 +1,8 @@
 """The itinerary: a task record into steps (Baker 1983, fig 3.1, level 2), ROS-free.
 
 A tape task (the camera truck, Rajagopalan 1991, App. F.6-F.7) is one or two legs: tape, then
-tape_reverse with `then reverse` (agv_nodes.executive.tape_legs runs them).
+tape_reverse with `then reverse`; a reckon task (App. F.9) one leg, reckon
+(agv_nodes.executive.tape_legs runs them).
 """
 
 from dataclasses import dataclass
@@ -47,6 +48,13 @@ def itinerary(task: dict[str, Any]) -> list[Step]:
             steps.append(Step('tape_reverse', value=back, name='tape leg in reverse, ' + (
                 f'{back / 10:.1f} m' if back else 'to the end of the tape')))
         return steps
+    elif op == 'reckon':
+        if not task['leg_distance']:
+            return []  # only the distance ends a dead-reckoning leg
+        trajectory = task['trajectory']
+        along = f'stored trajectory {trajectory}' if trajectory else 'the identified track'
+        return [Step('reckon', value=task['leg_distance'],
+                     name=f'dead reckoning along {along}, {task["leg_distance"] / 10:.1f} m')]
     elif op == 'transfer':
         b, c = n, task['destination']
         steps += [Step('goto', b, 0, name=f'go to B = L{b}'),

@@ -11,7 +11,12 @@ task's `unscripted` choice), numbered, with the line's wait. A random decision i
 thesis drew it: an even number turns, an odd one goes straight; a turn draws again, even left
 and odd right (the thesis seeded with the time of day; here `junction_seed`, so runs repeat).
 The script belongs to the forward leg; a reverse leg goes straight on at every junction, back
-the way it came.
+the way it came. The task's camera_law goes with the forward leg (the feedback law steers in
+reverse).
+
+A reckon task is one dead-reckoning leg (App. F.9): route_command mode dead_reckoning with the
+task's trajectory; route following drives along it by odometry alone and the leg ends, as a tape
+leg with a length does, when its distance reaches the length.
 
 A leg with a length ends when route following's distance reaches it: route_command goes idle
 (motors off, the thesis's motor-off stop) and the leg is done once the distance has stood still
@@ -52,9 +57,10 @@ class TapeLegs:
         self._still: tuple[int, float] | None = None  # (distance, since) while stopping
         self.log: list[str] = []
 
-    def start(self, task: dict[str, Any], reverse: bool, length_dm: int,
+    def start(self, task: dict[str, Any], kind: str, length_dm: int,
               route: dict[str, Any]) -> dict[str, Any]:
-        """Begin a leg; return the route_command fields that start it."""
+        """Begin a leg (tape, tape_reverse or reckon); return the route_command that starts it."""
+        reverse = kind == 'tape_reverse'
         # The script is the forward leg's: the way back takes every junction straight on, as
         # it came (a task's four script lines cannot name both ways).
         self.task = {} if reverse else task
@@ -62,7 +68,10 @@ class TapeLegs:
         self.length_cm, self.next_junction, self.phase = length_dm * 10, 1, 'driving'
         self._still = None
         self.decision = self._decide(1)
-        return self._command(route, 'camera', 'reverse' if reverse else 'forward')
+        route = {**route, 'camera_law': self.task.get('camera_law', 'default'),
+                 'trajectory': int(task.get('trajectory', 0)) if kind == 'reckon' else 0}
+        return self._command(route, 'dead_reckoning' if kind == 'reckon' else 'camera',
+                             'reverse' if reverse else 'forward')
 
     def _decide(self, n: int) -> tuple[str, int]:
         if n <= SCRIPT_JUNCTIONS:

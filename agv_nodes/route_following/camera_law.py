@@ -31,13 +31,15 @@ axle, so the loop backwards is the forward loop mirrored: the same gains and dam
         onto a branch, so a stop for it (the dual law's trailing_lost = stop) would end those
         legs: here it hands over to the leading camera instead.
 
-`camera_law` feed_forward adds the identified track's law (track_guidance.py, Rajagopalan 1991,
-5.4) going forwards: every leading frame feeds the identification, and once it has converged
-the feed-forward law steers instead of the law `cameras` chose; before that, in reverse, and
-after the fitter restarts on a new primitive of the route, that law steers. A hand-back carries
-the angle over: the PI law's integral is set to give the angle the feed-forward law last gave,
-so the caster does not jump. With the tape out of the leading window while following, the
-truck keeps to the identified track for identification.gap_distance before the stop.
+`camera_law` feed_forward (the parameter, or a leg's own choice in route_command, read when the
+leg begins: App. F.5 had identification-based guidance a key away) adds the identified track's
+law (track_guidance.py, Rajagopalan 1991, 5.4) going forwards: every leading frame feeds the
+identification, and once it has converged the feed-forward law steers instead of the law
+`cameras` chose; before that, in reverse, and after the fitter restarts on a new primitive of
+the route, that law steers. A hand-back carries the angle over: the PI law's integral is set to
+give the angle the feed-forward law last gave, so the caster does not jump. With the tape out
+of the leading window while following, the truck keeps to the identified track for
+identification.gap_distance before the stop.
 
 Frames of one instant: the world renders both cameras in the same step and stamps them alike,
 but they arrive one after the other, in either order. A leading frame is steered from at once
@@ -85,7 +87,10 @@ class CameraLaw:
         self.analysers = {name: ImageAnalyser(params.image) for name in ('front', 'rear')}
         self.single = CameraSteering(params.steering)
         self.dual = DualCameraGuidance(params.dual, params.steering)
-        self.track = TrackGuidance(params) if params.camera_law == 'feed_forward' else None
+        # Always there: its pose follows the odometry, so a later leg can feed it or drive the
+        # track it identified (dead reckoning, App. F.9); a leg's law says whether it steers.
+        self.track = TrackGuidance(params)
+        self.feed_forward = params.camera_law == 'feed_forward'
         self.direction = 1
         self.law = 'lead'  # the law of the last frame: lead, dual, feed_forward or bridge
         self._waiting: tuple[np.ndarray, Measurement, float] | None = None  # a lead frame
@@ -98,8 +103,14 @@ class CameraLaw:
         """Return the camera facing along travel."""
         return 'front' if self.direction == 1 else 'rear'
 
-    def start(self, direction: int) -> None:
-        """Start from rest on a tape (a new leg, or a branch after a spin): the laws afresh."""
+    def start(self, direction: int, law: str | None = None) -> None:
+        """Start from rest on a tape (a new leg, or a branch after a spin): the laws afresh.
+
+        `law`: the new leg's camera_law (feedback, feed_forward; default or None: the
+        parameter's); a branch taken after a spin keeps the leg's.
+        """
+        if law is not None:
+            self.feed_forward = (law if law != 'default' else self.p.camera_law) == 'feed_forward'
         self.direction = direction
         self.single.integral, self.single.absent = 0.0, 0
         self.dual.direction = direction
@@ -109,14 +120,12 @@ class CameraLaw:
         self._share_width()
         self._waiting = self._trail = None
         self._trail_seen = False
-        if self.track is not None:  # the feedback law starts each leg and branch
-            self.track.reset()
-            self.law = 'lead'
+        self.track.reset()  # the feedback law starts each leg and branch
+        self.law = 'lead'
 
     def odometry(self, d_left: float, d_right: float) -> None:
         """Take one wheel_odometry record's travel of each wheel, m (the identified track's)."""
-        if self.track is not None:
-            self.track.odometry(d_left, d_right)
+        self.track.odometry(d_left, d_right)
 
     def take(self, frame: np.ndarray, now: float, camera: str) -> list[View]:
         """Take one camera's frame; return the instants now ready to steer by, oldest first."""
@@ -169,7 +178,7 @@ class CameraLaw:
         """
         dt = 0.05 if self._last_time is None else max(view.time - self._last_time, 1e-3)
         self._last_time = view.time
-        if self.track is not None and self.direction == 1:
+        if self.feed_forward and self.direction == 1:
             if view.lead.validity is Validity.ABSENT and bridge and self.track.ready:
                 self.law = 'bridge'
                 return self.track.bridge(dt)  # None past gap_distance: the motor-off stop

@@ -26,6 +26,14 @@ crossing (state waiting); a straight choice without a wait drives on. States whi
 junction: sign (sighted, still on the tape), turning (the approach, spin and settle), waiting.
 Signs are met the same way in reverse, the rear camera reading them in the frame of travel: a
 reverse leg counts them and honours its decisions, left and right being those of travel.
+
+A leg's law going forwards is route_command's camera_law (default: the parameter's). A
+dead-reckoning leg (route_command mode dead_reckoning, App. F.9) drives forwards without the
+camera along `trajectory`: the stored one of that number (dead_reckoning.py) placed at the
+truck's pose, or with 0 the track identified last; no such trajectory stops it at once
+(no_track). Every RECKON_PERIOD the identified track's law steers by the offsets the window
+would read of it (track_guidance.py), at dead_reckoning.speed; frames and road signs are not
+looked at. It goes on until the executive ends the leg (route_command idle at its length).
 """
 
 import math
@@ -36,9 +44,11 @@ import numpy as np
 from agv_nodes.odometry import Odometer
 from agv_nodes.route_following.camera_guidance import Measurement, Validity
 from agv_nodes.route_following.camera_law import CameraLaw, View
+from agv_nodes.route_following.dead_reckoning import place, trajectory_conic
 from agv_nodes.route_following.junction_turn import JunctionTurn
 from agv_nodes.route_following.settings import RouteParams
 from agv_nodes.subsystem import Notes
+from agv_nodes.track_geometry.fitting import Conic
 
 # motor-off stops that hold until the next leg (drive_fault: the safety supervisor's, 6.3.11)
 STOPS = ('no_track', 'no_branch', 'lost', 'drive_fault')
@@ -46,6 +56,9 @@ STOPS = ('no_track', 'no_branch', 'lost', 'drive_fault')
 # 1991, 8.4.3): a leading camera silent for absent_frames such cycles is no track, as
 # absent_frames empty frames are (a reverse leg without a rear camera stops at once).
 LONGEST_CYCLE = 0.2  # s
+# A dead-reckoning leg steers at the camera's cycle (Rajagopalan 1991, 7.5.1.6: 40-60 ms), the
+# sample the feed-forward law and its gains were made for.
+RECKON_PERIOD = 0.05  # s
 
 
 class CameraMode:
@@ -74,6 +87,8 @@ class CameraMode:
         self._set_off_at: float | None = None  # sim time the vehicle set off from rest
         self._last_lead: float | None = None  # sim time of the last leading frame
         self._rows = len(params.image.rows) or 64
+        self.reckoning: Conic | None = None  # a dead-reckoning leg's curve, odometry frame
+        self._reckoned_at: float | None = None  # sim time it last steered
 
     # -- inputs -----------------------------------------------------------------------------
     def command(self, fields: dict[str, Any], now: float, entering: bool) -> bool:
@@ -84,18 +99,52 @@ class CameraMode:
         leg = int(fields.get('leg', 0))
         if not entering and leg == self.leg:
             return False
-        self.begin_leg(leg, -1 if fields.get('direction') == 'reverse' else 1, now)
+        trajectory = int(fields.get('trajectory', 0)) \
+            if fields.get('mode') == 'dead_reckoning' else None
+        self.begin_leg(leg, -1 if fields.get('direction') == 'reverse' else 1, now,
+                       fields.get('camera_law', 'default'), trajectory)
         return True
 
-    def begin_leg(self, leg: int, direction: int, now: float) -> None:
-        """Start a leg from where the vehicle is: counts from 0, the laws afresh."""
+    def begin_leg(self, leg: int, direction: int, now: float, law: str = 'default',
+                  trajectory: int | None = None) -> None:
+        """Start a leg from where the vehicle is: counts from 0, the laws afresh.
+
+        `law`: its camera_law; `trajectory`: a dead-reckoning leg's (None: a camera leg).
+        """
+        # The identified track and the pose are those the last leg left, until law.start.
+        reckoning = None if trajectory is None else self._trajectory(trajectory, now)
+        if trajectory is not None:
+            direction = 1  # along the trajectory as it was stored
         self.leg, self.direction, self.junctions, self.travel = leg, direction, 0, 0.0
         self.state, self.turn.phase, self.motor_on = 'following', '', False
         self.wheels, self.in_sign, self._set_off_at, self._last_lead = (0.0, 0.0), False, None, now
-        self.law.start(direction)
+        self.law.start(direction, law)
+        self.reckoning, self._reckoned_at = reckoning, None
         self.turn.trace.reset(self.odo, direction)
+        if trajectory is not None:
+            self.notes.add(now, f'leg {leg}: dead reckoning along ' + (
+                f'trajectory {trajectory}' if trajectory else 'the identified track'))
+            if reckoning is None:
+                self._stop('no_track', now)
+            return
         self.notes.add(now, f'leg {leg}: {"reverse" if direction < 0 else "forward"}, '
-                            f'{self.p.cameras} camera(s)')
+                            f'{self.p.cameras} camera(s)'
+                            + (', feed-forward' if self.law.feed_forward else ''))
+
+    def _trajectory(self, number: int, now: float) -> Conic | None:
+        """Return dead-reckoning trajectory `number` in the odometry frame; None: there is none."""
+        track = self.law.track
+        if number == 0:
+            conic = track.fitter.implicit() if track.ready else None
+            if conic is None:
+                self.notes.add(now, 'dead reckoning: no track identified to go along', 'warn')
+            return conic
+        stored = self.p.dead_reckoning.trajectories
+        if number > len(stored):
+            self.notes.add(now, f'dead reckoning: no trajectory {number} '
+                                f'({len(stored)} stored)', 'warn')
+            return None
+        return place(trajectory_conic(stored[number - 1]), *track.pose.pose)
 
     def leave(self) -> None:
         """Leave camera mode (idle, or the guide wire): motors off, any manoeuvre dropped."""
@@ -121,6 +170,8 @@ class CameraMode:
     def _view(self, view: View) -> None:
         m = self.measurement = view.lead
         self.signal = m.rows_used / self._rows
+        if self.reckoning is not None:
+            return  # dead reckoning: the camera is not looked at
         if self.state in STOPS or self.turn.phase in ('wait', 'spin', 'settle'):
             return  # stopped, or the window holds still or sweeps the floor: nothing to steer by
         self._road_sign(m, view.time)
@@ -144,18 +195,36 @@ class CameraMode:
             self.turn.trace.saw(m.eps_d, self.odo)  # the plain tape's line, for the approach
         if self.turn.phase == 'approach':
             return  # the manoeuvre drives to the crossing (approach_steer: how it steers)
+        self.wheels = self.law.wheel_speeds(self._cruise(speed, view.time), theta)
+
+    def _cruise(self, speed: float, now: float) -> float:
+        """Return the speed to drive at: `speed`, or less while setting off from rest."""
         if self._set_off_at is None and abs(self.speed) < 0.01 \
                 and self.p.steering.set_off_acceleration > 0:
-            self._set_off_at = view.time
+            self._set_off_at = now
         if self._set_off_at is not None:
             # Setting off from rest: our own ramp, gentler than the drive's trapezoid, which
             # accelerates both wheels alike and cannot steer while it ramps (from 40 deg off
             # the tape the window loses it before the wheels reach cruise).
-            ramp = self.p.steering.set_off_acceleration * (view.time - self._set_off_at)
+            ramp = self.p.steering.set_off_acceleration * (now - self._set_off_at)
             if ramp >= speed:
                 self._set_off_at = None
             speed = min(speed, ramp)
-        self.wheels = self.law.wheel_speeds(speed, theta)
+        return speed
+
+    def _reckon(self, now: float) -> None:
+        """Steer a dead-reckoning leg along its curve, every RECKON_PERIOD."""
+        if self._reckoned_at is not None and now - self._reckoned_at < RECKON_PERIOD - 1e-9:
+            return
+        dt = RECKON_PERIOD if self._reckoned_at is None else now - self._reckoned_at
+        self._reckoned_at = now
+        theta = self.law.track.reckon(self.reckoning, dt)
+        if theta is None:  # the curve ran out (past an open conic's end): nothing to go along
+            self._stop('no_track', now)
+            return
+        self.motor_on, self.steer, self.lateral = True, theta, self.law.track.offsets[0]
+        self.wheels = self.law.wheel_speeds(self._cruise(self.p.dead_reckoning.speed, now),
+                                            theta)
 
     def drive_fault(self, now: float) -> None:
         """Stop for a drive fault the safety supervisor found (Rajagopalan 1991, 6.3.11)."""
@@ -219,6 +288,9 @@ class CameraMode:
     def tick(self, now: float) -> None:
         """Run the junction manoeuvre at the loop rate; stop when the leading camera is silent."""
         if self.state in STOPS or self.state == 'idle':
+            return
+        if self.reckoning is not None:
+            self._reckon(now)
             return
         if not self.turn.phase:
             silent = now - (self._last_lead if self._last_lead is not None else now)

@@ -10,9 +10,10 @@ steering angle until the signal drops and a wire is found again, then follows it
 Camera (Rajagopalan 1991, mode camera, the differential-drive CONCIC-II): legs along floor tape,
 forwards or backwards, steered by the leading camera or both (or, with camera_law feed_forward,
 by the track identified from odometry and the camera, track_guidance.py), with road signs and
-junction turns; RouteCore hands route_command's camera fields, wheel odometry, frames and its
-loop to CameraMode (agv_nodes.route_following.camera_mode), which says what the wheels do and
-what status reports.
+junction turns, and dead-reckoning legs along a stored trajectory (App. F.9, route_command mode
+dead_reckoning, run as camera mode's legs); RouteCore hands route_command's camera fields,
+wheel odometry, frames and its loop to CameraMode (agv_nodes.route_following.camera_mode),
+which says what the wheels do and what status reports.
 DriveSafety (drive_safety.py) checks the drive (Rajagopalan 1991, 6.3.11): on a fault camera
 mode stops, motor off, and route_status names it (`drive_fault`).
 """
@@ -93,8 +94,8 @@ class RouteCore(SubsystemCore):
         return self.cam.turn.phase
 
     @property
-    def track_guidance(self) -> TrackGuidance | None:
-        """Return the identified track's guidance (camera_law feed_forward), else None."""
+    def track_guidance(self) -> TrackGuidance:
+        """Return the identified track's guidance (its law steers with camera_law feed_forward)."""
         return self.cam.law.track
 
     @property
@@ -125,7 +126,8 @@ class RouteCore(SubsystemCore):
         return None
 
     def _command(self, fields: dict[str, Any], now: float) -> dict | None:
-        mode = fields['mode']
+        # A dead-reckoning leg is one of camera mode's legs, without the camera (App. F.9).
+        mode = 'camera' if fields['mode'] == 'dead_reckoning' else fields['mode']
         began = mode == 'camera' and self.cam.command(fields, now, self.mode != 'camera')
         if began or mode != 'camera':  # a new leg, or out of camera mode: the software reloaded
             self.safety.clear()

@@ -1,7 +1,8 @@
 """route_following (ros2 run agv_nodes route_following); hw/camera/front and rear: mono8.
 
-With camera_law feed_forward it also draws the identified track (Rajagopalan 1991, 5.4) at
-VIEW_RATE: route/identified_track, a nav_msgs/Path, and route/osculating_circle, a
+With the feed-forward law (camera_law, or a leg's own) it also draws the identified track
+(Rajagopalan 1991, 5.4) at VIEW_RATE while the identification has converged (the fits the law
+steers by): route/identified_track, a nav_msgs/Path, and route/osculating_circle, a
 visualization_msgs/Marker line strip, both in the odometry frame the track was identified in
 (`odom`: the truck's pose integrated from wheel odometry, starting at the origin).
 """
@@ -69,13 +70,11 @@ class RouteFollowingNode(CoreNode):
         for camera in ('front', 'rear'):
             self.create_subscription(Image, f'hw/camera/{camera}', self._frame(camera),
                                      qos.STREAM_READER)
-        if self.core.track_guidance is not None:
-            # Pictures that change as the truck goes, as the world's pose is.
-            self.track_pub = self.create_publisher(Path, 'route/identified_track',
-                                                   qos.STREAM_WRITER)
-            self.circle_pub = self.create_publisher(Marker, 'route/osculating_circle',
-                                                    qos.STREAM_WRITER)
-            self.periodic(1.0 / VIEW_RATE, self._draw_track)
+        # Pictures that change as the truck goes, as the world's pose is.
+        self.track_pub = self.create_publisher(Path, 'route/identified_track', qos.STREAM_WRITER)
+        self.circle_pub = self.create_publisher(Marker, 'route/osculating_circle',
+                                                qos.STREAM_WRITER)
+        self.periodic(1.0 / VIEW_RATE, self._draw_track)
 
     def _frame(self, camera: str) -> Callable[[Image], None]:
         def callback(msg: Image) -> None:
@@ -91,9 +90,11 @@ class RouteFollowingNode(CoreNode):
 
     def _draw_track(self) -> None:
         guidance = self.core.track_guidance
+        if not guidance.ready:
+            return  # no fit the law would steer by (a feedback leg, or since a reset)
         stamp = self.get_clock().now().to_msg()
         points = guidance.track()
-        if points:  # nothing identified yet (or since a reset): keep the last picture
+        if points:
             self.track_pub.publish(track_path(points, stamp))
         self.circle_pub.publish(circle_marker(guidance.circle, stamp))
 

@@ -1,12 +1,16 @@
 """Route following settings, declared in its parameters.yaml; nested groups give `wire.kp` etc."""
 
+from typing import Any
+
+from agv_nodes.route_following.dead_reckoning import trajectory_conic
 from agv_nodes.settings import settings_class
 
 # The track identification's groups: settings_class finds a nested group by name in this module.
 from agv_nodes.track_geometry.settings import FeedForwardParams, IdentificationParams
 
-__all__ = ['DriveSafetyParams', 'DualCameraParams', 'FeedForwardParams', 'IdentificationParams',
-           'ImageParams', 'RouteParams', 'SteeringParams', 'TurningParams', 'WireParams']
+__all__ = ['DeadReckoningParams', 'DriveSafetyParams', 'DualCameraParams', 'FeedForwardParams',
+           'IdentificationParams', 'ImageParams', 'RouteParams', 'SteeringParams',
+           'TurningParams', 'WireParams']
 
 
 @settings_class
@@ -51,5 +55,23 @@ class DriveSafetyParams:
 
 
 @settings_class
+class DeadReckoningParams:
+    """Dead reckoning along a stored trajectory (Rajagopalan 1991, App. F.9; dead_reckoning.py)."""
+
+
+@settings_class
 class RouteParams:
     """All route-following settings."""
+
+    def problems(self) -> list[tuple[str, Any, str]]:
+        """Make the checks `build` needs beyond each field's own: the stored trajectories."""
+        stored = self.dead_reckoning.trajectories
+        if len(stored) > 15:
+            return [('dead_reckoning.trajectories', list(stored),
+                     'at most 15 (a task names them 1-15)')]
+        for text in stored:
+            try:
+                trajectory_conic(text)
+            except ValueError as exc:
+                return [('dead_reckoning.trajectories', list(stored), str(exc))]
+        return []

@@ -32,6 +32,10 @@ too slow, 7.6):
    identified curve (2.3.3; App. F.5: no stop in identification mode). The offsets the window
    would read are taken from the pose and the curve, up to identification.gap_distance of
    travel since the tape was last seen; then None, the motor-off stop.
+5. Dead reckoning (App. F.9, `reckon`): no camera at all; the truck goes along a given curve
+   (a stored trajectory placed at its pose, or the track identified last), steered every
+   call by the offsets the window would read of it, as across a gap, for as long as the leg
+   lasts. The criterion's offsets apply from the start: no feedback law held the window.
 
 The curve is the fitter's implicit conic f(x, y) = 0, signed so that (f_y, -f_x) points along
 travel (TrackFitter.implicit): a line, the polynomial's parabola or the conic's ellipse alike.
@@ -143,6 +147,7 @@ class TrackGuidance:
         self._frame_travel = 0.0  # m O went between the last two leading frames
         self._rejected = 0  # samples in a row left out by the heading gate
         self._took_over: float | None = None  # O's distance when the law last began to steer
+        self.offsets = (0.0, 0.0)  # the (eps_d, eps_theta) the law last steered by
 
     @property
     def ready(self) -> bool:
@@ -229,12 +234,22 @@ class TrackGuidance:
             return None
         return self._steer_on_track(dt)
 
-    def _steer_on_track(self, dt: float) -> float | None:
-        """Steer by the offsets the window would read of the identified track.
+    def reckon(self, conic: Conic, dt: float) -> float | None:
+        """Return the caster angle along `conic` by odometry alone; None where it cannot go on.
+
+        `conic`: in the odometry frame, its tangent (f_y, -f_x) along travel (dead_reckoning.py).
+        """
+        self._frame()
+        if self._took_over is None:  # the criterion in full from the start (see 5. above)
+            self._took_over = self.pose.distance - self.law.p.ramp_distance
+        return self._steer_on_track(dt, conic)
+
+    def _steer_on_track(self, dt: float, conic: Conic | None = None) -> float | None:
+        """Steer by the offsets the window would read of the identified track (or of `conic`).
 
         Where the line across the window meets the curve, and the curve's heading there.
         """
-        conic = self.fitter.implicit()
+        conic = self.fitter.implicit() if conic is None else conic
         if conic is None:
             return None
         x, y, heading = self.pose.pose
@@ -244,12 +259,12 @@ class TrackGuidance:
         if t is None or (along := tangent(conic, bx - t * s, by + t * c)) is None:
             return None
         eps_theta = math.remainder(math.atan2(along[1], along[0]) - heading, 2.0 * math.pi)
-        return self._steer(t, eps_theta, bx - t * s, by + t * c, dt)
+        return self._steer(t, eps_theta, bx - t * s, by + t * c, dt, conic)
 
     def _steer(self, eps_d: float, eps_theta: float, px: float, py: float,
-               dt: float) -> float | None:
+               dt: float, conic: Conic | None = None) -> float | None:
         """Steer by the osculating circle one frame's travel on from P."""
-        conic = self.fitter.implicit()
+        conic = self.fitter.implicit() if conic is None else conic
         ahead = None if conic is None else march(conic, px, py, self._frame_travel)
         if ahead is None or (along := tangent(conic, *ahead)) is None:
             return None
@@ -261,6 +276,7 @@ class TrackGuidance:
             self._took_over = self.pose.distance
         ramp = self.law.p.ramp_distance
         share = min(1.0, (self.pose.distance - self._took_over) / ramp) if ramp > 0 else 1.0
+        self.offsets = (eps_d, eps_theta)
         return self.law.update(eps_d, eps_theta, circle.radius, side, dt, share)
 
     def track(self) -> list[tuple[float, float]]:

@@ -27,6 +27,11 @@ Integration rules (`rule`):
 
 The thesis measured each wheel's speed as the change of its position count over the timed
 sample (7.5.2.1); `update_travel` takes exactly that, the travel of each wheel over the sample.
+
+ChordOdometry is no rule of the thesis: each sample's own wheel travels, the heading turned by
+their difference, a step along the chord. It keeps the counters' own heading, to show beside
+the rules what the wheel counts themselves are worth on a turn (bench/identification_sims.py,
+I1, and identification_experiments.py).
 """
 
 from __future__ import annotations
@@ -128,6 +133,43 @@ class PoseIntegrator:
         if not dt > 0.0:
             raise ValueError(f'sample period {dt!r} must be positive')
         return self.update(d_left / dt, d_right / dt, dt)
+
+
+class ChordOdometry:
+    """Pose of O from each wheel's travel over a sample: the counters' own heading.
+
+    Not a rule of PoseIntegrator: no speeds and no sample period. The heading turns by each
+    sample's own travel difference, (d_right - d_left) / wheel_span, the counters' heading with
+    nothing averaged over two samples, and O steps the mean travel along the mean of the
+    headings before and after the sample: the direction of the chord of a constant-curvature
+    step, where Eq. 5.38 steps along the previous sample's heading and so lags half a sample's
+    turn on a curve. The step's length is the arc's, not the chord's: on a step turning dpsi
+    it is dpsi / 2 / sin(dpsi / 2) times the chord, 1 + dpsi^2 / 24, so a run of equal steps
+    round a circle lies on the true path scaled by that factor about the start (6 um after a
+    half lap of R = 2.95 m in 15 mm steps). Exact on a straight. For what the wheel counts
+    themselves are worth on a turn (bench/identification_sims.py, I1). No left_scale: the
+    travels are taken as they come. The heading is not wrapped.
+    """
+
+    def __init__(self, wheel_span: float, x: float = 0.0, y: float = 0.0,
+                 heading: float = 0.0) -> None:
+        if not wheel_span > 0.0:
+            raise ValueError(f'wheel_span {wheel_span!r} must be positive')
+        self.span, self.x, self.y, self.heading = wheel_span, x, y, heading
+
+    @property
+    def pose(self) -> tuple[float, float, float]:
+        """Return (x, y, heading) of O, m and rad."""
+        return self.x, self.y, self.heading
+
+    def update(self, d_left: float, d_right: float) -> tuple[float, float, float]:
+        """Take each wheel's travel over one sample (m, + forwards); return the new pose."""
+        turn = (d_right - d_left) / self.span
+        mid = self.heading + turn / 2.0
+        step = (d_left + d_right) / 2.0
+        self.x, self.y = self.x + step * math.cos(mid), self.y + step * math.sin(mid)
+        self.heading += turn
+        return self.x, self.y, self.heading
 
 
 def track_point(x: float, y: float, heading: float, camera_ahead: float, eps_d: float,

@@ -93,10 +93,15 @@ class Layout:
     # + = left). The floor's route map: launches and the lock-step harness hand it to the
     # executive (its srm_map), which on the 1983 truck held it in its programme.
     srm_map: tuple[str, ...] = ()
+    # A tape layout's camera law for legs whose task does not choose one (route following's
+    # camera_law: feedback or feed_forward); '' leaves route following's own.
+    camera_law: str = ''
 
 
 _TOP_KEYS = {'layout', 'description', 'vehicle', 'kind', 'wires', 'tapes', 'markers',
-             'stations', 'start', 'sensor', 'rig', 'route_limit', 'step', 'signs', 'srm_map'}
+             'stations', 'start', 'sensor', 'rig', 'route_limit', 'step', 'signs', 'srm_map',
+             'camera_law'}
+CAMERA_LAWS = ('feedback', 'feed_forward')
 
 
 def load_layout(file: Path | str) -> Layout:
@@ -112,6 +117,10 @@ def load_layout(file: Path | str) -> Layout:
     vehicle = doc.get('vehicle', 'electruk' if kind != 'tape' else 'concic2')
     if vehicle not in ('electruk', 'concic2'):
         raise LayoutError(f'{file}: key vehicle: {vehicle!r} not one of electruk, concic2')
+    camera_law = doc.get('camera_law', '')
+    if camera_law and (kind != 'tape' or camera_law not in CAMERA_LAWS):
+        raise LayoutError(f'{file}: key camera_law: {camera_law!r} not one of '
+                          f'{", ".join(CAMERA_LAWS)} (on a tape layout)')
     step = _num(doc.get('step', 0.02), file, 'step', 0.001, 0.5)
     paths: dict[str, Path2D] = {}
     for group in ('wires', 'tapes'):
@@ -165,7 +174,7 @@ def load_layout(file: Path | str) -> Layout:
         sensor_lateral=sensor_lateral, kind=kind, rig=rig,
         route_limit=_num(doc.get('route_limit', 0.0), file, 'route_limit', 0.0, 1e4),
         description=' '.join(str(doc.get('description', '')).split()), signs=signs,
-        srm_map=_srm_map(doc.get('srm_map') or [], file))
+        srm_map=_srm_map(doc.get('srm_map') or [], file), camera_law=camera_law)
     if kind == 'rig':
         _check_rig(layout, file)
     return layout
@@ -244,7 +253,7 @@ def _check_rig(layout: Layout, file: Path) -> None:
 
 
 def layout_parameters(layout: Layout) -> dict[str, dict[str, Any]]:
-    """Return what a layout sets in its truck's nodes: vehicle, guidance, route map, cameras.
+    """Return what a layout sets in its truck's nodes: vehicle, guidance, route map, cameras, law.
 
     A tape layout is driven by the CONCIC-II's cameras (both rendered: a reverse leg steers by
     the rear one), a wire layout by the 1983 tug's guide wire.
@@ -256,6 +265,8 @@ def layout_parameters(layout: Layout) -> dict[str, dict[str, Any]]:
         'route_following': {'vehicle': layout.vehicle}}
     if camera:
         out['world'] = {'rear_camera': True}
+    if layout.camera_law:
+        out['route_following']['camera_law'] = layout.camera_law
     return out
 
 
