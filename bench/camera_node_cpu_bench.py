@@ -42,6 +42,11 @@ process. Sending steering_command only on a change of the wheel speeds and as a 
 keep-alive took one point off and let the CONCIC-II's 60 ms steering watchdog trip on wall
 time under this load, so the node still sends it every pass. The goal needs fewer events (a
 40 ms cycle, as the thesis's computer ran, with 25 Hz odometry) or a cheaper rclpy path.
+A py-spy profile of the node (lead camera, sim time, 20 s at 200 samples/s: `py-spy record -p PID
+-d 20 -r 200 -f raw`) agrees: of its 12.8 % of a core, 36 % is the executor's wait and take in C,
+27 % the C write of Publisher.publish (0.29 ms a record, the records already serialized: Fast DDS's
+write; the 100 Hz steering_command is nearly all of them), 10 % the frames' analysis, 10 % taking
+and decoding records, 5 % the clock.
 """
 
 
