@@ -11,10 +11,14 @@ from dataclasses import dataclass, field
 import re
 from typing import Any
 
+from agv_nodes.records import codec
+
 SCRIPT_JUNCTIONS = 4  # script lines the comms_status record has room for (bytes 10-12)
 DECISIONS = ('straight', 'left', 'right', 'random')
-CAMERA_LAWS = ('feedback', 'feed_forward')
-TRAJECTORIES = 15  # stored trajectories a reckon task can name (comms_status byte 9, 4 bits)
+# A tape task's law and a reckon task's trajectory number, as comms_status can carry them.
+CAMERA_LAWS = tuple(law for law in codec()['comms_status'].field('camera_law').values
+                    if law != 'default')
+TRAJECTORIES = codec()['comms_status'].field('trajectory').hi
 
 
 class TaskError(ValueError):
@@ -233,7 +237,6 @@ def _tape(t: _Tokens) -> Task:
             t.take()
             task.reverse_distance = t.decimetres('reverse length')
     return task
-
 
 
 def _reckon(t: _Tokens) -> Task:

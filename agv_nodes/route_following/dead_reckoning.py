@@ -73,8 +73,8 @@ def trajectory_conic(text: str) -> Conic:
 def _signed(conic: Conic, text: str) -> Conic:
     """Check the curve passes the axle centre; sign it so that it runs forwards there."""
     A, B, C, D, E, F = conic
-    # One Newton step from the origin along the gradient finds the foot closely enough to
-    # judge the gap; f's gradient there gives the sense of travel.
+    # At the origin f = F and grad f = (D, E): |F| / |grad f| is the distance to the curve to
+    # first order, and the gradient gives the sense of travel.
     fx, fy = D, E
     g = math.hypot(fx, fy)
     if not g > 0.0:

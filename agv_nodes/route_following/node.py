@@ -70,11 +70,13 @@ class RouteFollowingNode(CoreNode):
         for camera in ('front', 'rear'):
             self.create_subscription(Image, f'hw/camera/{camera}', self._frame(camera),
                                      qos.STREAM_READER)
-        # Pictures that change as the truck goes, as the world's pose is.
-        self.track_pub = self.create_publisher(Path, 'route/identified_track', qos.STREAM_WRITER)
-        self.circle_pub = self.create_publisher(Marker, 'route/osculating_circle',
-                                                qos.STREAM_WRITER)
-        self.periodic(1.0 / VIEW_RATE, self._draw_track)
+        if self.core.p.vehicle == 'concic2':  # the camera truck identifies its track
+            # Pictures that change as the truck goes, as the world's pose is.
+            self.track_pub = self.create_publisher(Path, 'route/identified_track',
+                                                   qos.STREAM_WRITER)
+            self.circle_pub = self.create_publisher(Marker, 'route/osculating_circle',
+                                                    qos.STREAM_WRITER)
+            self.periodic(1.0 / VIEW_RATE, self._draw_track)
 
     def _frame(self, camera: str) -> Callable[[Image], None]:
         def callback(msg: Image) -> None:

@@ -2,6 +2,7 @@
 
 from typing import Any
 
+from agv_nodes.records import codec
 from agv_nodes.route_following.dead_reckoning import trajectory_conic
 from agv_nodes.settings import settings_class
 
@@ -66,9 +67,10 @@ class RouteParams:
     def problems(self) -> list[tuple[str, Any, str]]:
         """Make the checks `build` needs beyond each field's own: the stored trajectories."""
         stored = self.dead_reckoning.trajectories
-        if len(stored) > 15:
+        most = codec()['route_command'].field('trajectory').hi  # what a leg can name
+        if len(stored) > most:
             return [('dead_reckoning.trajectories', list(stored),
-                     'at most 15 (a task names them 1-15)')]
+                     f'at most {most} (a task names them 1-{most})')]
         for text in stored:
             try:
                 trajectory_conic(text)

@@ -14,6 +14,8 @@ from typing import Any
 
 from agv_nodes.markers import LOCATION_PATTERNS, STOP_STRIP, WHITE_CARD
 from agv_nodes.package_share import config_dir, read_mapping
+from agv_nodes.route_following.settings import RouteParams
+from agv_nodes.settings import parameters
 
 # Paths and road signs live in tape_layout; imported here too, where callers have found them.
 from agv_nodes.world.tape_layout import SIGN_BRANCHES as SIGN_BRANCHES
@@ -101,7 +103,6 @@ class Layout:
 _TOP_KEYS = {'layout', 'description', 'vehicle', 'kind', 'wires', 'tapes', 'markers',
              'stations', 'start', 'sensor', 'rig', 'route_limit', 'step', 'signs', 'srm_map',
              'camera_law'}
-CAMERA_LAWS = ('feedback', 'feed_forward')
 
 
 def load_layout(file: Path | str) -> Layout:
@@ -118,9 +119,10 @@ def load_layout(file: Path | str) -> Layout:
     if vehicle not in ('electruk', 'concic2'):
         raise LayoutError(f'{file}: key vehicle: {vehicle!r} not one of electruk, concic2')
     camera_law = doc.get('camera_law', '')
-    if camera_law and (kind != 'tape' or camera_law not in CAMERA_LAWS):
+    laws = _camera_laws()
+    if camera_law and (kind != 'tape' or camera_law not in laws):
         raise LayoutError(f'{file}: key camera_law: {camera_law!r} not one of '
-                          f'{", ".join(CAMERA_LAWS)} (on a tape layout)')
+                          f'{", ".join(laws)} (on a tape layout)')
     step = _num(doc.get('step', 0.02), file, 'step', 0.001, 0.5)
     paths: dict[str, Path2D] = {}
     for group in ('wires', 'tapes'):
@@ -250,6 +252,11 @@ def _check_rig(layout: Layout, file: Path) -> None:
                         ('angle', -45.0, 45.0)):
         if key in rig:
             _num(rig[key], file, f'rig.{key}', lo, hi)
+
+
+def _camera_laws() -> tuple[str, ...]:
+    """Return the laws route following's camera_law parameter takes (the key sets it)."""
+    return next(p.spec.choices for p in parameters(RouteParams) if p.name == 'camera_law')
 
 
 def layout_parameters(layout: Layout) -> dict[str, dict[str, Any]]:
