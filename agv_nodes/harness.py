@@ -329,22 +329,13 @@ def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
     return h
 
 
-_CHECKED: dict[tuple[str, str, str], list[str]] = {}  # each layout's check, by what it drove
-
-
 def _check(layout: Any, world_params: Any) -> None:
-    """Refuse a layout with an unreadable marker (the drives, a second or two, once per layout)."""
-    p = world_params
-    key = (str(layout.file), layout.file.read_text(), repr((
-        p.electruk, p.pickup, p.sample_rate, p.substeps, p.guide_wire_rate, p.odometry_rate)))
-    if key not in _CHECKED:
-        from agv_nodes.world.layout_check import check_layout
+    """Refuse a layout with an unreadable marker (the drives, once per layout: result_cache)."""
+    from agv_nodes.world.layout import LayoutError
+    from agv_nodes.world.layout_check import check_errors
 
-        _CHECKED[key] = check_layout(layout, world_params).errors()
-    if _CHECKED[key]:
-        from agv_nodes.world.layout import LayoutError
-
-        raise LayoutError('\n'.join(_CHECKED[key]))
+    if errors := check_errors(layout, world_params):
+        raise LayoutError('\n'.join(errors))
 
 
 def submit(h: Harness, text: str) -> None:

@@ -393,6 +393,26 @@ def test_camera_truth_agrees_with_the_pose_to_one_pixel(offset, angle_deg):
     assert math.degrees(eps_theta) == pytest.approx(-angle_deg, abs=1.0)
 
 
+@pytest.mark.parametrize('name', ['tape_1991', 'signs_1991', 'junction_1991'])
+def test_a_frame_from_the_segments_that_reach_the_window_is_the_whole_frame(name, monkeypatch):
+    """The window's own segments give every pixel, at junctions and square ends too."""
+    lay = layout(name)
+    tapes = [p for p in lay.paths.values() if p.width > 0.0]
+    cam = BinaryCamera(CameraParams(specks=0), tapes, np.random.default_rng(0))
+    rng = np.random.default_rng(7)
+    poses = []
+    for tape in tapes:
+        for k in range(0, len(tape.points) - 1, 13):
+            (x, y), d = tape.points[k], tape.points[k + 1] - tape.points[k]
+            poses.append((x + rng.normal(0, 0.08), y + rng.normal(0, 0.08),
+                          math.atan2(d[1], d[0]) + rng.normal(0, 0.5)))
+    fast = [cam.render(*pose, noise=False) for pose in poses]
+    monkeypatch.setattr(BinaryCamera, '_crossing', lambda self, tape, idx, *_: idx)
+    every = [cam.render(*pose, noise=False) for pose in poses]
+    assert sum(int(f.sum()) for f in fast) > 0.02 * len(poses) * fast[0].size  # tape seen
+    assert all(np.array_equal(a, b) for a, b in zip(fast, every, strict=True))
+
+
 # -- layouts --------------------------------------------------------------------------------
 def test_shipped_layouts_load():
     demo = layout('demo_1983')

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import math
 import random
 
+from agv_nodes.result_cache import cached
 from agv_nodes.route_following.core import RouteCore
 from agv_nodes.route_following.settings import RouteParams
 from agv_nodes.world.core import _Every
@@ -145,9 +146,23 @@ def check_layout(layout: Layout, world: WorldParams | None = None,
     return Report(layout, passages)
 
 
+def check_errors(layout: Layout, world: WorldParams | None = None) -> list[str]:
+    """Return `check_layout(...).errors()`, computed once per layout, settings and code.
+
+    The drives take seconds and every world start (and lock-step truck) asks, so the lines are
+    kept in agv_nodes.result_cache by what the drives depend on: the layout file, the markers
+    it kept (a world's `remove_markers`) and the vehicle settings the drives use.
+    """
+    world = world or WorldParams()
+    inputs = repr((str(layout.file), layout.file.read_text(), layout.markers, world.electruk,
+                   world.pickup, world.sample_rate, world.substeps, world.guide_wire_rate,
+                   world.odometry_rate))
+    return cached('layout_check', inputs, lambda: check_layout(layout, world).errors())
+
+
 def enforce(layout: Layout, world: WorldParams | None = None, mode: str = 'error') -> list[str]:
     """Check as the world does: LayoutError of the lines (mode 'error'), else return them."""
-    errors = check_layout(layout, world).errors()
+    errors = check_errors(layout, world)
     if errors and mode != 'warn':
         raise LayoutError('\n'.join(errors))
     return errors
