@@ -59,6 +59,9 @@ class WorldCore:
             self.vehicle = Concic2(self.p.concic2)
         self._place_vehicle()
         self.sensor = MarkerSensorModel(self.p.sensor, self.rng)
+        # Only the Electruk carries Baker's marker sensor; the CONCIC-II reads its floor with
+        # the cameras, so its world sends no ADC snapshots (340 a second nobody reads).
+        self.marker_sensor = layout.vehicle == 'electruk'
         self.pickup = GuideWirePickup(self.p.pickup, self.wires, self.rng) if self.wires else None
         self.camera = BinaryCamera(self.p.camera, self.tapes, self.np_rng) if self.tapes else None
         self._wire_every = _Every(self.p.guide_wire_rate, self.p.sample_rate)
@@ -156,7 +159,8 @@ class WorldCore:
         for _ in range(self.p.substeps):
             self.vehicle.step(sub)
         records: dict[str, dict[str, Any]] = {}
-        records['adc_snapshot'] = self._adc()
+        if self.marker_sensor:
+            records['adc_snapshot'] = self._adc()
         if self.pickup is not None and self._wire_every.due(self.sample):
             records['guide_wire'] = self._guide_wire()
         if self._odo_every.due(self.sample):
