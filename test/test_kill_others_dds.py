@@ -117,9 +117,15 @@ def test_world_gone_every_node_names_its_lost_inputs(tmp_path, sig, fault_table)
         g.close()
 
 
-@pytest.mark.timeout(120)  # ~12 s alone
+@pytest.mark.timeout(120)  # ~20 s alone
 def test_killed_recorder_leaves_a_bag_readable_to_its_last_second(tmp_path, fault_table):
-    """What a probe saw more than 1 s before the kill is in the bag, read with rosbags."""
+    """What a probe saw more than 1 s (wall) before the kill is in the bag, read with rosbags.
+
+    The recorder commits its bag twice a second of wall time (recorder.CHECKPOINT), so the
+    claim is about wall time, for a recorder that keeps up with what it records. The run goes
+    at half real time: at full speed the graph takes most of two cores, and a recorder starved
+    of CPU falls behind by however much the machine lacks, which says nothing of its commits.
+    """
     from rosbags.highlevel import AnyReader
     from rosgraph_msgs.msg import Clock
     from std_msgs.msg import UInt8MultiArray
@@ -128,7 +134,9 @@ def test_killed_recorder_leaves_a_bag_readable_to_its_last_second(tmp_path, faul
     from agv_nodes.ros_ports import clock_time_ns
 
     bag = tmp_path / 'bag'
-    g = GraphProbe(tmp_path / 'logs', bag=bag, time_factor=1.0)  # sim s = wall s
+    time_factor = 0.5
+    lost_at_most = 1.0  # s of wall time before the kill
+    g = GraphProbe(tmp_path / 'logs', bag=bag, time_factor=time_factor)
     g.expected_dead.add('recorder')
     topics = ['/clock', '/hw/position_sensor/adc', '/hw/wheel_odometry', '/navigation/status',
               '/traction/command', '/comms/command']
@@ -149,10 +157,10 @@ def test_killed_recorder_leaves_a_bag_readable_to_its_last_second(tmp_path, faul
     try:
         g.start_task('stop at 2 second', cruise=None)
         start = g.time
-        g.spin_until(lambda: g.time > start + 6.0, 60, '6 s of the run')
+        g.spin_until(lambda: g.time > start + 3.0, 60, '3 s of the run (6 s wall)')
         g.launch.procs['recorder'].send_signal(signal.SIGKILL)
         kill = clock['now']
-        limit = kill - 1.0
+        limit = kill - lost_at_most * time_factor
         print(f'recorder SIGKILL at {kill:.3f} s sim')
         by_topic: dict[str, list[int]] = {t: [] for t in topics}
         with AnyReader([bag]) as reader:
@@ -165,18 +173,19 @@ def test_killed_recorder_leaves_a_bag_readable_to_its_last_second(tmp_path, faul
         counts = {}
         for t in topics[1:]:
             # the probe stamps a record on the /clock it had, the bag on its send: 0.1 s apart
-            probe = sum(1 for s in seen[t] if s <= limit - 0.1)
+            probe = sum(1 for s in seen[t] if s <= limit - 0.1 * time_factor)
             in_bag = sum(1 for s in by_topic[t] if s * 1e-9 <= limit)
             counts[t] = (probe, in_bag)
             assert probe > 0 and in_bag >= probe, f'{t}: probe {probe}, bag {in_bag}'
         last = max(by_topic['/clock']) * 1e-9
-        print(f'bag: last /clock {last:.3f} s ({kill - last:.2f} s before the kill); '
+        print(f'bag: last /clock {last:.3f} s ({kill - last:.2f} s sim before the kill); '
               f'(probe, bag) up to {limit:.3f} s: {counts}')
-        fault_table.add('SIGKILL recorder during a run (real time)',
+        fault_table.add('SIGKILL recorder during a run (half real time)',
                         'the bag reads (rosbags AnyReader) and holds everything the probe saw '
-                        'more than 1 s before the kill',
-                        f'bag readable, ends {kill - last:.2f} s before the kill; nothing older '
-                        f'than 1 s missing ({sum(p for p, _ in counts.values())} records and '
+                        f'more than {lost_at_most:g} s (wall) before the kill',
+                        f'bag readable, ends {(kill - last) / time_factor:.2f} s (wall) before '
+                        f'the kill; nothing older than {lost_at_most:g} s missing '
+                        f'({sum(p for p, _ in counts.values())} records and '
                         f'{len([c for c in clocks if c * 1e-9 <= limit])} /clock checked)')
     finally:
         g.close()
