@@ -48,6 +48,7 @@ setup(
             'recorder = agv_nodes.recorder:main',
             'route_following = agv_nodes.route_following.node:main',
             'traction = agv_nodes.traction.node:main',
+            'vda5050_bridge = agv_nodes.vda5050.bridge_node:main',
             'world = agv_nodes.world.node:main',
             # tools
             'agv-demo = agv_nodes.demo:main',

@@ -3,18 +3,22 @@
     ros2 launch agv_nodes agv_demo.launch.py [namespace:=/agv2] [use_sim_time:=true]
         [time_factor:=1.0] [record_integrity:=e2e] [world:=sim|none] [bag:=/path/new_bag]
         [params_file:=<file>] [layout:=<name>] [respawn:=false] [realtime:=0]
+        [vda5050:=false] [mqtt_url:=mqtt://host:port] [serial_number:=<name>]
 
 Nodes, executables and roles come from share/agv_nodes/config/graph.yaml, and each node's
 parameters from agv_nodes.graph.parameters.node_parameters - the same description and function
 agv-launch uses, so the two cannot drift (test/test_launch_file.py checks it). The world writes
 no ready file here (agv-launch's signal that time has started). With
 world:=none the hardware topics must come from drivers (docs/hardware.md); record with
-bag:=<dir> here, or with `ros2 bag record -s mcap -a` alongside.
+bag:=<dir> here, or with `ros2 bag record -s mcap -a` alongside. With vda5050:=true the
+truck's VDA 5050 bridge starts too, on the broker of mqtt_url, else of AGV_MQTT_URL, else on a
+broker (`python3 -m agv_nodes.mqtt.broker`) this launch starts on port 1883; the bridge keeps
+trying until that broker listens.
 """
 
 from pathlib import Path
 
-from launch.actions import DeclareLaunchArgument, OpaqueFunction
+from launch.actions import DeclareLaunchArgument, ExecuteProcess, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
@@ -31,7 +35,11 @@ ARGUMENTS = {
     'layout': ('', "world layout (default: the parameter file's); its vehicle picks the truck"),
     'respawn': ('false', 'restart nodes that die'),
     'realtime': ('0', 'SCHED_FIFO priority 1-99 of the sensor-to-traction chain (0 = off)'),
+    'vda5050': ('false', 'also start the VDA 5050 bridge: a master control drives the truck'),
+    'mqtt_url': ('', "the bridge's MQTT broker (empty: AGV_MQTT_URL, else one started here)"),
+    'serial_number': ('', "the truck's VDA 5050 serialNumber (empty: the namespace, or agv1)"),
 }
+BROKER_PORT = 1883  # MQTT's own port: where a master control looks first
 
 
 def _nodes(context):
@@ -39,6 +47,8 @@ def _nodes(context):
     from agv_nodes.graph.parameters import (
         Options,
         check_realtime,
+        check_vda5050,
+        launched,
         node_parameters,
         realtime_priority,
         truck_graph,
@@ -53,24 +63,33 @@ def _nodes(context):
                       bag=Path(arg['bag']) if arg['bag'] else None,
                       realtime=int(arg['realtime']),
                       params=Path(arg['params_file']) if arg['params_file'] else None,
-                      layout=arg['layout'] or None)
+                      layout=arg['layout'] or None, vda5050=arg['vda5050'] == 'true',
+                      mqtt_url=arg['mqtt_url'] or None, serial_number=arg['serial_number'])
     check_realtime(options)
     graph = truck_graph(graph, options)
+    check_vda5050(graph, options)
     params_file = arg['params_file'] or str(graph.parameters)
-    nodes = []
+    actions = []  # the broker, when this launch runs one, then the nodes
+    if options.vda5050:
+        from agv_nodes.mqtt.broker import broker_url  # the rule agv-launch follows
+
+        options.mqtt_url = broker_url(options.mqtt_url)
+        if options.mqtt_url is None:
+            options.mqtt_url = f'mqtt://127.0.0.1:{BROKER_PORT}'
+            actions.append(ExecuteProcess(cmd=['python3', '-m', 'agv_nodes.mqtt.broker', '--port',
+                                               str(BROKER_PORT)], name='mqtt_broker',
+                                          output='screen'))
     for spec in graph.nodes:
-        if spec.role == 'world' and options.world == 'none':
+        if not launched(spec, options):
             continue
-        if spec.role == 'recorder' and options.bag is None:
-            continue
-        nodes.append(Node(package='agv_nodes', executable=spec.executable, name=spec.name,
+        actions.append(Node(package='agv_nodes', executable=spec.executable, name=spec.name,
                           namespace=options.namespace,
                           parameters=[params_file, node_parameters(graph, spec, options)],
                           output='screen', respawn=arg['respawn'] == 'true' and
                           spec.role == 'node',
                           prefix=(f'chrt -f {realtime_priority(spec, options)}'
                                   if realtime_priority(spec, options) else None)))
-    return nodes
+    return actions
 
 
 def generate_launch_description():

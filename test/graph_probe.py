@@ -135,6 +135,15 @@ class GraphProbe:
         """Wait for the graph, send a task, and (optionally) wait until it runs at speed."""
         from std_msgs.msg import String
 
+        self.ready()
+        self.task_pub.publish(String(data=text))
+        if cruise is not None:
+            self.spin_until(lambda: self.speed > cruise, 90, f'the truck to exceed {cruise}')
+
+    def ready(self) -> None:
+        """Wait until the world moves, communications answers and every link carried a record."""
+        from std_msgs.msg import String
+
         from agv_nodes.demo import comms_handshake, silent_links
         from agv_nodes.graph.parameters import wait_links
 
@@ -152,9 +161,6 @@ class GraphProbe:
         except AssertionError as exc:
             silent = silent_links(links, self.accepted(), self.launch.silent_records)
             raise AssertionError(f'silent: {silent}; {exc}') from None
-        self.task_pub.publish(String(data=text))
-        if cruise is not None:
-            self.spin_until(lambda: self.speed > cruise, 90, f'the truck to exceed {cruise}')
 
     def _call(self, client, what: str) -> str:
         from std_srvs.srv import Trigger

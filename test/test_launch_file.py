@@ -35,6 +35,10 @@ class Recorded:
         self.args, self.kwargs = args, kwargs
 
 
+class Process(Recorded):
+    """An ExecuteProcess: a process that is not a node (the MQTT broker)."""
+
+
 class LaunchConfiguration:
     values: dict[str, str] = {}
 
@@ -50,6 +54,7 @@ def launch_api(monkeypatch):
     modules = {
         'launch': types.SimpleNamespace(LaunchDescription=Recorded),
         'launch.actions': types.SimpleNamespace(DeclareLaunchArgument=Recorded,
+                                                ExecuteProcess=Process,
                                                 OpaqueFunction=Recorded),
         'launch.substitutions': types.SimpleNamespace(LaunchConfiguration=LaunchConfiguration),
         'launch_ros': types.SimpleNamespace(),
@@ -78,20 +83,40 @@ def nodes_from_launch_file(**overrides) -> list[Recorded]:
     ({'bag': '/tmp/agv_launch_file_test_bag'},
      Options(bag=__import__('pathlib').Path('/tmp/agv_launch_file_test_bag'))),
     ({'realtime': '40'}, Options(realtime=40)),
+    ({'vda5050': 'true'}, Options(vda5050=True)),
+    ({'vda5050': 'true', 'mqtt_url': 'mqtt://10.0.0.5', 'namespace': '/agv3'},
+     Options(vda5050=True, mqtt_url='mqtt://10.0.0.5', namespace='/agv3')),
 ])
-def test_launch_file_matches_agv_launch(launch_api, overrides, options):
-    nodes = nodes_from_launch_file(**overrides)
+def test_launch_file_matches_agv_launch(launch_api, monkeypatch, overrides, options):
+    """Same nodes, same parameters, the same priority.
+
+    But for the bridge's broker when none is named: the launch file starts one on port 1883,
+    agv-launch its embedded one on a free port.
+    """
+    from dataclasses import replace
+
+    monkeypatch.delenv('AGV_MQTT_URL', raising=False)
+    actions = nodes_from_launch_file(**overrides)
+    nodes = [a for a in actions if not isinstance(a, Process)]
+    broker = [a.kwargs['cmd'] for a in actions if isinstance(a, Process)]
     launch = Launch(options)
     expected = launch.specs()
     assert [n.kwargs['name'] for n in nodes] == [s.name for s in expected]
     graph = load_graph()
+    if options.vda5050 and options.mqtt_url is None:
+        assert broker == [['python3', '-m', 'agv_nodes.mqtt.broker', '--port', '1883']]
+        assert launch.broker is not None and launch.mqtt_url.startswith('mqtt://127.0.0.1:')
+        file_url = 'mqtt://127.0.0.1:1883'
+    else:
+        assert broker == [] and launch.broker is None
+        file_url = launch.mqtt_url  # the same broker, named the same way
     for node, spec in zip(nodes, expected, strict=True):
         assert node.kwargs['package'] == 'agv_nodes'
         assert node.kwargs['executable'] == spec.executable
         assert node.kwargs['namespace'] == options.namespace
         params_file, params = node.kwargs['parameters']
         assert params_file == str(graph.parameters)
-        assert params == node_parameters(graph, spec, options)
+        assert params == node_parameters(graph, spec, replace(options, mqtt_url=file_url))
         prio = realtime_priority(spec, options)
         assert node.kwargs['prefix'] == (f'chrt -f {prio}' if prio else None)
         assert prio == (40 if options.realtime and spec.realtime else 0)
@@ -105,9 +130,11 @@ def test_launch_file_matches_agv_launch(launch_api, overrides, options):
         second = yaml.safe_load(Path(files[1]).read_text())
         # ... but for the world's ready file, agv-launch's signal that time has started
         ready = {'ready_file': str(launch.ready_file)} if spec.role == 'world' else {}
+        url = {'mqtt_url': launch.mqtt_url} if spec.role == 'bridge' else {}
         assert 'ready_file' not in params
-        assert second == {f'/**/{spec.name}': {'ros__parameters': {**params, **ready}}}
+        assert second == {f'/**/{spec.name}': {'ros__parameters': {**params, **ready, **url}}}
     launch.stop()
+    assert launch.broker is None or launch.broker.port is None  # stopped with the launch
 
 
 def test_every_node_script_is_in_the_graph():
@@ -364,3 +391,60 @@ def test_child_takes_the_priority_it_is_given():
                             sys.executable, '-c', probe], capture_output=True, text=True,
                            timeout=60)
     assert plain.stdout.split() == [str(os.SCHED_OTHER), '0']
+
+
+def test_vda5050_options_reach_the_bridge(monkeypatch):
+    """--vda5050, --mqtt-url and --serial-number end up as the bridge's parameters.
+
+    The serial number comes from the namespace unless given; an explicit URL wins over
+    AGV_MQTT_URL, which wins over the embedded broker; the world waits for the bridge on no
+    link (it is not a record node), and options that cannot work are refused before anything
+    starts.
+    """
+    from agv_nodes.graph.cli import build_parser, options_from
+    from agv_nodes.graph.parameters import serial_number
+
+    assert serial_number(Options()) == 'agv1'
+    assert serial_number(Options(namespace='/agv2')) == 'agv2'
+    assert serial_number(Options(namespace='/fleet/agv2/')) == 'fleetagv2'
+    assert serial_number(Options(namespace='/agv2', serial_number='truck_7')) == 'truck_7'
+    args = build_parser().parse_args(['--vda5050', '--namespace', '/agv2',
+                                      '--mqtt-url', 'mqtt://10.1.2.3:1884'])
+    options = options_from(args)
+    assert (options.vda5050, options.mqtt_url, options.serial_number) == \
+        (True, 'mqtt://10.1.2.3:1884', '')
+    assert options_from(build_parser().parse_args([])).vda5050 is False
+
+    graph = load_graph()
+    monkeypatch.setenv('AGV_MQTT_URL', 'mqtt://broker.example')
+    for given, url in (('mqtt://10.1.2.3:1884', 'mqtt://10.1.2.3:1884'),
+                       (None, 'mqtt://broker.example:1883')):
+        launch = Launch(Options(vda5050=True, mqtt_url=given, namespace='/agv2', quiet=True))
+        try:
+            assert (launch.mqtt_url, launch.broker) == (url, None)  # no broker of our own
+            names = [s.name for s in launch.specs()]
+            assert names.index('vda5050_bridge') == names.index('communications') + 1
+            bridge = graph.node('vda5050_bridge')
+            params = node_parameters(graph, bridge, launch.o)
+            assert params == {'use_sim_time': True, 'layout': 'demo_1983',
+                              'serial_number': 'agv2', 'mqtt_url': url}
+            world = graph.node('world')
+            assert node_parameters(graph, world, launch.o) == \
+                node_parameters(graph, world, Options())  # nothing waits for the bridge
+        finally:
+            launch.stop()
+    plain = Launch(Options())
+    assert 'vda5050_bridge' not in [s.name for s in plain.specs()] and plain.mqtt_url is None
+    plain.stop()
+    assert 'vda5050_bridge' not in paced_nodes(graph, Options(vda5050=True))
+    assert not [x for x in wait_links(graph, True, paced_nodes(graph, Options()))
+                if 'vda5050' in x]
+
+    for options, words in (
+            (Options(mqtt_url='mqtt://10.1.2.3'), '--mqtt-url is for the VDA 5050 bridge'),
+            (Options(serial_number='agv9'), '--serial-number is for the VDA 5050 bridge'),
+            (Options(vda5050=True, serial_number='agv/9'), "--serial-number 'agv/9'"),
+            (Options(vda5050=True, mqtt_url='http://10.1.2.3'), "--mqtt-url 'http://"),
+            (Options(vda5050=True, layout='tape_1991'), 'concic2 truck')):
+        with pytest.raises(GraphError, match=words):
+            Launch(options)

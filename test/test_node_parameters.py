@@ -117,7 +117,20 @@ def test_the_harness_and_the_launched_graph_run_with_the_same_settings():
 
 
 def test_shipped_parameter_file_is_valid_for_every_node(tmp_path):
-    """Every node starts with config/agv_demo.yaml (and stops at once: duration / SIGINT)."""
+    """Every node starts with config/agv_demo.yaml (and stops at once: duration / SIGINT).
+
+    The recorder is given its bag and the VDA 5050 bridge a broker, as the launch gives them.
+    """
+    from agv_nodes.graph.model import load_graph
+    from agv_nodes.mqtt.broker import EmbeddedBroker
+
+    graph = load_graph()
+    with EmbeddedBroker() as broker:
+        _start_every_node(graph, {'recorder': ['-p', f'bag:={tmp_path / "bag"}'],
+                                  'bridge': ['-p', f'mqtt_url:={broker.url}']})
+
+
+def _start_every_node(graph, given: dict[str, list[str]]) -> None:
     import os
     import signal
     import time
@@ -125,12 +138,9 @@ def test_shipped_parameter_file_is_valid_for_every_node(tmp_path):
     import rclpy
     from rclpy.context import Context
 
-    from agv_nodes.graph.model import load_graph
-
-    graph = load_graph()
     procs = []
     for spec in graph.nodes:
-        extra = ['-p', f'bag:={tmp_path / "bag"}'] if spec.role == 'recorder' else []
+        extra = given.get(spec.role, [])
         procs.append((spec.name, subprocess.Popen(
             [str(BIN / spec.executable), '--ros-args', '--params-file', str(graph.parameters),
              '-p', 'use_sim_time:=true', *extra], stdout=subprocess.PIPE,

@@ -8,6 +8,7 @@ and the reason, and changes nothing.
 
 from typing import Any
 
+from agv_nodes.communications.report_line import FINAL, abort_line, progress_line, queued_line
 from agv_nodes.communications.task_language import Task, TaskError, parse_task
 from agv_nodes.settings import settings_class
 from agv_nodes.subsystem import SubsystemCore
@@ -16,10 +17,6 @@ from agv_nodes.subsystem import SubsystemCore
 @settings_class
 class CommsParams:
     """The task queue and its relay to the executive (its parameters.yaml section)."""
-
-
-STATE_WORDS = {'accepted': 'accepted', 'running': 'running', 'step_done': 'step done',
-               'completed': 'completed', 'failed': 'FAILED', 'rejected': 'rejected'}
 
 
 class CommunicationsCore(SubsystemCore):
@@ -49,35 +46,26 @@ class CommunicationsCore(SubsystemCore):
         task.task_id = self._next_id
         self._next_id = self._next_id % 255 + 1
         if task.op == 'abort':
-            self.notes.add(now, f'task {task.task_id} abort: queue of {len(self.queue)} dropped')
+            self.notes.add(now, abort_line(task.task_id, len(self.queue)))
             self.queue = [task]
         else:
             self.queue.append(task)
-            self.notes.add(now, f'task {task.task_id} queued: {text!r} ({len(self.queue)} in '
-                                f'queue)')
+            self.notes.add(now, queued_line(task.task_id, text, len(self.queue)))
         return self.tick(now)
 
     def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
         """comms_command: the executive's word on a task."""
-        key = (fields['task_id'], fields['state'], fields['step'], fields['cause'])
+        # the location too: a line for each location marker passed tells a master control
+        # (the VDA 5050 bridge) which node the truck has reached
+        key = (fields['task_id'], fields['state'], fields['step'], fields['cause'],
+               fields['location'])
         if key == self._last or not self.queue or fields['task_id'] != self.queue[0].task_id:
             return None
         self._last = key
         task = self.queue[0]
-        words = STATE_WORDS.get(fields['state'], fields['state'])
-        line = f'task {task.task_id} {task.text!r}: {words}'
-        if fields['state'] in ('running', 'step_done'):
-            line += f' (step {fields["step"]})'
-        if fields['cause'] != 'none':
-            line += f': {fields["cause"].replace("_", " ")}'
-            if fields['subsystem'] != 'none':
-                line += f' ({fields["subsystem"]})'
-            if fields.get('detail', 'none') != 'none':  # which drive fault
-                line += f': {fields["detail"].replace("_", " ")}'
-        if fields['location'] != 0xFF:
-            line += f' [last marker L{fields["location"]}]'
+        line = progress_line(task.task_id, task.text, fields)
         self.notes.add(now, line)
-        if fields['state'] in ('completed', 'failed', 'rejected'):
+        if fields['state'] in FINAL:
             self.results.append((task.task_id, fields['state'], fields['cause']))
             self.queue.pop(0)
             return self.tick(now)

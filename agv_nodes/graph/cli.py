@@ -2,7 +2,8 @@
 
 Each node of config/graph.yaml that the layout's truck has, with the parameter file plus
 agv_nodes.graph.parameters (via agv_nodes.graph.supervisor); SIGINT/SIGTERM stop the graph in
-order (docs/architecture.md).
+order (docs/architecture.md). With --vda5050 also the truck's VDA 5050 bridge, on the broker
+--mqtt-url or AGV_MQTT_URL names, else on one the launcher runs in its own process.
 """
 
 import argparse
@@ -10,7 +11,7 @@ from pathlib import Path
 import sys
 
 from agv_nodes.graph.model import GraphError, load_graph
-from agv_nodes.graph.parameters import Options, parse_fault, truck_graph
+from agv_nodes.graph.parameters import Options, parse_fault, serial_number, truck_graph
 from agv_nodes.graph.supervisor import Launch
 
 
@@ -44,6 +45,14 @@ def build_parser() -> argparse.ArgumentParser:
                     help='run the sensor-to-traction chain (the `realtime` nodes of the graph) '
                     'at this SCHED_FIFO priority, 1-99; needs a time factor > 0 and the right '
                     'to (root or CAP_SYS_NICE); default 0: the normal scheduler')
+    ap.add_argument('--vda5050', action='store_true',
+                    help='also start the vda5050_bridge node: a VDA 5050 master drives the truck')
+    ap.add_argument('--mqtt-url', metavar='URL',
+                    help="the bridge's MQTT broker, mqtt://host[:port] (default: AGV_MQTT_URL, "
+                    'else a broker the launcher runs itself, ending with it)')
+    ap.add_argument('--serial-number', default='', metavar='S',
+                    help="the truck's VDA 5050 serialNumber (default: the namespace without "
+                    'slashes, or agv1)')
     return ap
 
 
@@ -59,7 +68,9 @@ def options_from(args: argparse.Namespace) -> Options:
                       use_sim_time=args.use_sim_time == 'true', time_factor=args.time_factor,
                       record_integrity=args.record_integrity, world=args.world, extra=extra,
                       domain_id=args.domain_id, bag=args.bag, respawn=args.respawn,
-                      layout=args.layout, log_dir=args.log_dir, realtime=args.realtime)
+                      layout=args.layout, log_dir=args.log_dir, realtime=args.realtime,
+                      vda5050=args.vda5050, mqtt_url=args.mqtt_url,
+                      serial_number=args.serial_number)
     graph = truck_graph(load_graph(args.graph), options)
     options.faults = dict(parse_fault(text, graph) for text in args.fault)
     return options
@@ -75,6 +86,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     print(f'agv-launch: graph {launch.graph.name}, ROS_DOMAIN_ID={launch.domain}, '
           f'{len(launch.specs())} processes', flush=True)
+    if launch.mqtt_url:
+        where = ('embedded, ends with agv-launch' if launch.broker else
+                 'from --mqtt-url' if args.mqtt_url is not None else 'from AGV_MQTT_URL')
+        print(f'agv-launch: VDA 5050 bridge {serial_number(launch.o)} on MQTT broker '
+              f'{launch.mqtt_url} ({where})', flush=True)
     return launch.run(args.duration)
 
 

@@ -47,6 +47,9 @@ class Options:
     quiet: bool = False
     log_dir: Path | None = None
     realtime: int = 0  # SCHED_FIFO priority of the graph's `realtime` nodes (0 = off)
+    vda5050: bool = False  # also start the `bridge` node: the truck's link to a master control
+    mqtt_url: str | None = None  # the bridge's broker (None: AGV_MQTT_URL, else an embedded one)
+    serial_number: str = ''  # the bridge's VDA 5050 serialNumber ('': from the namespace)
 
 
 def record_readers(graph: Graph, world: bool, recording: bool) -> dict[str, int]:
@@ -183,6 +186,9 @@ def node_parameters(graph: Graph, spec: NodeSpec, options: Options,
             out['layout'] = options.layout
     if spec.role == 'recorder':
         out['bag'] = str(options.bag)
+    if spec.role == 'bridge':  # its orders name the markers of the layout the world runs
+        out.update(layout=layout_name(graph, options), serial_number=serial_number(options),
+                   mqtt_url=options.mqtt_url or '')
     return out
 
 
@@ -197,6 +203,51 @@ def override_parameters(graph: Graph, spec: NodeSpec, options: Options,
         except yaml.YAMLError as exc:
             raise GraphError(f'-p {spec.name}:{arg}: value is not YAML ({exc})') from exc
     return out
+
+
+def serial_number(options: Options) -> str:
+    """Return the bridge's serialNumber: --serial-number, else the namespace, else 'agv1'.
+
+    One truck per namespace, so the namespace (without its slashes) names the truck to the
+    master control as it names it on the ROS graph.
+    """
+    return options.serial_number or options.namespace.replace('/', '') or 'agv1'
+
+
+def launched(spec: NodeSpec, options: Options) -> bool:
+    """Return True if the launch starts this node of the truck's graph.
+
+    The world is left out for hardware drivers, the recorder when nothing is recorded and the
+    bridge unless asked for.
+    """
+    return not (spec.role == 'world' and options.world == 'none'
+                or spec.role == 'recorder' and options.bag is None
+                or spec.role == 'bridge' and not options.vda5050)
+
+
+def check_vda5050(graph: Graph, options: Options) -> None:
+    """Refuse VDA 5050 options the truck's graph cannot use, naming why (before anything starts).
+
+    `graph` is the truck's (truck_graph): only a truck whose graph has a `bridge` node can be
+    driven by a master control.
+    """
+    if not options.vda5050:
+        if options.mqtt_url is not None or options.serial_number:
+            given = '--mqtt-url' if options.mqtt_url is not None else '--serial-number'
+            raise GraphError(f'{given} is for the VDA 5050 bridge: add --vda5050')
+        return
+    if not any(n.role == 'bridge' for n in graph.nodes):
+        layout = launch_layout(graph, options)
+        raise GraphError(f'--vda5050: layout {layout_name(graph, options)!r} drives the '
+                         f'{layout.vehicle} truck, whose graph ({graph.file}) has no VDA 5050 '
+                         'bridge (its tasks are another language)')
+    from agv_nodes.vda5050.topics import topic  # pydantic models: only with --vda5050
+
+    serial = serial_number(options)
+    try:  # the rule for a topic level (VDA 5050 6.3), as the bridge will apply it
+        topic('manufacturer', serial, 'connection')
+    except ValueError as exc:
+        raise GraphError(f'--serial-number {serial!r}: {exc}') from None
 
 
 def realtime_priority(spec: NodeSpec, options: Options) -> int:

@@ -6,12 +6,19 @@ file holding what the launch sets on top (agv_nodes.graph.parameters, and `-p NO
 file, not `-p`: whether a plain `-p` beats the file's node-specific entry (`/**/executive:`)
 depends on where it stands on the command line, a later file's entry always does, and a file is how
 `ros2 launch` passes dict parameters too (test_launch_file.py checks it with rcl's parser). Output
-is prefixed with the node's name; shutdown goes in order (world first, so time stops; recorder
+is prefixed with the node's name; shutdown goes in order (the VDA 5050 bridge first, so its master
+control hears the truck go OFFLINE while all of it still runs; the world, so time stops; recorder
 last, so the bag sees the end); a node that dies ends the launch with a non-zero status (or is
 restarted, --respawn). Discovery is localhost-only, on a ROS domain of the graph's own (never 0).
+
+With --vda5050 and no broker named (--mqtt-url, AGV_MQTT_URL) the launcher runs an embedded MQTT
+broker in a thread of its own process: it ends with the launcher however that ends (a SIGKILL
+too, with no clean-up to forget), and a clean stop shuts it after the nodes, so the bridge's
+OFFLINE reaches the master control first.
 """
 
 import atexit
+from dataclasses import replace
 import fcntl
 import os
 from pathlib import Path
@@ -30,6 +37,8 @@ from agv_nodes.graph.model import GraphError, NodeSpec, load_graph
 from agv_nodes.graph.parameters import (
     Options,
     check_realtime,
+    check_vda5050,
+    launched,
     override_parameters,
     realtime_priority,
     silent_records,
@@ -91,6 +100,8 @@ class Launch:
         self.graph = truck_graph(load_graph(options.graph), options)
         self.silent_records = silent_records(self.graph, options)
         check_realtime(options)
+        check_vda5050(self.graph, options)
+        self.mqtt_url = self._named_broker() if options.vda5050 else None
         self.params = Path(options.params) if options.params else self.graph.parameters
         if not self.params.is_file():
             raise GraphError(f'parameter file {self.params} not found')
@@ -109,11 +120,41 @@ class Launch:
         self._overrides = Path(tempfile.mkdtemp(prefix='agv_launch_'))
         self.ready_file = self._overrides / 'world.ready'
         self.moving = ReadyFile(self.ready_file)
+        self.broker = None  # the embedded MQTT broker, when the launcher runs one
+        if options.vda5050:
+            self._start_broker()
+
+    def _named_broker(self) -> str | None:
+        """Return the broker --mqtt-url or AGV_MQTT_URL names (checked), else None."""
+        from agv_nodes.mqtt.broker import broker_url  # amqtt: only with --vda5050
+
+        try:
+            return broker_url(self.o.mqtt_url)
+        except ValueError as exc:
+            raise GraphError(str(exc)) from None
+
+    def _start_broker(self) -> None:
+        """Start the embedded broker unless one is named; the bridge's URL goes into self.o.
+
+        Started here, not in start(), so that its URL is a start-up fact the launcher prints
+        with the others; last, so that no check can fail with a broker left running.
+        """
+        from agv_nodes.mqtt.broker import EmbeddedBroker
+
+        if self.mqtt_url is None:
+            self.broker = EmbeddedBroker()
+            try:
+                self.mqtt_url = self.broker.start()
+            except RuntimeError as exc:
+                shutil.rmtree(self._overrides, ignore_errors=True)
+                if self._lock is not None:
+                    self._lock.close()
+                raise GraphError(str(exc)) from None
+        self.o = replace(self.o, mqtt_url=self.mqtt_url)  # a copy: the caller's stays as given
 
     def specs(self) -> list[NodeSpec]:
         """Nodes to start, in order."""
-        return [n for n in self.graph.nodes if not (n.role == 'world' and self.o.world == 'none')
-                and not (n.role == 'recorder' and self.o.bag is None)]
+        return [n for n in self.graph.nodes if launched(n, self.o)]
 
     def command(self, spec: NodeSpec) -> list[str]:
         """Return the command line of one node."""
@@ -203,10 +244,13 @@ class Launch:
         return proc is not None and proc.poll() is not None
 
     def stop(self, timeout: float = 5.0) -> None:
-        """Shut the graph down in order: world, nodes, recorder (SIGINT, then SIGTERM, KILL)."""
+        """Shut the graph down in order: bridge, world, nodes, recorder (SIGINT, SIGTERM, KILL).
+
+        Then the embedded MQTT broker, if the launcher runs one.
+        """
         self.stopping = True
         self.moving.is_set()  # note a world that moved before its file goes with the directory
-        for group in ('world', 'node', 'recorder'):
+        for group in ('bridge', 'world', 'node', 'recorder'):
             names = [n for n in self.procs if self.graph.node(n).role == group]
             for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 3.0),
                               (signal.SIGKILL, 3.0)):
@@ -226,6 +270,11 @@ class Launch:
                         pass
             for name in names:
                 self.exits.setdefault(name, self.procs[name].poll())
+        if self.broker is not None:
+            try:
+                self.broker.stop()
+            except RuntimeError as exc:  # its daemon thread still ends with this process
+                print(f'agv-launch: {exc}', file=sys.stderr, flush=True)
         for thread in self._threads:
             thread.join(timeout=2.0)
         for log in self._logs.values():

@@ -160,6 +160,33 @@ def check_errors(layout: Layout, world: WorldParams | None = None) -> list[str]:
     return cached('layout_check', inputs, lambda: check_layout(layout, world).errors())
 
 
+def route_passes(layout: Layout, world: WorldParams | None = None) -> list[tuple[str, float]]:
+    """Return the cards a truck passes driving the route map from the start, twice round.
+
+    Each as (marker name, m the sensor point had driven when the card's centre crossed the lens's
+    axis), in order: how the track graph (agv_nodes.fleet.track_graph) learns where each SRM
+    lands. Kept in agv_nodes.result_cache as check_errors is; [] for a layout without an
+    Electruk route.
+    """
+    world = world or WorldParams()
+    if layout.kind != 'wire' or layout.vehicle != 'electruk' or not layout.markers:
+        return []
+
+    def drive() -> list[tuple[str, float]]:
+        passages = [Passage(m) for m in layout.markers]
+        run = _Drive(layout, passages, 'from the start by the route map')
+        total = sum(p.length for p in layout.paths.values())
+        run.truck(world, RouteParams(), (layout.start_path, layout.start_at,
+                                         layout.start_lateral, layout.start_heading),
+                  total * LAPS, route_map=True)
+        return run.log
+
+    inputs = repr((str(layout.file), layout.file.read_text(), layout.markers, world.electruk,
+                   world.pickup, world.sample_rate, world.substeps, world.guide_wire_rate,
+                   world.odometry_rate))
+    return [tuple(p) for p in cached('route_passes', inputs, drive)]
+
+
 def enforce(layout: Layout, world: WorldParams | None = None, mode: str = 'error') -> list[str]:
     """Check as the world does: LayoutError of the lines (mode 'error'), else return them."""
     errors = check_errors(layout, world)
@@ -175,6 +202,8 @@ class _Drive:
         self.layout, self.passages, self.label = layout, passages, label
         self._side: dict[int, tuple[float, float, float]] = {}  # marker -> last (t, u, angle)
         self.passed: list[Marker] = []  # cards whose centre the axis crossed on the last sample
+        self.log: list[tuple[str, float]] = []  # every card counted, with the distance driven
+        self.distance = 0.0  # m the sensor point has driven: on a wire, the wire's length
 
     def look(self, lens: tuple[float, float], heading: float, count: bool = True) -> None:
         """Note the cards whose centre the axis just crossed (not `count`: leaving their wire)."""
@@ -205,6 +234,7 @@ class _Drive:
             if crossing.score > p.score or not p.passed:
                 p.standoff, p.angle, p.drive = crossing.standoff, crossing.angle, self.label
             self.passed.append(m)
+            self.log.append((m.name, self.distance))
 
     def rig(self, path, dt: float) -> None:
         """Run the lens along the belt line, as the belt rig does (WorldCore._step_rig)."""
@@ -242,6 +272,7 @@ class _Drive:
         wire_every = _Every(world.guide_wire_rate, world.sample_rate)
         odo_every = _Every(world.odometry_rate, world.sample_rate)
         next_tick, manoeuvre, speed, odo, sample = 0.0, 0, CRUISE, [0.0, 0.0], 0
+        last_point = truck.sensor_point
         while st.distance < distance:
             sample += 1
             now = sample * dt
@@ -249,6 +280,9 @@ class _Drive:
                 st.speed = speed
                 truck.step(dt / world.substeps)
             st.speed = speed
+            point = truck.sensor_point
+            self.distance += math.hypot(point[0] - last_point[0], point[1] - last_point[1])
+            last_point = point
             # Cards passed while an SRM leaves the wire (before it finds the next) stand where
             # the truck is not going: a stop marker after the SRM's location is for a truck
             # that stays on the wire, and the drive of that wire from its start passes it.

@@ -1,15 +1,22 @@
-"""agv-layout: check layouts before a run (agv_nodes/world/layout_check.py).
+"""agv-layout: check layouts before a run (agv_nodes/world/layout_check.py), show their graph.
 
     agv-layout check FILE [FILE...]
+    agv-layout graph FILE [--json]
 
-Exit 0: every marker readable; 1: one line per marker that is not (stderr); 2: a file that is no
-valid layout. FILE may be a layout's name (config/layouts/<name>.yaml); see docs/architecture.md.
+check: exit 0: every marker readable; 1: one line per marker that is not (stderr). graph: the
+track graph a VDA 5050 master plans on (agv_nodes/fleet/track_graph.py): its nodes and edges
+as a table, or as JSON to load into a master's plant model. Exit 2: a file that is no valid
+layout (or, for graph, one without a track graph). FILE may be a layout's name
+(config/layouts/<name>.yaml); see docs/architecture.md and docs/vda5050.md.
 """
 
 import argparse
+from dataclasses import asdict
+import json
+import math
 import sys
 
-from agv_nodes.world.layout import LayoutError, layout_path, load_layout
+from agv_nodes.world.layout import Layout, LayoutError, layout_path, load_layout
 from agv_nodes.world.layout_check import check_layout
 
 
@@ -20,6 +27,10 @@ def main(argv: list[str] | None = None) -> int:
     check = commands.add_parser('check', help='can the marker sensor read every marker as the '
                                 'truck drives the route?')
     check.add_argument('files', nargs='+', metavar='FILE', help='layout file or name')
+    graph = commands.add_parser('graph', help="the track graph: the markers a master's orders "
+                                'name as nodes, the ways between them as edges')
+    graph.add_argument('files', nargs=1, metavar='FILE', help='layout file or name')
+    graph.add_argument('--json', action='store_true', help='as JSON (nodes, edges, start)')
     args = ap.parse_args(argv)
     layouts = []
     for name in args.files:
@@ -34,6 +45,8 @@ def main(argv: list[str] | None = None) -> int:
         except (AttributeError, KeyError, TypeError) as exc:  # a key of the wrong kind
             print(f'agv-layout: {name}: not a valid layout: {exc}', file=sys.stderr)
             return 2
+    if args.command == 'graph':
+        return _graph(layouts[0], args.json)
     errors = []
     for lay in layouts:
         report = check_layout(lay)
@@ -42,6 +55,33 @@ def main(argv: list[str] | None = None) -> int:
     for line in errors:
         print(line, file=sys.stderr)
     return 1 if errors else 0
+
+
+def _graph(layout: Layout, as_json: bool) -> int:
+    """Print the layout's track graph; 2 when it has none."""
+    from agv_nodes.fleet.track_graph import track_graph
+
+    try:
+        graph = track_graph(layout)
+    except LayoutError as exc:
+        print(f'agv-layout: {exc}', file=sys.stderr)
+        return 2
+    if as_json:
+        print(json.dumps({'layout': layout.name, 'start': graph.start,
+                          'nodes': [asdict(n) for n in graph.nodes.values()],
+                          'edges': [asdict(e) for e in graph.edges.values()]}, indent=1))
+        return 0
+    print(f'layout {layout.name}: {len(graph.nodes)} nodes, {len(graph.edges)} edges (one-way); '
+          f'a truck from the start meets {graph.start} first')
+    print(f'{"node":6} {"kind":8} {"loc":>3} {"x m":>7} {"y m":>7} {"deg":>6}')
+    for n in graph.nodes.values():
+        print(f'{n.id:6} {n.kind:8} {n.location:3d} {n.x:7.3f} {n.y:7.3f} '
+              f'{math.degrees(n.theta):6.1f}')
+    print(f'{"edge":10} {"length m":>8}  how')
+    for e in graph.edges.values():
+        how = f'SRM {e.srm_angle:+d} deg off the wire' if e.srm_angle else 'along the wire'
+        print(f'{e.id:10} {e.length:8.3f}  {how}')
+    return 0
 
 
 if __name__ == '__main__':

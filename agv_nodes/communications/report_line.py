@@ -1,0 +1,101 @@
+"""The lines communications writes on comms/report, and their reading back.
+
+The radio link of Baker 1983 (3.3) carried text both ways; so does comms/report. People read the
+lines, and a program that directs the truck through it (the VDA 5050 bridge) reads them with
+`read_report`, so the one format lives here, written and read by the same module:
+
+    task 6 queued: 'load at 1' (1 in queue)
+    task 7 abort: queue of 2 dropped
+    task 6 'load at 1': running (step 0) [last marker L2]
+    task 6 'load at 1': FAILED: lost wire (route) [last marker L0]
+"""
+
+from __future__ import annotations
+
+import ast
+from dataclasses import dataclass
+import re
+
+STATE_WORDS = {'accepted': 'accepted', 'running': 'running', 'step_done': 'step done',
+               'completed': 'completed', 'failed': 'FAILED', 'rejected': 'rejected'}
+_STATES = {words: state for state, words in STATE_WORDS.items()}
+FINAL = ('completed', 'failed', 'rejected')
+
+_TEXT = r"('(?:[^'\\]|\\.)*'|\"(?:[^\"\\]|\\.)*\")"  # a Python repr of the task text
+_QUEUED = re.compile(rf'^task (\d+) queued: {_TEXT} \((\d+) in queue\)$')
+_ABORT = re.compile(r'^task (\d+) abort: queue of (\d+) dropped$')
+_PROGRESS = re.compile(rf'^task (\d+) {_TEXT}: ({"|".join(map(re.escape, _STATES))})'
+                       r'(?: \(step (\d+)\))?(?:: (.*?))?(?: \[last marker L(\d+)\])?$')
+
+
+@dataclass(frozen=True)
+class Queued:
+    """A task taken into the queue under the id communications gave it."""
+
+    task_id: int
+    text: str
+    in_queue: int
+
+
+@dataclass(frozen=True)
+class Aborted:
+    """An abort: it heads the queue at once, and what was queued is dropped."""
+
+    task_id: int
+    dropped: int
+
+
+@dataclass(frozen=True)
+class Progress:
+    """The executive's word on a task (comms_command), as one line."""
+
+    task_id: int
+    text: str
+    state: str  # a comms_command state: running, step_done, completed, failed, ...
+    step: int | None = None
+    cause: str = ''  # 'lost wire (route)', with the sub-system and any detail
+    last_marker: int | None = None
+
+    @property
+    def final(self) -> bool:
+        """Return True for the task's last line (completed, failed or rejected)."""
+        return self.state in FINAL
+
+
+def queued_line(task_id: int, text: str, in_queue: int) -> str:
+    """Return the line for a task taken into the queue."""
+    return f'task {task_id} queued: {text!r} ({in_queue} in queue)'
+
+
+def abort_line(task_id: int, dropped: int) -> str:
+    """Return the line for an abort."""
+    return f'task {task_id} abort: queue of {dropped} dropped'
+
+
+def progress_line(task_id: int, text: str, fields: dict) -> str:
+    """Return the line for a comms_command record about task `task_id`."""
+    line = f'task {task_id} {text!r}: {STATE_WORDS.get(fields["state"], fields["state"])}'
+    if fields['state'] in ('running', 'step_done'):
+        line += f' (step {fields["step"]})'
+    if fields['cause'] != 'none':
+        line += f': {fields["cause"].replace("_", " ")}'
+        if fields['subsystem'] != 'none':
+            line += f' ({fields["subsystem"]})'
+        if fields.get('detail', 'none') != 'none':  # which drive fault
+            line += f': {fields["detail"].replace("_", " ")}'
+    if fields['location'] != 0xFF:
+        line += f' [last marker L{fields["location"]}]'
+    return line
+
+
+def read_report(line: str) -> Queued | Aborted | Progress | None:
+    """Return what a comms/report line says about a task (None: another kind of line)."""
+    if m := _QUEUED.match(line):
+        return Queued(int(m[1]), ast.literal_eval(m[2]), int(m[3]))
+    if m := _ABORT.match(line):
+        return Aborted(int(m[1]), int(m[2]))
+    if m := _PROGRESS.match(line):
+        return Progress(int(m[1]), ast.literal_eval(m[2]), _STATES[m[3]],
+                        int(m[4]) if m[4] is not None else None, m[5] or '',
+                        int(m[6]) if m[6] is not None else None)
+    return None

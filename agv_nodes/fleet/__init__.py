@@ -1,0 +1,1 @@
+"""Several trucks on one floor: the track graph they are directed on."""

@@ -1,0 +1,182 @@
+"""The track graph of a wire layout: markers as nodes, the wire between them as edges.
+
+A master control (VDA 5050) and the dispatcher plan on it. Nodes are the layout's location
+markers (`L0`..`L3`) and stop markers (`W1.1`: station W1's first), named as the truck reports
+them; an edge is the way from one to the next in the direction of travel (one-way wires, Baker
+1983, 7.2). Edges along one wire take their length from the markers' places on it (the
+wire's length between them). Where the
+route map leaves a wire at a location by an SRM (7.2, task 7), where the SRM lands is not a
+property of the wire but of the truck: the graph takes it from the layout check's drive of the
+route map (agv_nodes.world.layout_check.route_passes), so an SRM edge runs from the location
+marker to the first card the truck passes after landing, as long as it drove. A station after
+such a location is a branch: the truck that stops there leaves it by the same SRM (the
+executive starts it on departure), so its edge to the landing is estimated as the location's
+SRM edge less the wire between them (not driven: the SRM from the station lands a little
+differently; on demo_1983 the estimate is within a few cm).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import heapq
+from itertools import pairwise
+import math
+
+from agv_nodes.world.layout import Layout, LayoutError, Marker
+from agv_nodes.world.layout_check import route_passes
+from agv_nodes.world.settings import WorldParams
+
+
+@dataclass(frozen=True)
+class TrackNode:
+    """A marker the truck can report: a location it passes or a stop marker it can stop at."""
+
+    id: str  # Marker.name: 'L2', 'W2.1'
+    kind: str  # 'location' | 'stop'
+    location: int  # the location marker identity (a stop marker's: the one before it)
+    conveyor: int  # stop marker: 0 first, 1 second; location: -1
+    station: str  # stop marker's station ('' for a location)
+    x: float  # the wire's point abreast of the card, m (world frame): where the sensor reads it
+    y: float
+    theta: float  # the wire's heading there, rad in (-pi, pi]
+
+    @property
+    def stoppable(self) -> bool:
+        """Return True where a task can leave the truck standing (a stop marker)."""
+        return self.kind == 'stop'
+
+
+@dataclass(frozen=True)
+class TrackEdge:
+    """The way from one node to the next, in the direction of travel."""
+
+    id: str  # '<start>-<end>'
+    start: str
+    end: str
+    length: float  # m
+    srm_angle: int = 0  # degrees of the SRM the edge takes off its wire (0: along the wire)
+
+
+class TrackGraph:
+    """Nodes and one-way edges, with shortest routes between nodes."""
+
+    def __init__(self, nodes: list[TrackNode], edges: list[TrackEdge], start: str = '') -> None:
+        self.start = start  # the first node a truck meets from the layout's start ('' unknown)
+        self.nodes = {n.id: n for n in nodes}
+        self.edges = {e.id: e for e in edges}
+        self._out: dict[str, list[TrackEdge]] = {n: [] for n in self.nodes}
+        for e in edges:
+            if e.start not in self.nodes or e.end not in self.nodes:
+                raise ValueError(f'edge {e.id}: {e.start} or {e.end} is not a node')
+            self._out[e.start].append(e)
+
+    def edge(self, start: str, end: str) -> TrackEdge | None:
+        """Return the edge from `start` to `end`, or None when there is none."""
+        return next((e for e in self._out.get(start, ()) if e.end == end), None)
+
+    def successors(self, node: str) -> list[TrackEdge]:
+        """Return the edges leaving `node`."""
+        return list(self._out.get(node, ()))
+
+    def route(self, start: str, end: str, *, via_stops: bool = False) -> list[str] | None:
+        """Return the shortest node sequence from `start` to `end` (None: unreachable).
+
+        A route from a node to itself is one lap when the graph has one (a loop), as a truck at
+        a station sent back to it drives round. Branches to stop markers are left out of the
+        way unless they are `end`, or `via_stops` (their stop markers are passed, not stopped
+        at, by a truck going on; a branch after an SRM location is a longer way).
+        """
+        if start not in self.nodes or end not in self.nodes:
+            return None
+        best: dict[str, float] = {}
+        queue: list[tuple[float, list[str]]] = [(0.0, [start])]
+        while queue:
+            dist, path = heapq.heappop(queue)
+            here = path[-1]
+            if here == end and len(path) > 1:
+                return path
+            if best.get(here, float('inf')) <= dist and len(path) > 1:
+                continue
+            if len(path) > 1:
+                best[here] = dist
+            for e in self._out[here]:
+                if e.end != end and not via_stops and self._is_branch(e):
+                    continue
+                heapq.heappush(queue, (dist + e.length, [*path, e.end]))
+        return None
+
+    def _is_branch(self, e: TrackEdge) -> bool:
+        """Return True for the edge into a station that an SRM location's route map skips."""
+        return any(o.srm_angle for o in self._out[e.start] if o is not e) and not e.srm_angle
+
+    def length(self, nodes: list[str]) -> float:
+        """Return the length in m of the way through `nodes` (each pair must be an edge)."""
+        total = 0.0
+        for a, b in pairwise(nodes):
+            e = self.edge(a, b)
+            if e is None:
+                raise ValueError(f'no edge from {a} to {b}')
+            total += e.length
+        return total
+
+
+def _location_of(marker: Marker, markers: list[Marker]) -> int:
+    """Return the location identity a stop marker belongs to: the last one before it."""
+    before = [m for m in markers if m.kind == 'location' and m.path == marker.path
+              and m.at < marker.at]
+    if not before:
+        raise LayoutError(f'stop marker {marker.name} on {marker.path} at {marker.at} m has no '
+                          'location marker before it on its wire')
+    return max(before, key=lambda m: m.at).identity
+
+
+def track_graph(layout: Layout, world: WorldParams | None = None) -> TrackGraph:
+    """Return the track graph of a wire layout (see the module docstring).
+
+    Raises LayoutError for a layout that has none: a camera or rig floor, or no route map
+    round its markers.
+    """
+    if layout.kind != 'wire' or layout.vehicle != 'electruk':
+        raise LayoutError(f'{layout.file}: a {layout.kind} layout for the {layout.vehicle} has '
+                          'no track graph (wire layouts of the Electruk only)')
+    markers = [m for m in layout.markers if m.kind in ('location', 'stop')]
+    nodes = []
+    for m in markers:
+        x, y, heading = (float(v) for v in layout.paths[m.path].pose_at(m.at))
+        location = m.identity if m.kind == 'location' else _location_of(m, markers)
+        nodes.append(TrackNode(m.name, m.kind, location, m.identity if m.kind == 'stop' else -1,
+                               m.station, round(x, 4), round(y, 4),
+                               round(math.atan2(math.sin(heading), math.cos(heading)), 6)
+                               + 0.0))  # + 0.0: no -0.0
+    srm = {int(loc): int(angle) for loc, angle in (e.split(':') for e in layout.srm_map)}
+    edges: dict[tuple[str, str], TrackEdge] = {}
+
+    def add(a: str, b: str, length: float, angle: int = 0) -> None:
+        edges.setdefault((a, b), TrackEdge(f'{a}-{b}', a, b, round(length, 3), angle))
+
+    by_name = {m.name: m for m in markers}
+    passes = route_passes(layout, world)
+    for (a, da), (b, db) in pairwise(passes):
+        ma, mb = by_name[a], by_name[b]
+        angle = srm.get(ma.identity, 0) if ma.kind == 'location' else 0
+        # along a wire the wire's own length: the drive's sensor point weaves about it
+        along = not angle and ma.path == mb.path and mb.at > ma.at
+        add(a, b, mb.at - ma.at if along else db - da, angle)
+    # Along each wire: the stop markers the route map's SRMs skip, and the SRM off their station.
+    for loc_id, angle in srm.items():
+        loc = next((m for m in markers if m.kind == 'location' and m.identity == loc_id), None)
+        if loc is None:
+            continue
+        landing = next((e for e in edges.values() if e.start == loc.name and e.srm_angle), None)
+        after = sorted((m for m in markers if m.path == loc.path and m.at > loc.at
+                        and m.kind == 'stop' and _location_of(m, markers) == loc_id),
+                       key=lambda m: m.at)
+        previous = loc
+        for m in after:
+            add(previous.name, m.name, m.at - previous.at)
+            if landing is not None:
+                add(m.name, landing.end, landing.length - (m.at - loc.at), angle)
+            previous = m
+    if not edges:
+        raise LayoutError(f'{layout.file}: the route map passes no two markers: no track graph')
+    return TrackGraph(nodes, list(edges.values()), passes[0][0])

@@ -1,0 +1,166 @@
+"""vda5050_bridge (ros2 run agv_nodes vda5050_bridge): one truck driven by a VDA 5050 master.
+
+MQTT on one side (agv_nodes.mqtt.MqttLink: the topics `<interface>/v2/<manufacturer>/
+<serialNumber>/...` with the QoS and retain flags of agv_nodes.vda5050.topics, the last will
+CONNECTIONBROKEN), the truck's radio path on the other: tasks as text on `comms/task`, its
+communications node's lines back on `comms/report`. The logic is agv_nodes.vda5050.bridge; this
+node only carries messages. paho delivers on its own thread, so received messages wait in a
+queue that a wall-clock timer empties into the executor's thread. Before the first task the
+bridge asks communications for `status` until it answers: what a writer sends before the
+reader has matched it is lost (docs/tasks.md).
+
+/diagnostics `agv[/ns]/vda5050_bridge/link`: the MQTT link's counters, the messages taken and
+the invalid ones (WARN while the last message was invalid, ERROR while the broker is gone).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+import os
+import sys
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from std_msgs.msg import String
+
+from agv_nodes import qos
+from agv_nodes.fleet.track_graph import track_graph
+from agv_nodes.mqtt.client import LastWill, MqttLink
+from agv_nodes.node_process import spin_main
+from agv_nodes.params import declare, parameter_error, refuse_unknown
+from agv_nodes.ros_ports import diagnostic_status
+from agv_nodes.settings import settings_class
+from agv_nodes.vda5050.bridge import INBOUND, BridgeCore, Outbox
+from agv_nodes.vda5050.codec import to_json
+from agv_nodes.vda5050.connection import ConnectionState
+from agv_nodes.vda5050.topics import TOPICS, topic
+from agv_nodes.vda5050.truck_factsheet import truck_factsheet
+from agv_nodes.world.layout import LayoutError, layout_path, load_layout
+
+STATUS_EVERY = 0.5  # wall s between `status` queries until communications answers
+OK, WARN, ERROR = (int.from_bytes(level) for level in (DiagnosticStatus.OK, DiagnosticStatus.WARN,
+                                                        DiagnosticStatus.ERROR))
+
+
+@settings_class
+class BridgeSettings:
+    """One truck's link to a VDA 5050 master control (its parameters.yaml section)."""
+
+
+class BridgeNode(Node):
+    """See the module docstring."""
+
+    def __init__(self) -> None:
+        super().__init__('vda5050_bridge')
+        s = declare(self, BridgeSettings)
+        refuse_unknown(self)
+        url = s.mqtt_url or os.environ.get('AGV_MQTT_URL', '')
+        if not url:
+            raise parameter_error(self, 'mqtt_url', s.mqtt_url, 'empty and AGV_MQTT_URL unset: '
+                                  'no broker to connect to')
+        try:
+            graph = track_graph(load_layout(layout_path(s.layout)))
+        except (LayoutError, OSError) as exc:
+            raise parameter_error(self, 'layout', s.layout, str(exc)) from None
+        self.settings = s
+        self.core = BridgeCore(
+            graph, s.manufacturer, s.serial_number,
+            factsheet=lambda n: truck_factsheet(s.manufacturer, s.serial_number, n,
+                                                state_interval=s.state_interval),
+            state_interval=s.state_interval)
+        self._wall = Clock(clock_type=ClockType.STEADY_TIME)
+        self._task_pub = self.create_publisher(String, 'comms/task', qos.EVENTS)
+        self.create_subscription(String, 'comms/report', self._report, qos.EVENTS)
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos.EVENTS)
+        self._inbox: deque[tuple[str, bytes]] = deque()
+        self._connected: deque[bool] = deque()
+        self._comms_answered = False
+        self._pending: list[str] = []  # tasks held until communications has answered
+        self._last_status = -float('inf')
+        will = self.core.connection(ConnectionState.CONNECTIONBROKEN)
+        self._topics = {name: topic(s.manufacturer, s.serial_number, name,
+                                    interface=s.interface_name) for name in TOPICS}
+        self.link = MqttLink(url, f'{s.manufacturer}_{s.serial_number}', LastWill(
+            self._topics['connection'], to_json(will), qos=1, retain=True),
+            reconnect_min_s=min(1.0, s.reconnect_max), reconnect_max_s=s.reconnect_max)
+        self.link.on_connection(self._connected.append)
+        for name in INBOUND:
+            self.link.subscribe(self._topics[name], TOPICS[name].qos,
+                                lambda _t, payload, name=name: self._inbox.append(
+                                    (name, payload)))
+        self.create_timer(s.poll_period, self._poll, clock=self._wall)
+        self.create_timer(1.0, self._diagnostics, clock=self._wall)
+        self.link.connect(timeout=None)
+        self.get_logger().info(f'VDA 5050 bridge for {s.manufacturer}/{s.serial_number} on '
+                               f'{url}, layout {s.layout}: {len(graph.nodes)} nodes')
+
+    def _now(self) -> float:
+        return time.monotonic()
+
+    def _poll(self) -> None:
+        """Take what paho queued, send pending tasks, keep the state interval."""
+        now = self._now()
+        while self._connected:
+            if self._connected.popleft():
+                self._send(self.core.reconnected(self.link.stats().last_gap_s, now))
+            else:
+                self.get_logger().warning(f'MQTT broker {self.link.url} lost: reconnecting; '
+                                          'the truck goes on with the tasks it has')
+        while self._inbox:
+            name, payload = self._inbox.popleft()
+            self._send(self.core.on_message(name, payload, now))
+        if not self._comms_answered and now - self._last_status >= STATUS_EVERY:
+            self._last_status = now
+            self._task_pub.publish(String(data='status'))
+        self._send(self.core.tick(now))
+
+    def _report(self, msg: String) -> None:
+        if msg.data.startswith('comms: status:'):
+            self._comms_answered = True
+        self._send(self.core.on_report(msg.data, self._now()))
+
+    def _send(self, out: Outbox) -> None:
+        self._pending += out.tasks
+        if self._comms_answered:
+            for text in self._pending:
+                self._task_pub.publish(String(data=text))
+            self._pending = []
+        for name, message in out.messages:
+            spec = TOPICS[name]
+            self.link.publish(self._topics[name], to_json(message), spec.qos, spec.retain)
+
+    def _diagnostics(self) -> None:
+        stats = self.link.stats()
+        counts = self.core.counts
+        level, message = OK, 'connected'
+        if not stats.connected:
+            level, message = ERROR, 'broker not connected'
+        elif self.core.last_invalid:
+            level, message = WARN, f'invalid message: {self.core.last_invalid}'
+        values = {k: str(v) for k, v in {**stats.as_dict(), **counts}.items()}
+        msg = DiagnosticArray(status=[diagnostic_status(self, f'{self.get_name()}/link', level,
+                                                        message, self.get_name(), values)])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._diag_pub.publish(msg)
+
+    def close(self) -> None:
+        """Say OFFLINE (6.14) and disconnect cleanly, so the broker drops the last will."""
+        if self.link.connected:
+            self._send(Outbox(messages=[('connection',
+                                         self.core.connection(ConnectionState.OFFLINE))]))
+        self.link.close(clean=True)
+
+    def finish(self) -> None:
+        """Close the MQTT link before the node's teardown (agv_nodes.node_process)."""
+        self.close()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point: ros2 run agv_nodes vda5050_bridge [--ros-args ...]."""
+    return spin_main(BridgeNode, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
