@@ -122,6 +122,8 @@ class CoreNode(Node):
         if hasattr(self.core, 'on_radio_stop'):
             self.create_subscription(Bool, 'hw/radio_stop', self._radio_stop,
                                      qos.RECORD_READER)
+        if hasattr(self.core, 'on_bumper'):  # the world's (or the truck's) bumper switch
+            self.create_subscription(Bool, 'hw/bumper', self._bumper, qos.LATCHED)
         if self.core.period:
             self.periodic(self.core.period, self._tick)
         if getattr(self.core, 'supervision_period', None):
@@ -178,6 +180,9 @@ class CoreNode(Node):
 
     def _radio_stop(self, msg: Bool) -> None:
         self.core.on_radio_stop(msg.data, self.now_s())
+
+    def _bumper(self, msg: Bool) -> None:
+        self.core.on_bumper(msg.data, self.now_s())
 
     def _tick(self) -> None:
         self.publish(self.core.tick(self.now_s()))

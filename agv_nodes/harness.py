@@ -68,6 +68,7 @@ class Harness:
         self.events: list[dict[str, Any]] = []
         self.frames: dict[str, Any] = {}
         self._delayed: list[tuple[float, str, bytes, str]] = []
+        self._bumper = False
         self.world_writers = {s.name: RecordWriter(s, 'none') for s in self.codec
                               if s.writer == 'world'}
         self.world_readers = {s.name: RecordReader(s, 'none') for s in self.codec
@@ -179,6 +180,11 @@ class Harness:
         """One world sample, then every node timer that has come due."""
         out = self.world.step()
         now = self.now
+        if self.world.bumper != self._bumper:  # hw/bumper in the graph (the world's output)
+            self._bumper = self.world.bumper
+            for m in self.members:
+                if hasattr(m.core, 'on_bumper'):
+                    m.core.on_bumper(self._bumper, now)
         if self._delayed:
             due = [d for d in self._delayed if d[0] <= now]
             self._delayed = [d for d in self._delayed if d[0] > now]
@@ -277,7 +283,9 @@ class CameraLegScript:
 
 def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
           overrides: Mapping[str, Mapping[str, Any]] | None = None,
-          params_file: Path | str | None = None, integrity: str = 'e2e') -> Harness:
+          params_file: Path | str | None = None, integrity: str = 'e2e',
+          start: tuple[str, float] | None = None,
+          station_loads: dict[str, int] | None = None) -> Harness:
     """Build the world and the truck's node cores in lock step, set as a launched graph's are.
 
     The layout's vehicle picks the cores, as it picks the launched graph's nodes: all seven for
@@ -287,7 +295,7 @@ def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
     (`layout_parameters`), then `overrides` ({node: {name: value}}, as agv-launch's `-p
     NODE:NAME:=VALUE`). `seed` seeds world and harness. Like the world node it refuses a layout
     with a marker the sensor cannot read on the route (unless the world's `layout_check` is
-    'warn').
+    'warn'). `start` and `station_loads` place one truck of a fleet (WorldCore).
     """
     from agv_nodes.communications.core import CommunicationsCore
     from agv_nodes.executive.core import ExecutiveCore
@@ -318,7 +326,7 @@ def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
     world_params = settings('world', WorldParams, WorldNodeSettings, seed=seed)
     if settings('world', WorldNodeSettings, WorldParams).layout_check != 'warn':
         _check(lay, world_params)
-    world = WorldCore(lay, world_params)
+    world = WorldCore(lay, world_params, start=start, station_loads=station_loads)
     on_truck = {n.name for n in load_graph().for_truck(lay.vehicle).nodes}  # config/graph.yaml
     cores = [core_type(settings(core_type.node, core_type.settings_type))
              for core_type in (TractionCore, PositionSensorCore, NavigationCore, RouteCore,

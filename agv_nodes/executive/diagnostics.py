@@ -94,7 +94,8 @@ class HealthMonitor:
         fields = reader.fields or {}
         flags = {
             'traction': [('tripped', 'trip relay open: ' + str(fields.get('trip_cause'))),
-                         ('radio_stop', 'radio stop')],
+                         ('radio_stop', 'radio stop'),
+                         ('bumper', 'bumper pressed by another truck')],
             'route': [('state', 'guide wire lost')],
             'navigation': [('sensor_lost', 'marker sensor lost'),
                            ('input_fault', 'rejected a record')],

@@ -69,6 +69,8 @@ class FaultSupervision:
         if route.get('state') == 'no_branch' and self.camera:
             return self._fail(now, 'no_branch', 'route', 'the junction lacks the branch chosen')
         traction = self.status.get('traction') or {}
+        if traction.get('bumper'):
+            return self._fail(now, 'collision', 'traction', 'bumper pressed by another truck')
         if traction.get('radio_stop'):
             return self._fail(now, 'radio_stop', 'traction', 'radio stop')
         if traction.get('tripped') and now - self.task_start > self.p.trip_grace:

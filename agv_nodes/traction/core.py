@@ -56,7 +56,7 @@ class TractionCore(SubsystemCore):
         self.ref = self.speed = self.error = 0  # REF, SPEED, ERROR (%)
         self.dcycle = self.dcdem = 0  # signed %; |duty| loaded into CTC1
         self.source = 'trip'
-        self.manual = self.estop = self.radio = False
+        self.manual = self.estop = self.radio = self.bumper = False
         self.watchdog = 0
         self.state = 'start'  # start | run | flip_decay | flip_build | runout
         self.wait_until = 0.0
@@ -123,6 +123,14 @@ class TractionCore(SubsystemCore):
     def on_radio_stop(self, on: bool, now: float) -> None:
         """Set the radio-control stop input (PIO1-A bit 4, high = stop)."""
         self.radio = bool(on)
+
+    def on_bumper(self, on: bool, now: float) -> None:
+        """Set the bumper input (hw/bumper): pressed by another truck, the armature goes off.
+
+        Modern: a fleet's trucks can touch. The switch acts as the radio stop does, and is
+        reported apart, so that a collision is never taken for an operator's stop.
+        """
+        self.bumper = bool(on)
 
     def _advance_reset(self, fields: dict[str, Any]) -> None:
         if fields['manual']:
@@ -238,8 +246,9 @@ class TractionCore(SubsystemCore):
             self.source = 'manual'
         elif cmd['demand'] == 0:
             self.ref, self.estop, self.source = self.p.estop_ref, True, 'emergency_stop'
-        elif self.radio:
-            self.armature_off, self.dcycle, self.source = True, 0, 'radio_stop'
+        elif self.radio or self.bumper:
+            self.armature_off, self.dcycle = True, 0
+            self.source = 'bumper' if self.bumper else 'radio_stop'
             return False
         elif cmd['executive_priority'] or self.link is None or self.link['executive_priority']:
             self.ref, self.source = cmd['demand'], 'executive'
@@ -369,6 +378,7 @@ class TractionCore(SubsystemCore):
         return {
             'ref': max(-128, min(127, self.ref)), 'duty': self.dcycle,
             'emergency_stop': int(self.estop and not self.tripped), 'radio_stop': int(self.radio),
+            'bumper': int(self.bumper),
             'tripped': int(self.tripped), 'manual': int(self.manual),
             'field_forward': int(self.field_forward),
             'armature_on': int(not self.tripped and not self.armature_off),

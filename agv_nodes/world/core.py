@@ -42,8 +42,15 @@ class _Every:
 class WorldCore:
     """The simulated hardware; see the module docstring."""
 
-    def __init__(self, layout: Layout, params: WorldParams | None = None) -> None:
+    def __init__(self, layout: Layout, params: WorldParams | None = None, *,
+                 start: tuple[str, float] | None = None,
+                 station_loads: dict[str, int] | None = None) -> None:
+        """Place the truck at the layout's start, or at `start` (path, at): a fleet's trucks.
+
+        `station_loads` is the stations' loads, shared with the other trucks' worlds.
+        """
         self.layout = layout
+        self._start = start
         self.p = params or WorldParams()
         self.rng = random.Random(self.p.seed)
         self.np_rng = np.random.default_rng(self.p.seed)
@@ -76,6 +83,9 @@ class WorldCore:
         self._watchdog_time = -1e9
         self._steer_time = -1e9
         self.conveyors = Conveyors(layout, self.p)
+        if station_loads is not None:  # one floor: a load taken by one truck is gone for all
+            self.conveyors.station_loads = station_loads
+        self.bumper = False  # pressed by another truck: the drive is cut until a reset
         # records published, whole counts (the records carry the low byte)
         self.counters = {'guide_wire': 0, 'wheel_odometry': 0}
         self._odo_dist = [0.0, 0.0]  # m per driven wheel
@@ -95,11 +105,12 @@ class WorldCore:
     # -- set-up ---------------------------------------------------------------------------
     def _place_vehicle(self) -> None:
         lay = self.layout
-        path = lay.paths[lay.start_path]
-        x, y, h = path.pose_at(lay.start_at)
-        h += lay.start_heading
-        x += -math.sin(h) * lay.start_lateral
-        y += math.cos(h) * lay.start_lateral
+        pid, at = self._start or (lay.start_path, lay.start_at)
+        lateral, heading = (0.0, 0.0) if self._start else (lay.start_lateral, lay.start_heading)
+        x, y, h = lay.paths[pid].pose_at(at)
+        h += heading
+        x += -math.sin(h) * lateral
+        y += math.cos(h) * lateral
         # The layout gives the sensor point (front axle / camera); place the reference point.
         ahead = (self.p.electruk.wheelbase if isinstance(self.vehicle, Electruk)
                  else self.p.concic2.camera_distance)
@@ -139,9 +150,20 @@ class WorldCore:
             self.conveyors.on_command(fields, now)
 
     def hardware_reset(self) -> None:
-        """Press the CONCIC-II's reset: the safety PAL's latches clear, its tests run again."""
+        """Press the reset: the CONCIC-II's safety PAL latches clear; a pressed bumper frees."""
+        self.bumper = False
         if self.pal is not None:
             self.pal.hardware_reset(self.time)
+
+    def bump(self) -> None:
+        """Another truck touched this one: a collision event, and the bumper cuts the drive.
+
+        Modern (neither thesis has two trucks meet): the bumper switch is in the drive's safety
+        circuit, as the radio stop is, and stays pressed until a reset.
+        """
+        if not self.bumper:
+            self.bumper = True
+            self._event('collision')
 
     def set_radio_stop(self, on: bool) -> None:
         """Set the radio-control stop input (hw/radio_stop): no drive torque while set."""
@@ -182,7 +204,7 @@ class WorldCore:
 
     def _apply_safety(self) -> None:
         v = self.vehicle
-        v.radio_stop = self.radio_stop
+        v.radio_stop = self.radio_stop or self.bumper
         if isinstance(v, Electruk):
             # The trip relay's monostable: no watchdog change for 200 ms releases the relay and
             # with it the main contactor; retriggering closes it again (Baker 1983, B.2.1).

@@ -105,6 +105,8 @@ class WorldNode(Node):
         own_writers[sim_progress.CLOCK_LINK] = self.clock_pub.get_subscription_count
         self.peers = LinkWatch(self, links, own_readers, own_writers)
         self.create_subscription(Bool, 'hw/radio_stop', self._radio_stop, qos.RECORD_READER)
+        self.bumper_pub = self.create_publisher(Bool, 'hw/bumper', qos.LATCHED)
+        self._bumper = False
         self.pose_pub = self.create_publisher(PoseStamped, 'world/pose', qos.STREAM_WRITER)
         self.camera_pubs = {name: self.create_publisher(Image, f'hw/camera/{name}',
                                                         qos.STREAM_WRITER)
@@ -219,6 +221,9 @@ class WorldNode(Node):
             self.publish_clock_now()
         for name, fields in out['records'].items():
             self.out[name].publish(fields)
+        if self.core.bumper != self._bumper:  # the bumper switch, to traction
+            self._bumper = self.core.bumper
+            self.bumper_pub.publish(Bool(data=self._bumper))
         for event in out['events']:
             self.out['world_event'].publish({**{k: event[k] for k in (
                 'event', 'marker_kind', 'identity', 'error', 'speed', 'lateral', 'count',
