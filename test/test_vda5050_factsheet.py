@@ -37,14 +37,11 @@ from agv_nodes.vda5050.factsheet import (
 from agv_nodes.vda5050.order_tasks import TASK_VERBS, WAIT_MAX, WAIT_PARAMETER
 from agv_nodes.vda5050.truck_factsheet import (
     ACTIONS,
-    FRONT_OVERHANG,
     HEIGHT,
     INSTANT_ACTIONS,
     MAX_LOAD_MASS,
     MIN_STATE_INTERVAL,
-    REAR_OVERHANG,
     SERIES_NAME,
-    WIDTH,
     truck_factsheet,
 )
 from agv_nodes.world.layout import layout_path, load_layout
@@ -145,8 +142,9 @@ def test_speeds_and_accelerations_are_the_packages(sheet: Factsheet) -> None:
 
 def test_sizes(sheet: Factsheet) -> None:
     p, world = sheet.physical_parameters, WorldParams()
-    assert p.length == pytest.approx(world.electruk.wheelbase + FRONT_OVERHANG + REAR_OVERHANG)
-    assert p.width == WIDTH
+    e = world.electruk
+    assert p.length == pytest.approx(e.wheelbase + e.front_overhang + e.rear_overhang)
+    assert p.width == e.width
     assert p.height_max == HEIGHT
     assert p.height_min == pytest.approx(HEIGHT - world.ride_height_per_tonne
                                          * MAX_LOAD_MASS / 1000.0)
@@ -216,7 +214,8 @@ def test_action_types_are_the_constants(sheet: Factsheet) -> None:
     node = {t for t, a in actions.items() if ActionScope.NODE in a.action_scopes}
     instant = {t for t, a in actions.items() if ActionScope.INSTANT in a.action_scopes}
     assert node == ACTIONS == set(TASK_VERBS) == {'pick', 'drop', 'wait'}
-    assert instant == INSTANT_ACTIONS == {'cancelOrder', 'stateRequest', 'factsheetRequest'}
+    assert instant == INSTANT_ACTIONS == {'cancelOrder', 'initPosition', 'stateRequest',
+                                          'factsheetRequest'}
     assert set(actions) == ACTIONS | INSTANT_ACTIONS
     assert len(sheet.protocol_features.agv_actions) == len(actions)  # each listed once
     assert not {'startPause', 'stopPause'} & set(actions)
@@ -239,8 +238,11 @@ def test_parameters(sheet: Factsheet) -> None:
     assert duration.value_data_type is ValueDataType.INTEGER
     assert duration.is_optional is False
     assert f'0-{WAIT_MAX}' in duration.description
+    (node,) = actions['initPosition'].action_parameters
+    assert (node.key, node.value_data_type, node.is_optional) == (
+        'lastNodeId', ValueDataType.STRING, False)
     for action_type, action in actions.items():
-        if action_type != 'wait':
+        if action_type not in ('wait', 'initPosition'):
             assert action.action_parameters is None
     assert sheet.protocol_features.optional_parameters == []
 

@@ -444,3 +444,21 @@ def test_a_state_without_an_order_is_valid(flow):
     state = full_state(flow)
     assert (state.order_id, state.last_node_id, state.driving) == ('', '', False)
     assert state.node_states == [] and state.action_states == [] and state.paused is False
+
+
+def test_init_position_places_a_truck_at_a_stop_marker(flow):
+    out = flow.on_instant_actions(instant(action('i1', 'initPosition', lastNodeId='W2.1')))
+    assert actions(flow) == {'i1': ActionStatus.FINISHED} and out.errors == []
+    assert (flow.last_node_id, flow.last_node_sequence_id) == ('W2.1', 0)
+    # an order now starts there, and its way from W2.1 is the truck's
+    taken = flow.on_order(make_order(['W2.1', 'W2.2', 'L1', 'W1.1']))
+    assert taken.verdict == 'accepted' and taken.tasks == ['stop at 1 first']
+    # not while an order runs, and only at a stop marker
+    out = flow.on_instant_actions(instant(action('i2', 'initPosition', lastNodeId='W0.1'),
+                                          action('i3', 'initPosition', lastNodeId='L2')))
+    assert actions(flow)['i2'] == actions(flow)['i3'] == ActionStatus.FAILED
+    assert [e.error_type for e in out.errors] == ['instantActionError'] * 2
+    assert flow.last_node_id == 'W2.1'
+    fresh = OrderFlow(flow.graph)
+    fresh.on_instant_actions(instant(action('i4', 'initPosition', lastNodeId='L2')))
+    assert fresh.last_node_id == '' and actions(fresh) == {'i4': ActionStatus.FAILED}

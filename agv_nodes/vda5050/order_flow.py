@@ -242,6 +242,8 @@ class OrderFlow:
                 pass  # FINISHED: the state the bridge publishes now is the answer
             elif kind == 'factsheetRequest':
                 out.publish_factsheet = True
+            elif kind == 'initPosition':
+                self._init_position(action, state, action_refs, out)
             elif kind in ('startPause', 'stopPause'):
                 # The 1983 executive has no pause; not an error of the truck (6.8.2).
                 state.action_status = ActionStatus.FAILED
@@ -250,12 +252,35 @@ class OrderFlow:
                 state.action_status = ActionStatus.FAILED
                 out.errors.append(make_error(
                     INSTANT_ACTION_ERROR, f'instant action type {kind!r} is not one this truck '
-                    'can do (it can: cancelOrder, stateRequest, factsheetRequest)',
+                    'can do (it can: cancelOrder, initPosition, stateRequest, '
+                    'factsheetRequest)',
                     action_refs))
             self._actions[action.action_id] = state
             self._instant.add(action.action_id)
         self.errors.extend(e for e in out.errors if e not in self.errors)
         return out
+
+    def _init_position(self, action: Any, state: ActionState, refs: list[tuple[str, str]],
+                       out: Outcome) -> None:
+        """Take initPosition (6.8.2): the master says at which node the truck stands.
+
+        The truck knows where it is only by the markers it passes: a truck set down at a stop
+        marker (a fleet's second truck, or one moved by hand) learns it this way. Only a stop
+        marker, where a truck can stand, and not while an order runs.
+        """
+        node = next((str(p.value) for p in action.action_parameters or []
+                     if p.key == 'lastNodeId'), '')
+        why = ''
+        if self._order_active():
+            why = f'order {self.order_id} is active: the truck is where it drives'
+        elif node not in self.graph.nodes or not self.graph.nodes[node].stoppable:
+            why = f'lastNodeId {node!r} is no stop marker of the track graph'
+        if why:
+            state.action_status = ActionStatus.FAILED
+            state.result_description = why
+            out.errors.append(make_error(INSTANT_ACTION_ERROR, f'initPosition: {why}', refs))
+            return
+        self.last_node_id, self.last_node_sequence_id = node, 0
 
     def _stop_order(self, why: str) -> bool:
         """End the order where the truck is: its unfinished actions FAILED, no nodes left."""

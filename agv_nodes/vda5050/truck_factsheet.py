@@ -4,8 +4,9 @@ Every figure is read from where the package keeps it: the vehicle's geometry fro
 Electruk parameters, its speeds from the executive's duty demands through closed-loop
 traction's duty-to-speed map, its acceleration limits from that loop's ramp, the node actions
 from the task verbs the bridge turns them into (agv_nodes.vda5050.order_tasks). What the
-package does not model (the truck's height, outline, the wheels' widths, its rated load) is a
-named constant below marked as an assumption.
+package does not model (the truck's height, the wheels' widths, its rated load) is a named
+constant below marked as an assumption; the outline is the world's (assumed there too: the
+trucks of a fleet touch with it).
 
 The truck's reference point (6.6.6's vehicle coordinate system: x forward, y left) is the front
 axle centre: the guide-wire coils hold it on the wire and the marker sensor reads a card abreast
@@ -59,10 +60,6 @@ SERIES_NAME = 'Cableform Electruk'
 # kg on the truck: the thesis's figure, which the world has only in electruk.payload's text
 MAX_LOAD_MASS = 1000.0
 HEIGHT = 0.75  # m, floor to the top of the conveyors, unloaded
-# m: room for the rear wheels, and the marker lens (the layouts' sensor.lateral) at the side
-WIDTH = 0.9
-FRONT_OVERHANG = 0.3  # m of body ahead of the front axle
-REAR_OVERHANG = 0.3  # m of body behind the rear axle
 FRONT_WHEEL_DIAMETER = 0.3  # m; the bicycle model needs no front wheel size
 WHEEL_WIDTH = 0.08  # m, every wheel
 
@@ -76,7 +73,8 @@ DEFAULT_STATE_INTERVAL = 30.0
 
 # The node action types the bridge turns into tasks, and the instant actions it takes.
 ACTIONS = frozenset(TASK_VERBS)
-INSTANT_ACTIONS = frozenset({'cancelOrder', 'stateRequest', 'factsheetRequest'})
+INSTANT_ACTIONS = frozenset({'cancelOrder', 'initPosition', 'stateRequest',
+                             'factsheetRequest'})
 
 _CONVEYOR_CHOICE = 'start_loaded'  # the world parameter whose choices name the conveyors
 
@@ -125,6 +123,14 @@ def _agv_actions() -> list[AgvAction]:
         AgvAction(action_type='cancelOrder', action_scopes=[ActionScope.INSTANT],
                   action_description='emergency stop where the truck is; the order and its '
                   'queued tasks are dropped', blocking_types=[BlockingType.HARD]),
+        AgvAction(action_type='initPosition', action_scopes=[ActionScope.INSTANT],
+                  action_description='the stop marker node the truck stands at (it knows '
+                  'where it is only from the markers it passes)',
+                  action_parameters=[AgvActionParameter(
+                      key='lastNodeId', value_data_type=ValueDataType.STRING,
+                      description='a stop marker node of the track graph',
+                      is_optional=False)],
+                  blocking_types=[BlockingType.HARD]),
         AgvAction(action_type='stateRequest', action_scopes=[ActionScope.INSTANT],
                   action_description='send a state message now',
                   blocking_types=[BlockingType.NONE]),
@@ -138,7 +144,7 @@ def _agv_actions() -> list[AgvAction]:
 def _geometry(world: WorldParams) -> tuple[AgvGeometry, float]:
     """Return the wheels and outline (front axle centre as origin) and the truck's length."""
     e = world.electruk
-    front, rear = FRONT_OVERHANG, -(e.wheelbase + REAR_OVERHANG)
+    front, rear = e.front_overhang, -(e.wheelbase + e.rear_overhang)
     wheels = [
         # A plain wheel on a steered fork: not a drive unit, not a castor, so FIXED, with the
         # steering said by isActiveSteered.
@@ -155,7 +161,7 @@ def _geometry(world: WorldParams) -> tuple[AgvGeometry, float]:
                           constraints='driven with the other rear wheel by two motors in parallel')
           for side in (1.0, -1.0)),
     ]
-    half = WIDTH / 2.0
+    half = e.width / 2.0
     outline = Envelope2d(set_name='mechanical', description='the body, loaded or not',
                          polygon_points=[PolygonPoint(x=x, y=y) for x, y in (
                              (rear, -half), (front, -half), (front, half), (rear, half))])
@@ -201,7 +207,8 @@ def truck_factsheet(manufacturer: str, serial_number: str, header_id: int,
             / world.electruk.wheelbase,
             acceleration_max=traction.max_accel,
             deceleration_max=traction.max_decel,
-            height_min=height_min, height_max=HEIGHT, width=WIDTH, length=length),
+            height_min=height_min, height_max=HEIGHT, width=world.electruk.width,
+            length=length),
         protocol_limits=ProtocolLimits(
             max_string_lens=MaxStringLens(),
             # Edge actions are refused too, but 0 would say "no limit": the agvActions say it

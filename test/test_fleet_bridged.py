@@ -1,0 +1,116 @@
+"""Trucks in lock step driven through their VDA 5050 bridge cores by a master (no MQTT, no DDS).
+
+The master here is a script: it sends each truck one order when the truck first reports, and
+the test reads what the trucks answer. Without traffic control two trucks sent to one stop
+collide, and the master hears it as each truck's failed task.
+"""
+
+from __future__ import annotations
+
+from itertools import pairwise
+
+import pytest
+
+from agv_nodes.fleet.bridged import BridgedFleet
+from agv_nodes.fleet.lockstep import Fleet
+from agv_nodes.vda5050 import VERSION
+from agv_nodes.vda5050.common import Action, BlockingType, now
+from agv_nodes.vda5050.order import Edge, Node, Order
+from agv_nodes.vda5050.state import State
+
+pytestmark = pytest.mark.timeout(300)
+
+
+def order(truck: str, order_id: str, ids: list[str], actions: dict[str, str]) -> Order:
+    nodes = [Node(node_id=n, sequence_id=2 * i, released=True,
+                  actions=[Action(action_type=actions[n], action_id=f'{actions[n]}-{n}',
+                                  blocking_type=BlockingType.HARD)] if n in actions else [])
+             for i, n in enumerate(ids)]
+    edges = [Edge(edge_id=f'{a}-{b}', sequence_id=2 * i + 1, released=True, start_node_id=a,
+                  end_node_id=b, actions=[]) for i, (a, b) in enumerate(pairwise(ids))]
+    return Order(header_id=0, timestamp=now(), version=VERSION, manufacturer='agv_nodes',
+                 serial_number=truck, order_id=order_id, order_update_id=0, nodes=nodes,
+                 edges=edges)
+
+
+class ScriptedMaster:
+    """Sends each truck its one order at its first state; keeps every state."""
+
+    def __init__(self, orders: dict[str, Order]) -> None:
+        self.orders = dict(orders)
+        self.states: dict[str, list[State]] = {}
+
+    def on_state(self, truck: str, state: State, now: float) -> None:
+        self.states.setdefault(truck, []).append(state)
+
+    def step(self, now: float) -> list[tuple[str, str, Order]]:
+        ready = [t for t in self.orders if t in self.states]
+        return [(t, 'order', self.orders.pop(t)) for t in ready]
+
+
+def _finished(state: State | None) -> bool:
+    return state is not None and bool(state.action_states) and all(
+        a.action_status == 'FINISHED' for a in state.action_states)
+
+
+def test_a_master_s_order_runs_on_a_truck_of_the_fleet_through_its_bridge():
+    fleet = Fleet('demo_1983', [('A', 4.0)])
+    master = ScriptedMaster({'agv1': order('agv1', 'o1', ['L0', 'W0.1', 'L2', 'W2.1'],
+                                           {'W0.1': 'pick', 'W2.1': 'drop'})})
+    run = BridgedFleet(fleet, master)
+    assert run.run(150.0, until=lambda: _finished(run.states.get('agv1')))
+    last = run.states['agv1']
+    assert (last.order_id, last.last_node_id, last.node_states) == ('o1', 'W2.1', [])
+    assert fleet.station_loads['W0'] == 0 and fleet.station_loads['W2'] == 1
+    moved = [e for e in fleet.trucks['agv1'].events if e['event'] == 'load_moved']
+    assert len(moved) == 2
+
+
+def test_without_traffic_control_the_master_hears_the_collision_as_failed_tasks():
+    fleet = Fleet('demo_1983', [('A', 4.0), ('A', 1.0)])
+    way = ['L0', 'W0.1', 'L2', 'W2.1']
+    master = ScriptedMaster({t: order(t, f'o-{t}', way, {'W2.1': 'drop'}) for t in fleet.names})
+    run = BridgedFleet(fleet, master)
+    failed = run.run(120.0, until=lambda: all(
+        any(e.error_type == 'taskFailed' for e in run.states[t].errors) for t in fleet.names))
+    assert failed, run.summary()
+    assert len(fleet.collisions) == 1
+    for name in fleet.names:
+        (error,) = [e for e in run.states[name].errors if e.error_type == 'taskFailed']
+        assert 'collision' in (error.error_description or ''), error
+        assert not run.states[name].driving
+
+
+def test_the_dispatcher_runs_two_trucks_through_three_transfers_without_a_collision():
+    """The central computer as the fleet's VDA 5050 master, traffic control by blocks."""
+    from agv_nodes.fleet.dispatcher import Dispatcher, TransportOrder
+    from agv_nodes.fleet.track_graph import track_graph
+    from agv_nodes.world.layout import layout_path, load_layout
+
+    lay = load_layout(layout_path('demo_1983'))
+    at = {m.name: (m.path, m.at) for m in lay.markers}
+    positions = {'agv1': 'W2.2', 'agv2': 'W0.1'}  # set down at stop markers, told by initPosition
+    fleet = Fleet('demo_1983', [at[positions[name]] for name in ('agv1', 'agv2')])
+    graph = track_graph(lay)
+    dispatcher = Dispatcher(graph, fleet.names, positions=positions)
+    for i, (source, destination) in enumerate((('W0', 'W2'), ('W1', 'W3'), ('W2', 'W0'))):
+        dispatcher.submit(TransportOrder(f't{i + 1}', source, destination))
+    seen: list[tuple[str, State]] = []
+    record = dispatcher.on_state
+
+    def on_state(truck: str, state: State, now: float) -> None:
+        seen.append((truck, state))
+        record(truck, state, now)
+
+    dispatcher.on_state = on_state  # every state the trucks sent, for the checks below
+    run = BridgedFleet(fleet, dispatcher, graph=graph)
+    finished = run.run(600.0, until=lambda: len(dispatcher.done) + len(dispatcher.failed) == 3)
+    assert finished, run.summary()
+    assert sorted(dispatcher.done) == ['t1', 't2', 't3'] and dispatcher.failed == []
+    assert fleet.collisions == [] and dispatcher.conflicts == [] and dispatcher.deadlocks == []
+    # every order and update the dispatcher sent was accepted: no truck ever reported an error
+    assert not [(t, e.error_type) for t, s in seen for e in s.errors]
+    # W0's load went to W2 and W2's to W0; W1's to W3
+    assert fleet.station_loads == {'W0': 1, 'W1': 0, 'W2': 0, 'W3': 1}
+    moved = sum(e['event'] == 'load_moved' for h in fleet.trucks.values() for e in h.events)
+    assert moved == 6
