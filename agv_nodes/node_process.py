@@ -20,6 +20,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from agv_nodes import PARENT_AT_START
 from agv_nodes.params import ParameterError, params_files
 from agv_nodes.settings import ParameterFileError, read_parameter_file
 
@@ -135,9 +136,10 @@ def die_with_parent() -> None:
     """
     if not sys.platform.startswith('linux'):
         return
-    parent = os.getppid()
     ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
-    if os.getppid() != parent:  # the parent died before the request was in place
+    # the parent as it was before the imports: one that died before the request was in place
+    # has left this process to a new parent
+    if os.getppid() != PARENT_AT_START:
         os.kill(os.getpid(), signal.SIGTERM)
 
 

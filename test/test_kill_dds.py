@@ -30,6 +30,7 @@ from __future__ import annotations
 import signal
 
 from graph_probe import GraphProbe
+from node_processes import alive, wait_until_on_the_graph
 import pytest
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
@@ -111,7 +112,8 @@ AGV_LAUNCH = """
 import os, sys, time
 from agv_nodes.graph.parameters import Options
 from agv_nodes.graph.supervisor import Launch
-launch = Launch(Options(world='none', quiet=True, domain_id=int(os.environ['ROS_DOMAIN_ID'])))
+launch = Launch(Options(world='none', quiet=True, domain_id=int(os.environ['ROS_DOMAIN_ID']),
+                        namespace='/killed_launcher'))
 launch.start()
 print(' '.join(str(p.pid) for p in launch.procs.values()), flush=True)
 time.sleep(120)
@@ -121,49 +123,12 @@ PLAIN_PARENT = """
 import subprocess, sys, time
 from pathlib import Path
 bin_dir = Path(sys.executable).parent
-procs = [subprocess.Popen([str(bin_dir / node), '--ros-args', '-p', 'use_sim_time:=true'])
+procs = [subprocess.Popen([str(bin_dir / node), '--ros-args', '-p', 'use_sim_time:=true',
+                           '-r', '__ns:=/killed_parent'])
          for node in ('executive', 'traction', 'recorder')]
 print(' '.join(str(p.pid) for p in procs), flush=True)
 time.sleep(120)
 """
-
-
-def _wait_until_on_the_graph(count: int, timeout: float) -> None:
-    """Wait until `count` other nodes are on the domain: each is past its die_with_parent.
-
-    A node asks for its parent-death signal in spin_main, before rclpy.init: one seen on the
-    graph has asked. A parent killed before that, while the node still imports, is not the
-    fault this test is about (the node is not running yet), and how long the imports take is
-    the machine's business, so the test waits for the nodes rather than for a fixed time.
-    """
-    import time
-
-    import rclpy
-    from rclpy.context import Context
-
-    context = Context()
-    rclpy.init(context=context)
-    try:
-        probe = rclpy.create_node('kill_dds_probe', context=context)
-        deadline = time.monotonic() + timeout
-        others: list[str] = []
-        while time.monotonic() < deadline:
-            others = [n for n in probe.get_node_names() if n != 'kill_dds_probe']
-            if len(others) >= count:
-                return
-            time.sleep(0.1)
-        raise AssertionError(f'{count} nodes expected on the graph within {timeout:g} s, '
-                             f'saw {others}')
-    finally:
-        rclpy.try_shutdown(context=context)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        with open(f'/proc/{pid}/stat') as f:
-            return f.read().rsplit(')', 1)[1].split()[0] != 'Z'
-    except FileNotFoundError:
-        return False
 
 
 @pytest.mark.timeout(90)
@@ -187,21 +152,22 @@ def test_a_sigkilled_launcher_takes_its_nodes_with_it(tmp_path, parent, nodes, f
     pids = [int(p) for p in proc.stdout.readline().split()]
     try:
         assert len(pids) == nodes  # agv-launch: world none, no recorder
-        _wait_until_on_the_graph(nodes, 30.0)
-        assert all(_alive(p) for p in pids)
+        wait_until_on_the_graph(nodes, 30.0, '/killed_launcher' if parent is AGV_LAUNCH
+                                else '/killed_parent')
+        assert all(alive(p) for p in pids)
     except BaseException:  # not to the kill: leave nothing running on the domain
         for pid in [proc.pid, *pids]:
-            if _alive(pid):
+            if alive(pid):
                 os.kill(pid, signal.SIGKILL)
         raise
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     killed = time.monotonic()
     deadline = killed + 20.0
-    while time.monotonic() < deadline and any(_alive(p) for p in pids):
+    while time.monotonic() < deadline and any(alive(p) for p in pids):
         time.sleep(0.1)
     took = time.monotonic() - killed
-    left = [p for p in pids if _alive(p)]
+    left = [p for p in pids if alive(p)]
     for p in left:
         os.kill(p, signal.SIGKILL)
     assert not left, f'node processes outlived their launcher: {left}'

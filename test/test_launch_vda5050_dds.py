@@ -19,10 +19,10 @@ import subprocess
 import sys
 import time
 
+from node_processes import alive, wait_until_on_the_graph
 from paho.mqtt.client import Client, MQTTv311
 from paho.mqtt.enums import CallbackAPIVersion
 import pytest
-from test_kill_dds import _alive, _wait_until_on_the_graph
 
 from agv_nodes.mqtt.client import parse_mqtt_url
 
@@ -117,8 +117,8 @@ AGV_LAUNCH = """
 import os, time
 from agv_nodes.graph.parameters import Options
 from agv_nodes.graph.supervisor import Launch
-launch = Launch(Options(world='none', vda5050=True, quiet=True,
-                        domain_id=int(os.environ['ROS_DOMAIN_ID'])))
+launch = Launch(Options(world='none', vda5050=True, quiet=True, namespace='/killed_bridge',
+                        serial_number='agv1', domain_id=int(os.environ['ROS_DOMAIN_ID'])))
 launch.start()
 print(launch.ready_file.parent, launch.mqtt_url, launch.procs['vda5050_bridge'].pid,
       ' '.join(str(p.pid) for p in launch.procs.values()), flush=True)
@@ -139,11 +139,11 @@ def test_a_sigkilled_launcher_leaves_no_bridge_and_no_broker(tmp_path, fault_tab
     pids = [int(p) for p in pids]
     try:
         assert int(bridge) in pids and len(pids) == 8  # world none, no recorder, the bridge
-        _wait_until_on_the_graph(len(pids), 30.0)
-        assert all(_alive(p) for p in pids) and not _refuses(url)
+        wait_until_on_the_graph(len(pids), 30.0, '/killed_bridge')
+        assert all(alive(p) for p in pids) and not _refuses(url)
     except BaseException:  # not to the kill: leave nothing running on the domain
         for pid in [proc.pid, *pids]:
-            if _alive(pid):
+            if alive(pid):
                 os.kill(pid, signal.SIGKILL)
         raise
     os.kill(proc.pid, signal.SIGKILL)
@@ -151,10 +151,10 @@ def test_a_sigkilled_launcher_leaves_no_bridge_and_no_broker(tmp_path, fault_tab
     killed = time.monotonic()
     shutil.rmtree(overrides, ignore_errors=True)  # the one thing a killed launcher leaves
     deadline = killed + 20.0
-    while time.monotonic() < deadline and any(_alive(p) for p in pids):
+    while time.monotonic() < deadline and any(alive(p) for p in pids):
         time.sleep(0.1)
     took = time.monotonic() - killed
-    left = [p for p in pids if _alive(p)]
+    left = [p for p in pids if alive(p)]
     for p in left:
         os.kill(p, signal.SIGKILL)
     assert int(bridge) not in left, 'the bridge outlived its launcher'

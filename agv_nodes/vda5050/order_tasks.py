@@ -13,7 +13,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from agv_nodes.communications.report_line import STATE_WORDS
 from agv_nodes.fleet.track_graph import TrackGraph, TrackNode
+from agv_nodes.records import codec
 from agv_nodes.vda5050.common import Action
 from agv_nodes.vda5050.order import Edge, Node, Order
 from agv_nodes.vda5050.state import (
@@ -36,13 +38,15 @@ INSTANT_ACTION_ERROR = 'instantActionError'  # 2.1 names no type for an unknown 
 
 ABORT = 'abort'
 DONE = (ActionStatus.FINISHED, ActionStatus.FAILED)
-TASK_STATES = ('running', 'step done', 'completed', 'FAILED', 'rejected')
+# the words of the truck's report lines (communications' own) for a task's states
+TASK_STATES = tuple(STATE_WORDS[s] for s in ('running', 'step_done', 'completed', 'failed',
+                                             'rejected'))
 CANNOT_PAUSE = 'this truck cannot pause'
 
 # The node actions the task language can carry out, and the task verb of each.
 TASK_VERBS = {'pick': 'load', 'drop': 'unload', 'wait': 'wait'}
 WAIT_PARAMETER = 'duration'  # seconds, a whole number the wait task's byte can hold
-WAIT_MAX = 255
+WAIT_MAX = codec()['comms_status'].field('dwell').hi  # what comms_status can carry
 ACTIONS_PER_NODE = 1  # one stop carries one task (the factsheet's maxArrayLens node.actions)
 
 # Records one orderError: its description and the references beyond the order's own.
