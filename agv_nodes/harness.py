@@ -25,6 +25,19 @@ from agv_nodes.records.ports import RecordReader, RecordWriter
 from agv_nodes.world.core import WorldCore
 
 
+def run_for(stepped: Any, seconds: float, until: Callable[[], bool] | None = None) -> bool:
+    """Step `stepped` for `seconds` of simulated time, or until `until()` is true (returns it).
+
+    `stepped` has step() and now: a harness, a fleet of them, a fleet with its master.
+    """
+    end = stepped.now + seconds
+    while stepped.now < end - 1e-12:
+        stepped.step()
+        if until is not None and until():
+            return True
+    return False
+
+
 class NodeCore(Protocol):
     """What the harness (and the generic node wrapper) needs from a core."""
 
@@ -213,12 +226,7 @@ class Harness:
 
     def run(self, seconds: float, until: Callable[[], bool] | None = None) -> bool:
         """Step for `seconds` of simulated time, or until `until()` is true (returns it)."""
-        end = self.now + seconds
-        while self.now < end - 1e-12:
-            self.step()
-            if until is not None and until():
-                return True
-        return False
+        return run_for(self, seconds, until)
 
     def reader(self, node: str, record: str) -> RecordReader:
         """Return a core's reader of `record` (for diagnostics and tests)."""

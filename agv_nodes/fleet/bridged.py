@@ -21,6 +21,7 @@ from pydantic import BaseModel
 
 from agv_nodes.fleet.lockstep import Fleet
 from agv_nodes.fleet.track_graph import TrackGraph, track_graph
+from agv_nodes.harness import run_for
 from agv_nodes.vda5050.bridge import BridgeCore, Outbox
 from agv_nodes.vda5050.codec import parse, to_json
 from agv_nodes.vda5050.state import State
@@ -94,12 +95,7 @@ class BridgedFleet:
 
     def run(self, seconds: float, until: Callable[[], bool] | None = None) -> bool:
         """Step for `seconds` of simulated time, or until `until()` is true (returns it)."""
-        end = self.now + seconds
-        while self.now < end - 1e-12:
-            self.step()
-            if until is not None and until():
-                return True
-        return False
+        return run_for(self, seconds, until)
 
     def summary(self) -> dict[str, Any]:
         """Return each truck's last node, driving flag and errors, and the collisions."""

@@ -18,7 +18,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from agv_nodes.harness import Harness, submit, truck
+from agv_nodes.harness import Harness, run_for, submit, truck
 from agv_nodes.world.contact import footprint, overlap
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
 
@@ -90,12 +90,7 @@ class Fleet:
 
     def run(self, seconds: float, until: Callable[[], bool] | None = None) -> bool:
         """Step for `seconds` of simulated time, or until `until()` is true (returns it)."""
-        end = self.now + seconds
-        while self.now < end - 1e-12:
-            self.step()
-            if until is not None and until():
-                return True
-        return False
+        return run_for(self, seconds, until)
 
     def reports(self, name: str) -> list[str]:
         """Return truck `name`'s communications reports so far."""
