@@ -41,6 +41,7 @@ setup(
         'console_scripts': [
             # nodes (ros2 run agv_nodes <node>)
             'communications = agv_nodes.communications.node:main',
+            'dispatcher = agv_nodes.fleet.dispatcher_node:main',
             'executive = agv_nodes.executive.node:main',
             'load_handling = agv_nodes.load_handling.node:main',
             'navigation = agv_nodes.navigation.node:main',

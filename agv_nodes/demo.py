@@ -258,7 +258,29 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--sim-limit', type=float, default=1500.0,
                     help='give up after this many simulated seconds')
     ap.add_argument('--no-report', action='store_true')
-    return run(ap.parse_args(argv))
+    ap.add_argument('--fleet', type=int, default=0, metavar='N',
+                    help='N 1983 trucks on one floor, directed by the dispatcher over VDA 5050 '
+                    '(MQTT) through two loads going round (agv_nodes.fleet.fleet_demo)')
+    ap.add_argument('--external-master', action='store_true',
+                    help='with --fleet: no dispatcher; the trucks wait for a VDA 5050 master '
+                    'of your own on the printed broker until Ctrl-C')
+    ap.add_argument('--mqtt-url', help='with --fleet: a broker of your own, mqtt://host[:port] '
+                    '(default: AGV_MQTT_URL, else one embedded in the launcher)')
+    ap.add_argument('--transfers', type=int, metavar='K',
+                    help='with --fleet: transfers in the programme (default 8, --quick 2)')
+    args = ap.parse_args(argv)
+    if args.fleet or args.external_master or args.mqtt_url or args.transfers is not None:
+        if not args.fleet:
+            ap.error('--external-master, --mqtt-url and --transfers are for a fleet: add '
+                     '--fleet N')
+        if args.transfers is not None and args.transfers < 1:
+            ap.error(f'--transfers {args.transfers}: at least 1')
+        if args.truck != 'electruk':
+            ap.error('--fleet runs the 1983 truck (--truck electruk)')
+        from agv_nodes.fleet.fleet_demo import run as run_fleet
+
+        return run_fleet(args)
+    return run(args)
 
 
 if __name__ == '__main__':

@@ -127,7 +127,8 @@ def test_shipped_parameter_file_is_valid_for_every_node(tmp_path):
     graph = load_graph()
     with EmbeddedBroker() as broker:
         _start_every_node(graph, {'recorder': ['-p', f'bag:={tmp_path / "bag"}'],
-                                  'bridge': ['-p', f'mqtt_url:={broker.url}']})
+                                  'bridge': ['-p', f'mqtt_url:={broker.url}'],
+                                  'master': ['-p', f'mqtt_url:={broker.url}']})
 
 
 def _start_every_node(graph, given: dict[str, list[str]]) -> None:

@@ -149,6 +149,34 @@ def test_lost_holds_while_the_truck_moves_and_while_the_wire_is_weak():
     assert route.state == 'following'
 
 
+def test_the_integral_holds_while_the_truck_waits_at_rest():
+    """A truck standing a few mm off the wire for minutes keeps its steering where it was.
+
+    Integrating at rest wound the law up to full lock while a fleet's truck waited at a stop
+    (2 mm for 100 s); it set off steering hard and lost the wire on the next curve.
+    """
+    route = RouteCore()
+    route.on_record('route_command', {'mode': 'follow_wire', 'srm_angle': 0,
+                                      'junction': 'straight', 'manoeuvre': 0}, 0.0)
+    left, right = 760, 700  # the wire a little to one side of the pickup
+    t = 0.0
+    for _ in range(100):
+        t += 0.01
+        route.on_record('wheel_odometry', {'left_speed': 0, 'right_speed': 0,
+                                           'left_distance': 0, 'right_distance': 0}, t)
+        route.on_record('guide_wire', {'left_coil': left, 'right_coil': right}, t)
+        route.tick(t)
+    first = route.steering_command()['angle']
+    assert first != 0  # the proportional part steers toward the wire
+    for _ in range(30000):  # 300 s more at rest
+        t += 0.01
+        route.on_record('wheel_odometry', {'left_speed': 0, 'right_speed': 0,
+                                           'left_distance': 0, 'right_distance': 0}, t)
+        route.on_record('guide_wire', {'left_coil': left, 'right_coil': right}, t)
+        route.tick(t)
+    assert route.steering_command()['angle'] == first
+
+
 # -- camera ---------------------------------------------------------------------------------
 def test_run_length_table():
     row = np.zeros(128, dtype=np.uint8)

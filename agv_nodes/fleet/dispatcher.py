@@ -32,14 +32,14 @@ by an update is the remedy, and on a one-way loop there is no other way to route
 
 A truck whose task failed (error `taskFailed`, or FAILED actions of its order) fails its
 transport (`failed`) and keeps the blocks where it may stand; it gets no work until its state
-shows no errors.
+shows no errors. One off the broker (`set_online`) keeps its blocks and is sent nothing.
 """
 
 from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass, field
-from itertools import pairwise
+from itertools import count, pairwise
 
 from pydantic import BaseModel
 
@@ -89,6 +89,7 @@ class _Truck:
     pos: int = 0  # the path index of the job's node the truck last reached
     trail: list[str] = field(default_factory=list)  # the way it came, ending at its last node
     broken: bool = False
+    offline: bool = False  # off the broker: no messages reach it (set_online)
     headers: dict[str, int] = field(default_factory=lambda: {ORDER: 0, INSTANT_ACTIONS: 0})
 
 
@@ -115,11 +116,16 @@ class Dispatcher:
         self.failed: list[str] = []
         self.deadlocks: list[list[str]] = []  # the wait cycles of the last step
         self.conflicts: list[tuple[str, str, str]] = []  # (block, truck, holder) found there
+        self.trucks = list(trucks)  # their serial numbers
         self._trucks = {name: _Truck(name) for name in trucks}
         self._positions = dict(positions or {})
         self._placing: set[str] = set()  # trucks sent their initPosition
         self._ways: dict[tuple[str, bool, str], list[str] | None] = {}
         self._serial = 0
+        self._asked = count(1)  # stateRequest ids
+        for name, node in self._positions.items():  # there before it is heard from: held
+            self._trucks[name].trail = [node]
+            self.reservations.occupy(name, self.reservations.block_of(node))
 
     # -- input -----------------------------------------------------------------------------
     def submit(self, transport: TransportOrder) -> None:
@@ -169,7 +175,7 @@ class Dispatcher:
         out: list[tuple[str, str, BaseModel]] = []
         trucks = [t for t in self._trucks.values() if t.state is not None]
         for t in trucks:
-            if self._unplaced(t) and t.name not in self._placing:
+            if self._unplaced(t) and t.name not in self._placing and not t.offline:
                 self._placing.add(t.name)
                 out.append((t.name, INSTANT_ACTIONS, InstantActions(
                     **self._header(t, INSTANT_ACTIONS), actions=[Action(
@@ -180,7 +186,7 @@ class Dispatcher:
             self.reservations.keep_only(t.name, self._needed(t))
         self._assign()
         for t in trucks:
-            if t.job is not None and not t.job.over:
+            if t.job is not None and not t.job.over and not t.offline:
                 self._extend(t, out)
         for t in trucks:
             if not self._idle(t) and (t.job is None or t.job.over):
@@ -190,6 +196,21 @@ class Dispatcher:
         stuck = {t.name for t in trucks if self._stalled(t) or self._idle(t)}
         self.deadlocks = [c for c in self.reservations.deadlocks() if stuck.issuperset(c)]
         return out
+
+    def state_requests(self) -> list[tuple[str, str, BaseModel]]:
+        """Return a stateRequest to every truck: a master that (re)connects asks where they are.
+
+        A state is sent on events and at least every 30 s; without asking, the master could
+        wait that long to hear of a truck.
+        """
+        return [(t.name, INSTANT_ACTIONS, InstantActions(
+            **self._header(t, INSTANT_ACTIONS), actions=[Action(
+                action_type='stateRequest', action_id=f'state-{t.name}-{next(self._asked)}',
+                blocking_type=BlockingType.NONE)])) for t in self._trucks.values()]
+
+    def set_online(self, truck: str, online: bool) -> None:
+        """Take a truck's connection (6.14); off the broker it is sent nothing (QoS 0: lost)."""
+        self._trucks[truck].offline = not online
 
     def granted(self, truck: str) -> set[str]:
         """Return the blocks `truck` holds."""
@@ -254,8 +275,8 @@ class Dispatcher:
         return (node or self.graph.start), bool(node)
 
     def _idle(self, t: _Truck) -> bool:
-        return t.state is not None and not t.broken and (t.job is None or t.job.over) \
-            and not self._unplaced(t)
+        return t.state is not None and not t.broken and not t.offline \
+            and (t.job is None or t.job.over) and not self._unplaced(t)
 
     def _unplaced(self, t: _Truck) -> bool:
         """Return True for a truck set down at a position it has not been told yet."""

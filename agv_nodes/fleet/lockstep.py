@@ -15,21 +15,13 @@ per truck (seed + index), so their sensors' noise does too.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 from agv_nodes.harness import Harness, run_for, submit, truck
-from agv_nodes.world.contact import footprint, overlap
+from agv_nodes.world.contact import Collision, ContactWatch
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
 
-
-@dataclass(frozen=True)
-class Collision:
-    """Two trucks that touched, and when."""
-
-    time: float  # simulated s
-    trucks: tuple[str, str]
-    speeds: tuple[float, float]  # m/s of each at the contact
+__all__ = ['Collision', 'Fleet']
 
 
 class Fleet:
@@ -50,12 +42,9 @@ class Fleet:
                         overrides=overrides)
             for k, (name, start) in enumerate(zip(self.names, starts, strict=True))}
         self.station_loads = loads
-        self.collisions: list[Collision] = []
-        self._touching: set[tuple[str, str]] = set()
-        self._check_start()
-
-    def _check_start(self) -> None:
-        if touching := self._contacts():
+        self.contacts = ContactWatch(self.names)
+        self.collisions: list[Collision] = self.contacts.collisions
+        if touching := self.contacts.contacts(self._bodies()):
             raise ValueError(f'trucks {sorted(touching)[0]} touch at the start: place them '
                              'further apart')
 
@@ -68,25 +57,19 @@ class Fleet:
         """Hand a task to truck `name`'s communications (a comms/task message in the graph)."""
         submit(self.trucks[name], text)
 
-    def _contacts(self) -> set[tuple[str, str]]:
-        shapes = {name: footprint(*h.world.pose()[:3], h.world.p.electruk)
-                  for name, h in self.trucks.items()}
-        return {(a, b) for i, a in enumerate(self.names) for b in self.names[i + 1:]
-                if overlap(shapes[a], shapes[b])}
+    def _bodies(self) -> dict[str, tuple[tuple[float, ...], Any]]:
+        return {name: (h.world.pose(), h.world.p.electruk) for name, h in self.trucks.items()}
 
     def step(self) -> None:
         """One world sample for every truck, then the contacts between them."""
         for h in self.trucks.values():
             h.step()
-        touching = self._contacts()
-        for a, b in sorted(touching - self._touching):
-            wa, wb = self.trucks[a].world, self.trucks[b].world
-            self.collisions.append(Collision(self.now, (a, b), (wa.pose()[3], wb.pose()[3])))
-            for h in (self.trucks[a], self.trucks[b]):
+        for collision in self.contacts.check(self._bodies(), self.now):
+            for name in collision.trucks:
+                h = self.trucks[name]
                 before = len(h.world.events)
                 h.world.bump()
                 h.events.extend(h.world.events[before:])
-        self._touching = touching
 
     def run(self, seconds: float, until: Callable[[], bool] | None = None) -> bool:
         """Step for `seconds` of simulated time, or until `until()` is true (returns it)."""

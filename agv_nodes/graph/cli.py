@@ -11,7 +11,13 @@ from pathlib import Path
 import sys
 
 from agv_nodes.graph.model import GraphError, load_graph
-from agv_nodes.graph.parameters import Options, parse_fault, serial_number, truck_graph
+from agv_nodes.graph.parameters import (
+    Options,
+    fleet_names,
+    parse_fault,
+    serial_number,
+    truck_graph,
+)
 from agv_nodes.graph.supervisor import Launch
 
 
@@ -53,6 +59,15 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--serial-number', default='', metavar='S',
                     help="the truck's VDA 5050 serialNumber (default: the namespace without "
                     'slashes, or agv1)')
+    ap.add_argument('--trucks', type=int, default=0, metavar='N',
+                    help='a fleet: N trucks on one simulated floor, each graph in namespace '
+                    '/agvK (the world and recorder shared); with --vda5050 a bridge per truck')
+    ap.add_argument('--set-down', action='append', default=[], metavar='MARKER',
+                    help="with --trucks: the stop marker truck k is set down at, once per "
+                    "truck in order (default: the layout's parking places)")
+    ap.add_argument('--external-master', action='store_true',
+                    help='with --trucks N --vda5050: no dispatcher; the bridges wait for a VDA '
+                    '5050 master of your own (e.g. openTCS) on the broker')
     return ap
 
 
@@ -70,7 +85,8 @@ def options_from(args: argparse.Namespace) -> Options:
                       domain_id=args.domain_id, bag=args.bag, respawn=args.respawn,
                       layout=args.layout, log_dir=args.log_dir, realtime=args.realtime,
                       vda5050=args.vda5050, mqtt_url=args.mqtt_url,
-                      serial_number=args.serial_number)
+                      serial_number=args.serial_number, trucks=args.trucks,
+                      set_down=args.set_down, external_master=args.external_master)
     graph = truck_graph(load_graph(args.graph), options)
     options.faults = dict(parse_fault(text, graph) for text in args.fault)
     return options
@@ -85,11 +101,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f'agv-launch: {exc}', file=sys.stderr)
         return 2
     print(f'agv-launch: graph {launch.graph.name}, ROS_DOMAIN_ID={launch.domain}, '
-          f'{len(launch.specs())} processes', flush=True)
+          f'{len(launch.units())} processes'
+          + (f', {args.trucks} trucks on one floor' if args.trucks else ''), flush=True)
     if launch.mqtt_url:
         where = ('embedded, ends with agv-launch' if launch.broker else
                  'from --mqtt-url' if args.mqtt_url is not None else 'from AGV_MQTT_URL')
-        print(f'agv-launch: VDA 5050 bridge {serial_number(launch.o)} on MQTT broker '
+        trucks = ', '.join(fleet_names(launch.o)) or serial_number(launch.o)
+        print(f'agv-launch: VDA 5050 bridge {trucks} on MQTT broker '
               f'{launch.mqtt_url} ({where})', flush=True)
     return launch.run(args.duration)
 

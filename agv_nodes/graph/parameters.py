@@ -50,6 +50,9 @@ class Options:
     vda5050: bool = False  # also start the `bridge` node: the truck's link to a master control
     mqtt_url: str | None = None  # the bridge's broker (None: AGV_MQTT_URL, else an embedded one)
     serial_number: str = ''  # the bridge's VDA 5050 serialNumber ('': from the namespace)
+    trucks: int = 0  # a fleet on one floor: N trucks in namespaces agv1..agvN (0: one truck)
+    set_down: list[str] = field(default_factory=list)  # each truck's stop marker ([]: parking)
+    external_master: bool = False  # a fleet's bridges wait for a master of the user's own
 
 
 def record_readers(graph: Graph, world: bool, recording: bool) -> dict[str, int]:
@@ -186,6 +189,10 @@ def node_parameters(graph: Graph, spec: NodeSpec, options: Options,
             out['layout'] = options.layout
     if spec.role == 'recorder':
         out['bag'] = str(options.bag)
+    if spec.role == 'master':  # the fleet: where each truck is set down, and parks
+        places = fleet_places(graph, options)
+        out.update(layout=layout_name(graph, options), trucks=fleet_names(options),
+                   positions=places, parking=places, mqtt_url=options.mqtt_url or '')
     if spec.role == 'bridge':  # its orders name the markers of the layout the world runs
         out.update(layout=layout_name(graph, options), serial_number=serial_number(options),
                    mqtt_url=options.mqtt_url or '')
@@ -205,6 +212,82 @@ def override_parameters(graph: Graph, spec: NodeSpec, options: Options,
     return out
 
 
+MAX_TRUCKS = 32
+
+
+def fleet_names(options: Options) -> list[str]:
+    """Return the namespaces (and VDA 5050 serial numbers) of a fleet's trucks: agv1..agvN."""
+    return [f'agv{k + 1}' for k in range(options.trucks)]
+
+
+def fleet_places(graph: Graph, options: Options) -> list[str]:
+    """Return 'agvK:MARKER' for each truck: where it is set down (--set-down, else parking)."""
+    places = options.set_down or list(launch_layout(graph, options).parking)
+    return [f'{name}:{place}' for name, place in zip(fleet_names(options), places, strict=False)]
+
+
+def check_fleet(graph: Graph, options: Options) -> None:
+    """Refuse a --trucks the graph cannot run, naming why (before anything starts)."""
+    if options.external_master and not (options.trucks and options.vda5050):
+        raise GraphError('--external-master: a master of your own drives a fleet through its '
+                         'bridges: add --trucks N --vda5050')
+    if not options.trucks:
+        if options.set_down:
+            raise GraphError('--set-down places the trucks of a fleet: add --trucks N')
+        return
+    given = {'--namespace': options.namespace, '--serial-number': options.serial_number,
+             '--world none': options.world == 'none'}
+    for flag, value in given.items():
+        if value:
+            raise GraphError(f"--trucks {options.trucks} with {flag}: a fleet's trucks are "
+                             'agv1..agvN, each in its own namespace, on the simulated floor')
+    if not 1 <= options.trucks <= MAX_TRUCKS:
+        raise GraphError(f'--trucks {options.trucks}: 1-{MAX_TRUCKS}')
+    layout = launch_layout(graph, options)
+    name = layout_name(graph, options)
+    if layout.vehicle != 'electruk' or layout.kind != 'wire':
+        raise GraphError(f'--trucks: layout {name!r} is not a wire layout of the Electruk (a '
+                         'fleet runs on one)')
+    places = options.set_down or list(layout.parking)
+    if len(places) < options.trucks or options.set_down and len(places) != options.trucks:
+        where = '--set-down' if options.set_down else f'layout {name!r} parking'
+        raise GraphError(f'--trucks {options.trucks}: {where} names {len(places)} stop markers '
+                         f'({", ".join(places) or "none"}); each truck needs one')
+    stops = {m.name for m in layout.markers if m.kind == 'stop'}
+    for place in places:
+        if place not in stops:
+            raise GraphError(f'--set-down {place}: no stop marker {place!r} in layout {name!r} '
+                             f'({", ".join(sorted(stops))})')
+
+
+def floor_parameters(graph: Graph, spec: NodeSpec, options: Options,
+                     ready_file: Path | None = None) -> dict[str, object]:
+    """Return the world's override file for a fleet: the floor's node and each truck's world.
+
+    The floor (/world) waits for the links of /clock (every truck's nodes and the recorder
+    read it); each truck's world (/agvK/world) for the rest of its truck's links, and paces on
+    its truck's nodes (agv_nodes.world.floor).
+    """
+    common = override_parameters(graph, spec, options, ready_file)
+    names = fleet_names(options)
+    common.update(trucks=names, set_down=list(options.set_down))
+    truck_links, root_links = [], []
+    recording = options.bag is not None
+    for link in common['wait_for_links']:
+        node, _, rest = link.partition('>')
+        if rest.startswith(f'{CLOCK}:'):  # this truck's readers of /clock, times N trucks
+            readers = int(rest.partition(':')[2]) - recording
+            root_links.append(f'{node}>{CLOCK}:{readers * len(names) + recording}')
+        elif link == f'recorder:{CLOCK}':
+            root_links.append(link)
+        else:
+            truck_links.append(link)
+    out = {'/world': {'ros__parameters': {**common, 'wait_for_links': root_links}}}
+    for name in names:
+        out[f'/{name}/world'] = {'ros__parameters': {**common, 'wait_for_links': truck_links}}
+    return out
+
+
 def serial_number(options: Options) -> str:
     """Return the bridge's serialNumber: --serial-number, else the namespace, else 'agv1'.
 
@@ -218,11 +301,14 @@ def launched(spec: NodeSpec, options: Options) -> bool:
     """Return True if the launch starts this node of the truck's graph.
 
     The world is left out for hardware drivers, the recorder when nothing is recorded and the
-    bridge unless asked for.
+    bridge unless asked for; the master (the dispatcher) runs only for a fleet whose bridges
+    it drives, when no external master is to.
     """
     return not (spec.role == 'world' and options.world == 'none'
                 or spec.role == 'recorder' and options.bag is None
-                or spec.role == 'bridge' and not options.vda5050)
+                or spec.role == 'bridge' and not options.vda5050
+                or spec.role == 'master' and not (options.trucks and options.vda5050
+                                                  and not options.external_master))
 
 
 def check_vda5050(graph: Graph, options: Options) -> None:

@@ -36,8 +36,11 @@ import yaml
 from agv_nodes.graph.model import GraphError, NodeSpec, load_graph
 from agv_nodes.graph.parameters import (
     Options,
+    check_fleet,
     check_realtime,
     check_vda5050,
+    fleet_names,
+    floor_parameters,
     launched,
     override_parameters,
     realtime_priority,
@@ -46,6 +49,17 @@ from agv_nodes.graph.parameters import (
 )
 
 CHILD = 'agv_nodes.graph.child'
+
+
+class _PlainDumper(yaml.SafeDumper):
+    """YAML without anchors and aliases.
+
+    rcl's parameter file parser refuses them, and yaml writes them for any list that two
+    parameters share.
+    """
+
+    def ignore_aliases(self, data: object) -> bool:
+        return True
 
 
 def claim_domain(explicit: int | None = None) -> tuple[int, TextIO | None]:
@@ -101,6 +115,7 @@ class Launch:
         self.silent_records = silent_records(self.graph, options)
         check_realtime(options)
         check_vda5050(self.graph, options)
+        check_fleet(self.graph, options)
         self.mqtt_url = self._named_broker() if options.vda5050 else None
         self.params = Path(options.params) if options.params else self.graph.parameters
         if not self.params.is_file():
@@ -109,7 +124,7 @@ class Launch:
         self.env = dict(os.environ, ROS_DOMAIN_ID=str(self.domain),
                         ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
         self.env.pop('ROS_LOCALHOST_ONLY', None)
-        self.procs: dict[str, subprocess.Popen] = {}
+        self.procs: dict[str, subprocess.Popen] = {}  # by label (units())
         self.exits: dict[str, int] = {}
         self.stopping = False
         self.failed: list[str] = []
@@ -120,6 +135,7 @@ class Launch:
         self._overrides = Path(tempfile.mkdtemp(prefix='agv_launch_'))
         self.ready_file = self._overrides / 'world.ready'
         self.moving = ReadyFile(self.ready_file)
+        self._units = {label: (spec, ns) for label, spec, ns in self.units()}
         self.broker = None  # the embedded MQTT broker, when the launcher runs one
         if options.vda5050:
             self._start_broker()
@@ -153,23 +169,48 @@ class Launch:
         self.o = replace(self.o, mqtt_url=self.mqtt_url)  # a copy: the caller's stays as given
 
     def specs(self) -> list[NodeSpec]:
-        """Nodes to start, in order."""
+        """Nodes to start, in order (of one truck: a fleet starts the truck nodes per truck)."""
         return [n for n in self.graph.nodes if launched(n, self.o)]
 
-    def command(self, spec: NodeSpec) -> list[str]:
-        """Return the command line of one node."""
+    def units(self) -> list[tuple[str, NodeSpec, str]]:
+        """Return the processes to start, in order: (label, node, namespace).
+
+        One truck: each node once, labelled by its name, in --namespace. A fleet (--trucks N):
+        the recorder and the world once, in the root namespace (the world simulates every
+        truck, agv_nodes.world.floor), the other nodes once per truck in its namespace,
+        labelled `agvK/name`; the master (the dispatcher) once, in the root namespace.
+        """
+        if not self.o.trucks:
+            return [(spec.name, spec, self.o.namespace) for spec in self.specs()]
+        shared = ('recorder', 'master', 'world')
+        first = [s for s in self.specs() if s.role == 'recorder']
+        per_truck = [s for s in self.specs() if s.role not in shared]
+        last = [s for s in self.specs() if s.role in ('master', 'world')]
+        return [(s.name, s, '') for s in first] + [
+            (f'{truck}/{s.name}', s, f'/{truck}') for truck in fleet_names(self.o)
+            for s in per_truck] + [(s.name, s, '') for s in last]
+
+    def command(self, spec: NodeSpec, namespace: str | None = None,
+                label: str | None = None) -> list[str]:
+        """Return the command line of one node (`namespace`: one truck's of a fleet)."""
         exe = Path(sys.executable).parent / spec.executable
         cmd = [str(exe)] if exe.exists() else [sys.executable, '-m', spec.module]
         cmd += ['--ros-args', '-r', f'__node:={spec.name}']
-        if self.o.namespace:
-            cmd += ['-r', f'__ns:={self.o.namespace}']
-        overrides = self._overrides / f'{spec.name}.yaml'
-        overrides.write_text(yaml.safe_dump({f'/**/{spec.name}': {'ros__parameters': (
-            override_parameters(self.graph, spec, self.o, self.ready_file))}}))
+        namespace = self.o.namespace if namespace is None else namespace
+        if namespace:
+            cmd += ['-r', f'__ns:={namespace}']
+        overrides = self._overrides / f'{(label or spec.name).replace("/", "_")}.yaml'
+        options = replace(self.o, namespace=namespace)
+        if self.o.trucks and spec.role == 'world':
+            content = floor_parameters(self.graph, spec, options, self.ready_file)
+        else:
+            content = {f'/**/{spec.name}': {'ros__parameters': (
+                override_parameters(self.graph, spec, options, self.ready_file))}}
+        overrides.write_text(yaml.dump(content, Dumper=_PlainDumper))
         return cmd + ['--params-file', str(self.params), '--params-file', str(overrides)]
 
     def _pump(self, name: str, stream) -> None:
-        width = max(len(s.name) for s in self.graph.nodes)
+        width = max(len(label) for label, _s, _n in self.units())
         log = self._logs.get(name)
         for raw in stream:
             line = raw.rstrip('\n')
@@ -179,19 +220,21 @@ class Launch:
             if not self.o.quiet:
                 print(f'[{name:{width}s}] {line}', flush=True)
 
-    def child_command(self, spec: NodeSpec) -> list[str]:
+    def child_command(self, spec: NodeSpec, namespace: str | None = None,
+                      label: str | None = None) -> list[str]:
         """Return command() through the child wrapper (SIGTERM if the launcher dies; priority)."""
         command = [sys.executable, '-m', CHILD, str(os.getpid())]
         if priority := realtime_priority(spec, self.o):
             command += ['--sched-fifo', str(priority)]
-        return command + self.command(spec)
+        return command + self.command(spec, namespace, label)
 
-    def _start(self, spec: NodeSpec) -> None:
-        proc = subprocess.Popen(self.child_command(spec), env=self.env, stdout=subprocess.PIPE,
-                                stderr=subprocess.STDOUT, text=True, bufsize=1,
-                                start_new_session=True)
-        self.procs[spec.name] = proc
-        thread = threading.Thread(target=self._pump, args=(spec.name, proc.stdout), daemon=True)
+    def _start(self, label: str) -> None:
+        spec, namespace = self._units[label]
+        proc = subprocess.Popen(self.child_command(spec, namespace, label), env=self.env,
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                bufsize=1, start_new_session=True)
+        self.procs[label] = proc
+        thread = threading.Thread(target=self._pump, args=(label, proc.stdout), daemon=True)
         thread.start()
         self._threads.append(thread)
 
@@ -199,11 +242,12 @@ class Launch:
         """Start every node (recorder first, world last)."""
         if self.o.log_dir:
             self.o.log_dir.mkdir(parents=True, exist_ok=True)
-            self._logs = {s.name: open(self.o.log_dir / f'{s.name}.log', 'w')  # noqa: SIM115
-                          for s in self.specs()}
+            self._logs = {label: open(  # noqa: SIM115
+                self.o.log_dir / f'{label.replace("/", "_")}.log', 'w')
+                for label, _s, _n in self.units()}
         atexit.register(self._stop_at_exit)  # never leave a graph behind on the domain
-        for spec in self.specs():
-            self._start(spec)
+        for label in self._units:
+            self._start(label)
 
     def _stop_at_exit(self) -> None:
         if not self.stopping:
@@ -219,24 +263,24 @@ class Launch:
             self.exits[name] = code
             if self.stopping:
                 continue
-            spec = self.graph.node(name)
+            spec = self._units[name][0]
             if spec.role == 'world' and code == 0:
                 continue  # the world ran its `duration`
             dead.append(name)
             message = f'agv-launch: node {name} exited with status {code}'
             if self.o.respawn and spec.role == 'node':
                 print(f'{message}; respawning', file=sys.stderr, flush=True)
-                self.respawn(spec)
+                self.respawn(name)
             else:
                 print(message, file=sys.stderr, flush=True)
                 self.failed.append(name)
         return dead
 
-    def respawn(self, spec: NodeSpec) -> None:
+    def respawn(self, label: str) -> None:
         """Start a node that died again (after a second, so that its peers see it go)."""
-        self.exits.pop(spec.name, None)
+        self.exits.pop(label, None)
         time.sleep(1.0)
-        self._start(spec)
+        self._start(label)
 
     def world_done(self) -> bool:
         """Return True once the world process has exited."""
@@ -244,14 +288,14 @@ class Launch:
         return proc is not None and proc.poll() is not None
 
     def stop(self, timeout: float = 5.0) -> None:
-        """Shut the graph down in order: bridge, world, nodes, recorder (SIGINT, SIGTERM, KILL).
+        """Shut the graph down in order: master, bridge, world, nodes, recorder (SIGINT, ...).
 
         Then the embedded MQTT broker, if the launcher runs one.
         """
         self.stopping = True
         self.moving.is_set()  # note a world that moved before its file goes with the directory
-        for group in ('bridge', 'world', 'node', 'recorder'):
-            names = [n for n in self.procs if self.graph.node(n).role == group]
+        for group in ('master', 'bridge', 'world', 'node', 'recorder'):
+            names = [n for n in self.procs if self._units[n][0].role == group]
             for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 3.0),
                               (signal.SIGKILL, 3.0)):
                 if not (alive := [n for n in names if self.procs[n].poll() is None]):

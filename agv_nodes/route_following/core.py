@@ -233,7 +233,8 @@ class RouteCore(SubsystemCore):
         w, dt = self.p.wire, self.p.period
         rate = 0.0 if self._prev_lateral is None else (self.lateral - self._prev_lateral) / dt
         self._prev_lateral = self.lateral
-        self._integral = max(-0.2, min(0.2, self._integral + self.lateral * dt))
+        if abs(self.speed) >= w.hold_integral_below:
+            self._integral = max(-0.2, min(0.2, self._integral + self.lateral * dt))
         steer = w.kp * self.lateral + w.ki * self._integral + w.kd * rate
         self.steer = max(-w.max_steer, min(w.max_steer, steer))
 

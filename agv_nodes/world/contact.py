@@ -8,6 +8,8 @@ separating axis theorem); touching counts as overlapping.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 import math
 
 from agv_nodes.world.settings import ElectrukParams
@@ -38,3 +40,43 @@ def _separated(a: list[Point], b: list[Point]) -> bool:
 def overlap(a: list[Point], b: list[Point]) -> bool:
     """Return True when two convex outlines (anticlockwise corners) touch or overlap."""
     return not (_separated(a, b) or _separated(b, a))
+
+
+@dataclass(frozen=True)
+class Collision:
+    """Two trucks that touched, and when."""
+
+    time: float  # simulated s
+    trucks: tuple[str, str]
+    speeds: tuple[float, float]  # m/s of each at the contact
+
+
+class ContactWatch:
+    """Trucks on one floor: which touch now, and each new contact as a Collision.
+
+    A pair that stays in contact is one collision, not one per sample; once apart and touching
+    again it is a new one. `bodies` maps each truck to its pose (x, y, heading, speed) and
+    body outline parameters.
+    """
+
+    def __init__(self, names: Sequence[str]) -> None:
+        self.names = list(names)
+        self.touching: set[tuple[str, str]] = set()
+        self.collisions: list[Collision] = []
+
+    def contacts(self, bodies: Mapping[str, tuple[tuple[float, ...], ElectrukParams]]
+                 ) -> set[tuple[str, str]]:
+        """Return the pairs (in `names` order) whose footprints touch or overlap."""
+        shapes = {name: footprint(*pose[:3], p) for name, (pose, p) in bodies.items()}
+        return {(a, b) for i, a in enumerate(self.names) for b in self.names[i + 1:]
+                if overlap(shapes[a], shapes[b])}
+
+    def check(self, bodies: Mapping[str, tuple[tuple[float, ...], ElectrukParams]],
+              now: float) -> list[Collision]:
+        """Return the contacts new since the last check (kept in `collisions` too)."""
+        touching = self.contacts(bodies)
+        new = [Collision(now, (a, b), (bodies[a][0][3], bodies[b][0][3]))
+               for a, b in sorted(touching - self.touching)]
+        self.touching = touching
+        self.collisions.extend(new)
+        return new

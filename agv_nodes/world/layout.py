@@ -98,11 +98,14 @@ class Layout:
     # A tape layout's camera law for legs whose task does not choose one (route following's
     # camera_law: feedback or feed_forward); '' leaves route following's own.
     camera_law: str = ''
+    # A fleet's places, one per truck in order: truck k is set down at the k-th stop marker
+    # (agv-launch --trucks) and the dispatcher parks it there when it has no work.
+    parking: tuple[str, ...] = ()
 
 
 _TOP_KEYS = {'layout', 'description', 'vehicle', 'kind', 'wires', 'tapes', 'markers',
              'stations', 'start', 'sensor', 'rig', 'route_limit', 'step', 'signs', 'srm_map',
-             'camera_law'}
+             'camera_law', 'parking'}
 
 
 def load_layout(file: Path | str) -> Layout:
@@ -176,7 +179,8 @@ def load_layout(file: Path | str) -> Layout:
         sensor_lateral=sensor_lateral, kind=kind, rig=rig,
         route_limit=_num(doc.get('route_limit', 0.0), file, 'route_limit', 0.0, 1e4),
         description=' '.join(str(doc.get('description', '')).split()), signs=signs,
-        srm_map=_srm_map(doc.get('srm_map') or [], file), camera_law=camera_law)
+        srm_map=_srm_map(doc.get('srm_map') or [], file), camera_law=camera_law,
+        parking=_parking(doc.get('parking') or [], file, markers))
     if kind == 'rig':
         _check_rig(layout, file)
     return layout
@@ -227,6 +231,17 @@ def _load_marker(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
     m.normal = (-math.sin(h + m.yaw), math.cos(h + m.yaw))
     m.along = (math.cos(h + m.yaw), math.sin(h + m.yaw))
     return m
+
+
+def _parking(entries: Any, file: Path, markers: list[Marker]) -> tuple[str, ...]:
+    stops = [m.name for m in markers if m.kind == 'stop']
+    if not isinstance(entries, list):
+        raise LayoutError(f'{file}: key parking: {entries!r} must be a list of stop markers')
+    for entry in entries:
+        if entry not in stops or entries.count(entry) > 1:
+            raise LayoutError(f'{file}: key parking: {entry!r} is not a stop marker of the '
+                              f'layout ({", ".join(stops)}), or is named twice')
+    return tuple(entries)
 
 
 def _srm_map(entries: Any, file: Path) -> tuple[str, ...]:

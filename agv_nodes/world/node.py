@@ -12,6 +12,9 @@ The world is the clock: it does not run on a ROS timer (a sim-time timer cannot 
 agv_nodes/world/pacing.py). It moves once every link named in `wait_for_links` has matched at
 both ends (agv_nodes/world/peers.py), then writes `ready_file` (when one is named).
 
+With `trucks` set the world is a floor of several trucks, each a world node of its own in its
+truck's namespace, stepped together on one clock (agv_nodes/world/floor.py).
+
 Faults switched at run time: `sensor.ambient`, `wire_powered` and the CONCIC-II's `concic2.estop`,
 `concic2.controller_fault`, `concic2.encoder_fault`, `concic2.battery_voltage`; the service
 `~/hardware_reset` (std_srvs/Trigger) presses the CONCIC-II's reset, which clears the safety
@@ -20,6 +23,7 @@ PAL's latches (Rajagopalan 1991, 6.3.11).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 import sys
 import time
@@ -49,6 +53,7 @@ from agv_nodes.ros_ports import (
 )
 from agv_nodes.settings import SettingError, convert, parameters
 from agv_nodes.world.core import WorldCore
+from agv_nodes.world.floor import Control, Floor, Place, set_down
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
 from agv_nodes.world.layout_check import enforce
 from agv_nodes.world.pacing import GraphPacer
@@ -62,22 +67,42 @@ NODE = 'world'
 class WorldNode(Node):
     """See the module docstring."""
 
-    def __init__(self) -> None:
-        super().__init__(NODE)
+    def __init__(self, namespace: str | None = None, place: Place | None = None) -> None:
+        """Make the world of one truck; with `trucks` set and no `place`, the floor of all.
+
+        `namespace` and `place` are given by the floor to each truck's world node.
+        """
+        super().__init__(NODE, namespace=namespace)
         self.s = s = declare(self, WorldNodeSettings)
         self.node_settings = s  # record_writers: whom its record inputs come from
         wp = declare(self, WorldParams)
         refuse_unknown(self)
         self.executor_kind = s.executor
         self.layout = self._load_layout(s)
+        self.control = place.control if place is not None else Control(paused=s.start_paused)
+        self._work = 0
+        self.floor: Floor | None = None
+        self.core: WorldCore | None = None
+        if s.trucks and place is None:  # the floor: a world node per truck, stepped here
+            self.clock_pub = self.create_publisher(Clock, '/clock', qos.STREAM_WRITER)
+            self.floor = Floor(self, s, wp, lambda ns, pl: WorldNode(ns, pl))
+            self.members = self.floor.members
+            self.peers = LinkWatch(self, self._links(s, ()), {}, {
+                sim_progress.CLOCK_LINK: self.clock_pub.get_subscription_count})
+            self._serve()
+            return
+        self.members = [self]
         try:  # a marker the sensor cannot read as the truck drives there (agv-layout check)
             for line in enforce(self.layout, wp, s.layout_check):
                 self.get_logger().warning(line)
         except LayoutError as exc:
             raise parameter_error(self, 'layout', s.layout, str(exc)) from None
-        self.core = WorldCore(self.layout, wp)
+        if place is not None:
+            wp = replace(wp, seed=wp.seed + place.index)  # each truck's sensors their own noise
+        start = set_down(self, s, place)
+        self.core = WorldCore(self.layout, wp, start=start,
+                              station_loads=place.station_loads if place is not None else None)
         self.core.wire_powered = s.wire_powered
-        self.paused = s.start_paused
         c = codec()
         self.out = {sch.name: RecordPublisher(self, sch) for sch in c if sch.writer == NODE}
         self.inputs = {sch.name: RecordSubscription(self, sch, callback=self._input(sch.name))
@@ -89,21 +114,16 @@ class WorldNode(Node):
                                                    self._progress(node), qos.PROGRESS,
                                                    raw=True)
                     for node in s.pace_nodes}
-        links = []
-        for entry in s.wait_for_links:
-            link = parse_link_entry(entry)
-            if link is None:
-                raise parameter_error(self, 'wait_for_links', entry,
-                                      'not NODE:RECORD or NODE>RECORD:N')
-            links.append(link)
-        links += [(NODE, f'{sim_progress.LINK}.{node}', None) for node in s.pace_nodes]
         own_readers = {name: r.publisher_count for name, r in self.inputs.items()}
         own_readers.update({f'{sim_progress.LINK}.{node}': sub.get_publisher_count
                             for node, sub in progress.items()})
-        self.clock_pub = self.create_publisher(Clock, '/clock', qos.STREAM_WRITER)
+        # a truck of a floor: the floor writes /clock, and its root node waits for its readers
+        self.clock_pub = place.clock_pub if place is not None else \
+            self.create_publisher(Clock, '/clock', qos.STREAM_WRITER)
         own_writers = {name: (lambda w=w: w.subscription_count) for name, w in self.out.items()}
-        own_writers[sim_progress.CLOCK_LINK] = self.clock_pub.get_subscription_count
-        self.peers = LinkWatch(self, links, own_readers, own_writers)
+        if place is None:
+            own_writers[sim_progress.CLOCK_LINK] = self.clock_pub.get_subscription_count
+        self.peers = LinkWatch(self, self._links(s, s.pace_nodes), own_readers, own_writers)
         self.create_subscription(Bool, 'hw/radio_stop', self._radio_stop, qos.RECORD_READER)
         self.bumper_pub = self.create_publisher(Bool, 'hw/bumper', qos.LATCHED)
         self._bumper = False
@@ -114,12 +134,30 @@ class WorldNode(Node):
         route, markers = layout_messages(self.layout)
         self.create_publisher(PathMsg, 'world/route', qos.LATCHED).publish(route)
         self.create_publisher(MarkerArray, 'world/markers', qos.LATCHED).publish(markers)
+        self._pose_every = max(1, round(wp.sample_rate / 50.0))
+        self._serve()
+
+    def _serve(self) -> None:
+        """Offer the run-time faults and the services, last: a found service means it runs."""
         self.add_on_set_parameters_callback(self._set_at_run_time)
         for name in ('pause', 'resume', 'step', 'hardware_reset'):
             self.create_service(Trigger, f'~/{name}', getattr(self, f'_service_{name}'))
-        self._step_requests = 0
-        self._work = 0
-        self._pose_every = max(1, round(wp.sample_rate / 50.0))
+
+    def _links(self, s: WorldNodeSettings, paced: tuple[str, ...]
+               ) -> list[tuple[str, str, int | None]]:
+        links = []
+        for entry in s.wait_for_links:
+            link = parse_link_entry(entry)
+            if link is None:
+                raise parameter_error(self, 'wait_for_links', entry,
+                                      'not NODE:RECORD or NODE>RECORD:N')
+            links.append(link)
+        return links + [(NODE, f'{sim_progress.LINK}.{node}', None) for node in paced]
+
+    @property
+    def time(self) -> float:
+        """The floor's simulated seconds (every truck's world keeps the same time)."""
+        return self.members[0].core.time
 
     def _load_layout(self, s: WorldNodeSettings) -> Any:
         try:
@@ -149,7 +187,10 @@ class WorldNode(Node):
         return on_progress
 
     def _set_at_run_time(self, params: list) -> SetParametersResult:
-        """Faults switched while the world runs: light, the wire generator, the CONCIC-II's."""
+        """Faults switched while the world runs: light, the wire generator, the CONCIC-II's.
+
+        Set on a floor's own node, a fault reaches every truck; on a truck's, that truck.
+        """
         concic2 = {p.name: p for p in parameters(WorldParams)
                    if p.name.startswith('concic2.') and not p.spec.read_only}
         for param in params:
@@ -158,14 +199,15 @@ class WorldNode(Node):
                     convert(concic2[param.name], param.value)
                 except SettingError as exc:
                     return SetParametersResult(successful=False, reason=str(exc))
-        for param in params:
-            if param.name == 'sensor.ambient':
-                self.core.sensor.p.ambient = float(param.value)
-            elif param.name == 'wire_powered':
-                self.core.wire_powered = bool(param.value)
-            elif param.name in concic2:
-                setattr(self.core.p.concic2, param.name.split('.', 1)[1],
-                        convert(concic2[param.name], param.value))
+        for core in (m.core for m in self.members):
+            for param in params:
+                if param.name == 'sensor.ambient':
+                    core.sensor.p.ambient = float(param.value)
+                elif param.name == 'wire_powered':
+                    core.wire_powered = bool(param.value)
+                elif param.name in concic2:
+                    setattr(core.p.concic2, param.name.split('.', 1)[1],
+                            convert(concic2[param.name], param.value))
         return SetParametersResult(successful=True)
 
     def _radio_stop(self, msg: Bool) -> None:
@@ -174,36 +216,37 @@ class WorldNode(Node):
 
     def _service_pause(self, _req: Any, res: Any) -> Any:
         self._work += 1
-        self.paused = True
-        res.success, res.message = True, f'paused at {self.core.time:.3f} s'
+        self.control.paused = True
+        res.success, res.message = True, f'paused at {self.time:.3f} s'
         return res
 
     def _service_resume(self, _req: Any, res: Any) -> Any:
         self._work += 1
-        self.paused = False
-        res.success, res.message = True, f'resumed at {self.core.time:.3f} s'
+        self.control.paused = False
+        res.success, res.message = True, f'resumed at {self.time:.3f} s'
         return res
 
     def _service_hardware_reset(self, _req: Any, res: Any) -> Any:
         self._work += 1
-        self.core.hardware_reset()
-        res.success = self.core.pal is not None
-        res.message = (f'hardware reset at {self.core.time:.3f} s' if res.success
+        for m in self.members:  # a floor's own node: every truck's reset
+            m.core.hardware_reset()
+        res.success = all(m.core.pal is not None for m in self.members)
+        res.message = (f'hardware reset at {self.time:.3f} s' if res.success
                        else 'no safety PAL on this vehicle (the CONCIC-II has one)')
         return res
 
     def _service_step(self, _req: Any, res: Any) -> Any:
         self._work += 1
-        self._step_requests += 1
-        res.success = self.paused
-        res.message = 'one sample queued' if self.paused else 'not paused: ~/pause first'
+        self.control.step_requests += 1
+        res.success = self.control.paused
+        res.message = 'one sample queued' if self.control.paused else 'not paused: ~/pause first'
         return res
 
     # -- output -----------------------------------------------------------------------------
     def stamp(self) -> Time:
         """Sim time when publishing /clock, else the node clock."""
         if self.s.publish_clock:
-            sec, nanosec = divmod(round(self.core.time * 1e9), 1_000_000_000)
+            sec, nanosec = divmod(round(self.time * 1e9), 1_000_000_000)
             return Time(sec=sec, nanosec=nanosec)
         return self.get_clock().now().to_msg()
 
@@ -213,21 +256,23 @@ class WorldNode(Node):
         It is the world's busiest publisher (116 Hz to every node): a Python Clock message per
         sample cost more than the bytes.
         """
-        self.clock_pub.publish(clock_cdr(round(self.core.time * 1e9)))
+        self.clock_pub.publish(clock_cdr(round(self.time * 1e9)))
 
-    def publish_step(self, out: dict) -> None:
-        """Publish what one core step produced."""
-        if self.s.publish_clock and self.core.sample % self.s.clock_every == 0:
-            self.publish_clock_now()
-        for name, fields in out['records'].items():
-            self.out[name].publish(fields)
-        if self.core.bumper != self._bumper:  # the bumper switch, to traction
-            self._bumper = self.core.bumper
-            self.bumper_pub.publish(Bool(data=self._bumper))
-        for event in out['events']:
+    def publish_events(self, events: list[dict[str, Any]]) -> None:
+        """Publish world events as world_event records; the bumper switch when it changed."""
+        for event in events:
             self.out['world_event'].publish({**{k: event[k] for k in (
                 'event', 'marker_kind', 'identity', 'error', 'speed', 'lateral', 'count',
                 'station')}, 'time_ms': round(event['time'] * 1000) & 0xFFFF})
+        if self.core.bumper != self._bumper:  # the bumper switch, to traction
+            self._bumper = self.core.bumper
+            self.bumper_pub.publish(Bool(data=self._bumper))
+
+    def publish_step(self, out: dict) -> None:
+        """Publish what one core step produced (not /clock: the floor's loop does)."""
+        for name, fields in out['records'].items():
+            self.out[name].publish(fields)
+        self.publish_events(out['events'])
         pose_due = self.core.sample % self._pose_every == 0
         stamp = self.stamp() if out['frames'] or pose_due else None
         for name, frame in out['frames'].items():
@@ -237,83 +282,116 @@ class WorldNode(Node):
             self.pose_pub.publish(pose_message(x, y, h, stamp))
 
     # -- the loop ---------------------------------------------------------------------------
+    def _work_done(self) -> int:
+        return self._work + sum(m._work for m in self.members if m is not self)
+
     def drain(self, executor: Any, limit: int = 200) -> None:
         """Run every callback that is ready now (inputs, services)."""
         for _ in range(limit):
-            before = self._work
+            before = self._work_done()
             executor.spin_once(timeout_sec=0.0)
-            if self._work == before:
+            if self._work_done() == before:
                 return
+
+    def _missing(self) -> list[str]:
+        nodes = [self] if self.floor is None else [self, *self.members]
+        return [f'{n.get_namespace().rstrip("/")}/{link}' if n is not self else link
+                for n in nodes for link in n.peers.missing()]
 
     def _wait_for_peers(self, executor: Any) -> bool:
         started = time.monotonic()
-        while running() and self.peers.missing():
+        while running() and self._missing():
             if self.s.publish_clock:
                 self.publish_clock_now()
             executor.spin_once(timeout_sec=0.05)
             if time.monotonic() - started > self.s.peer_timeout:
                 self.get_logger().error(f'peers not matched after {self.s.peer_timeout:.0f} s '
-                                        f'(links still missing: {self.peers.missing()})')
+                                        f'(links still missing: {self._missing()})')
                 return False
-        self.get_logger().info(f'layout {self.layout.name}: moving at time_factor '
-                               f'{self.s.time_factor:g} ({len(self.peers.links)} links matched '
+        links = sum(len(m.peers.links) for m in {self, *self.members})
+        trucks = f', {len(self.members)} trucks' if self.floor is not None else ''
+        self.get_logger().info(f'layout {self.layout.name}{trucks}: moving at time_factor '
+                               f'{self.s.time_factor:g} ({links} links matched '
                                f'at both ends after {time.monotonic() - started:.2f} s)')
         if self.s.ready_file:
-            Path(self.s.ready_file).write_text(f'moving at sim time {self.core.time:.3f} s\n')
+            Path(self.s.ready_file).write_text(f'moving at sim time {self.time:.3f} s\n')
         return True
+
+    def _lagging(self) -> list[str]:
+        now = self.time
+        return [f'{m.get_namespace().rstrip("/")}/{node}'.lstrip('/') for m in self.members
+                for node in m.pacer.lagging(now)]
 
     def _catch_up(self, executor: Any) -> None:
         """Let lagging nodes catch up before time moves on (at most lag_patience)."""
-        late = self.pacer.lagging(self.core.time)
+        late = self._lagging()
         waited = time.monotonic()
         nudge = waited + 0.05
         while late and running() and time.monotonic() - waited < self.s.lag_patience:
             executor.spin_once(timeout_sec=0.002)
-            late = self.pacer.lagging(self.core.time)
+            late = self._lagging()
             if late and self.s.publish_clock and time.monotonic() > nudge:
                 # The same time again: a node that missed the last /clock gets another look;
                 # timers that already ran at this time do not run twice.
                 self.publish_clock_now()
                 nudge = time.monotonic() + 0.05
         if late and running():  # (not when a stop request ended the wait)
-            self.pacer.give_up(late)
+            for m in self.members:
+                m.pacer.give_up(m.pacer.lagging(self.time))
             self.get_logger().warn(f'carrying on without {", ".join(late)} (behind for '
                                    f'{self.s.lag_patience:g} s)')
 
     def _report_pacing(self) -> None:
         """Log how far behind the world each node was heard at worst over the last minute."""
-        worst = ', '.join(f'{name} {s * 1000:.0f} ms' for name, s in
-                          sorted(self.pacer.worst.items()))
+        worst = ', '.join(f'{m.get_namespace().rstrip("/")}/{name}'.lstrip('/')
+                          + f' {s * 1000:.0f} ms' for m in self.members
+                          for name, s in sorted(m.pacer.worst.items()))
         self.get_logger().info(f'pacing, the last minute: worst behind {worst or "-"}')
-        self.pacer.worst.clear()
+        for m in self.members:
+            m.pacer.worst.clear()
+
+    def step_all(self) -> None:
+        """One sample: /clock, every truck's world, then (a floor) the contacts between them."""
+        outs = [m.core.step() for m in self.members]
+        if self.s.publish_clock and self.members[0].core.sample % self.s.clock_every == 0:
+            self.publish_clock_now()
+        for m, out in zip(self.members, outs, strict=True):
+            m.publish_step(out)
+        if self.floor is not None:
+            self.floor.contacts()
 
     def run(self, executor: Any) -> int:
         """Wait for peers, then step the world until shut down (or `duration`)."""
+        for m in self.members:
+            if m is not self:
+                executor.add_node(m)
         if not self._wait_for_peers(executor):
             return 1
-        wall0, sim0 = time.monotonic(), self.core.time
-        self.pacer.start(self.core.time)
-        report_at = self.core.time + 60.0
+        wall0, sim0 = time.monotonic(), self.time
+        for m in self.members:
+            m.pacer.start(self.time)
+        report_at = self.time + 60.0
+        control = self.control
         while running():
-            if self.core.time >= report_at:
+            if self.time >= report_at:
                 report_at += 60.0
                 self._report_pacing()
             self.drain(executor)
-            if self.paused and self._step_requests == 0:
+            if control.paused and control.step_requests == 0:
                 executor.spin_once(timeout_sec=0.02)
-                wall0, sim0 = time.monotonic(), self.core.time
+                wall0, sim0 = time.monotonic(), self.time
                 continue
-            if self._step_requests:
-                self._step_requests -= 1
-            if self.pacer.lagging(self.core.time):
+            if control.step_requests:
+                control.step_requests -= 1
+            if self._lagging():
                 self._catch_up(executor)
-                wall0, sim0 = time.monotonic(), self.core.time
-            self.publish_step(self.core.step())
-            if self.s.duration and self.core.time >= self.s.duration:
+                wall0, sim0 = time.monotonic(), self.time
+            self.step_all()
+            if self.s.duration and self.time >= self.s.duration:
                 self.get_logger().info(f'duration {self.s.duration:g} s reached')
                 return 0
             if self.s.time_factor > 0:
-                ahead = (self.core.time - sim0) / self.s.time_factor - (time.monotonic() - wall0)
+                ahead = (self.time - sim0) / self.s.time_factor - (time.monotonic() - wall0)
                 if ahead > 0:
                     time.sleep(ahead)
         return 0

@@ -1,0 +1,232 @@
+"""dispatcher (ros2 run agv_nodes dispatcher): the fleet's central computer as a ROS node.
+
+The node is the VDA 5050 master of the trucks named in `trucks`: agv_nodes.fleet.mqtt_master
+(the dispatcher on an MQTT link) does the work; this node only carries text in and out and
+keeps the time. Transport orders arrive as text on `fleet/transport` (std_msgs/String, syntax
+mqtt_master.TRANSPORT_SYNTAX, e.g. `W0 to W2` or `job7: W0 to W2`); each answer and each step
+of a transport's way goes out as one line on `fleet/report`:
+
+    t1: accepted: W0 to W2
+    t1: queued: no idle truck can take it yet
+    t1: assigned to agv1
+    t1: done (agv1)            or   t1: failed (agv1)
+    rejected 'W9 to W2': unknown station 'W9' (stations: W0, W1, W2, W3)
+
+`status` is a query: the answer is one line, `status: 0 queued, 1 assigned, 3 done, ...`.
+
+The dispatcher steps every `period` s on the node's clock (sim time with use_sim_time), so a
+simulated fleet is directed at the pace of its simulation. /diagnostics `agv[/ns]/dispatcher/
+fleet`, once a wall-clock second (so a stopped clock or a lost broker still shows): the queue,
+the assignments, done, failed, deadlocks, the rejected transports and truck messages, the
+messages sent and the MQTT link's counters; ERROR while the broker is gone, WARN while a
+deadlock or a conflict stands, a truck is off the broker, or the last truck message was
+rejected.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Collection, Sequence
+import os
+import sys
+import time
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from std_msgs.msg import String
+
+from agv_nodes import qos
+from agv_nodes.fleet.dispatcher import Dispatcher
+from agv_nodes.fleet.mqtt_master import MqttMaster
+from agv_nodes.fleet.track_graph import track_graph
+from agv_nodes.mqtt.client import MqttLink, parse_mqtt_url
+from agv_nodes.node_process import spin_main
+from agv_nodes.params import declare, parameter_error, refuse_unknown
+from agv_nodes.ros_ports import diagnostic_status
+from agv_nodes.settings import SettingError, settings_class
+from agv_nodes.vda5050.topics import topic
+from agv_nodes.world.layout import LayoutError, layout_path, load_layout
+
+OK, WARN, ERROR = (int.from_bytes(level) for level in (DiagnosticStatus.OK, DiagnosticStatus.WARN,
+                                                        DiagnosticStatus.ERROR))
+# A query, not a transport: answered with one line of counts and changing nothing, so a program
+# that starts with the node asks it until answered, which proves both directions of the topics
+# (a writer's first messages before the reader matched it back are lost).
+STATUS = 'status'
+STEPS_KEPT = 10_000  # dispatcher steps whose time /diagnostics summarises (~17 min at 0.1 s)
+RECONNECT_MAX = 10.0  # wall s: the longest wait between attempts to reach a lost broker
+
+
+def truck_map(name: str, entries: Sequence[str], trucks: Sequence[str],
+              stops: Collection[str] | None = None) -> dict[str, str]:
+    """Return the `truck:node` entries of parameter `name` as {truck: node}.
+
+    Each truck must be one of `trucks` and named once; with `stops` given, each node must be
+    one of them (the stop markers: where a truck can stand). SettingError names the entry.
+    """
+    out: dict[str, str] = {}
+    for entry in entries:
+        truck, sep, node = entry.partition(':')
+        if not sep or not truck or not node or ' ' in entry:
+            raise SettingError(name, entry, "not truck:stop-marker, e.g. 'agv1:W0.1'")
+        if truck not in trucks:
+            raise SettingError(name, entry, f'{truck!r} is not one of trucks {list(trucks)}')
+        if truck in out:
+            raise SettingError(name, entry, f'{truck!r} given twice')
+        if stops is not None and node not in stops:
+            raise SettingError(name, entry, f'{node!r} is no stop marker of the layout '
+                               f'(stop markers: {", ".join(sorted(stops))})')
+        out[truck] = node
+    return out
+
+
+@settings_class
+class DispatcherSettings:
+    """The fleet's central computer as a VDA 5050 master (its parameters.yaml section)."""
+
+    def problems(self) -> list[tuple[str, Any, str]]:
+        """Make the checks that span fields: trucks, and the entries naming them."""
+        trucks: tuple[str, ...] = self.trucks  # type: ignore[attr-defined]
+        manufacturer: str = self.manufacturer  # type: ignore[attr-defined]
+        if not trucks:
+            return [('trucks', [], 'needs at least one serial number')]
+        # both are topic levels (VDA 5050 6.3): not empty, no '/', '+', '#' or '$'
+        for name, value, levels in (('manufacturer', manufacturer, (manufacturer, 'x')),
+                                    *(('trucks', list(trucks), ('x', t)) for t in trucks)):
+            try:
+                topic(*levels, 'state')
+            except ValueError as exc:
+                return [(name, value, str(exc))]
+        for truck in trucks:
+            if trucks.count(truck) > 1:
+                return [('trucks', list(trucks), f'{truck!r} given twice')]
+        for name in ('positions', 'parking'):
+            try:
+                truck_map(name, getattr(self, name), trucks)
+            except SettingError as exc:
+                return [(exc.name, exc.value, exc.reason)]
+        return []
+
+
+class DispatcherNode(Node):
+    """See the module docstring."""
+
+    def __init__(self) -> None:
+        super().__init__('dispatcher')
+        s = declare(self, DispatcherSettings)
+        refuse_unknown(self)
+        url = s.mqtt_url or os.environ.get('AGV_MQTT_URL', '')
+        if not url:
+            raise parameter_error(self, 'mqtt_url', s.mqtt_url, 'empty and AGV_MQTT_URL unset: '
+                                  'no broker to connect to')
+        try:
+            parse_mqtt_url(url)
+        except ValueError as exc:
+            raise parameter_error(self, 'mqtt_url', url, str(exc)) from None
+        try:
+            graph = track_graph(load_layout(layout_path(s.layout)))
+        except (LayoutError, OSError) as exc:
+            raise parameter_error(self, 'layout', s.layout, str(exc)) from None
+        stops = {n.id for n in graph.nodes.values() if n.stoppable}
+        try:
+            positions, parking = (truck_map(name, getattr(s, name), s.trucks, stops)
+                                  for name in ('positions', 'parking'))
+        except SettingError as exc:
+            raise parameter_error(self, exc.name, exc.value, exc.reason) from None
+        self.settings = s
+        dispatcher = Dispatcher(graph, list(s.trucks), manufacturer=s.manufacturer,
+                                parking=parking, positions=positions)
+        self.link = MqttLink(url, f'{s.manufacturer}_dispatcher', reconnect_min_s=1.0,
+                             reconnect_max_s=RECONNECT_MAX)
+        self.master = MqttMaster(dispatcher, self.link)
+        self._report_pub = self.create_publisher(String, 'fleet/report', qos.EVENTS)
+        self.create_subscription(String, 'fleet/transport', self._transport, qos.EVENTS)
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos.EVENTS)
+        self._was_connected = False
+        self._decisions: deque[float] = deque(maxlen=STEPS_KEPT)  # wall s of each step
+        self._deadlocks: list[list[str]] = []
+        self.create_timer(s.period, self._step)  # the node's clock: sim time with use_sim_time
+        self.create_timer(1.0, self._diagnostics, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.link.connect(timeout=None)  # in the background: the node runs without a broker
+        self.get_logger().info(f'dispatcher for {", ".join(s.trucks)} of {s.manufacturer} on '
+                               f'{url}, layout {s.layout}: stations '
+                               f'{", ".join(self.master.stations)}')
+
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _report(self, line: str) -> None:
+        self._report_pub.publish(String(data=line))
+        self.get_logger().info(line)
+
+    def _transport(self, msg: String) -> None:
+        if msg.data.strip().lower() == STATUS:
+            c = self.master.counts()
+            self._report(f'{STATUS}: {c["queue"]} queued, {c["assignments"]} assigned, '
+                         f'{c["done"]} done, {c["failed"]} failed; trucks heard '
+                         f'{c["trucks heard"]}, online {c["trucks online"]}')
+            return
+        self._report(self.master.submit(msg.data))
+
+    def _step(self) -> None:
+        connected = self.link.connected
+        if connected != self._was_connected:
+            self._was_connected = connected
+            if connected:
+                self.get_logger().info(f'MQTT broker {self.link.url} connected')
+            else:
+                self.get_logger().warning(f'MQTT broker {self.link.url} lost: no orders are '
+                                          'sent until it is back')
+        t0 = time.perf_counter()
+        self.master.step(self._now())
+        self._decisions.append(time.perf_counter() - t0)
+        for line in self.master.progress():
+            self._report(line)
+        deadlocks = self.master.dispatcher.deadlocks
+        if deadlocks != self._deadlocks:
+            self._deadlocks = [list(c) for c in deadlocks]
+            if deadlocks:  # on a one-way loop nothing can route around it: say so, once
+                self.get_logger().error(f'deadlock: {deadlocks} wait for each other')
+
+    def _diagnostics(self) -> None:
+        stats = self.link.stats()
+        counts = self.master.counts()
+        offline = [t for t in self.master.trucks if not self.master.online(t)]
+        d = self.master.dispatcher
+        level, message = OK, 'connected'
+        if not stats.connected:
+            level, message = ERROR, 'broker not connected'
+        elif d.deadlocks:
+            level, message = WARN, f'deadlock: {d.deadlocks}'
+        elif d.conflicts:  # a truck found in a block another holds: traffic control failed
+            level, message = WARN, f'conflicts: {d.conflicts}'
+        elif offline:
+            level, message = WARN, f'off the broker: {", ".join(offline)}'
+        elif self.master.rejecting:
+            level, message = WARN, f'rejected: {self.master.last_rejection}'
+        values = {k: str(v) for k, v in {**counts, **stats.as_dict()}.items()}
+        values['last rejection'] = self.master.last_rejection
+        if self._decisions:  # a step: take the states, assign, grant, send (the last ones)
+            ms = sorted(1000.0 * t for t in self._decisions)
+            values.update({'steps': str(len(ms)), 'step median ms': f'{ms[len(ms) // 2]:.3f}',
+                           'step p99 ms': f'{ms[int(0.99 * (len(ms) - 1))]:.3f}',
+                           'step max ms': f'{ms[-1]:.3f}'})
+        msg = DiagnosticArray(status=[diagnostic_status(self, f'{self.get_name()}/fleet', level,
+                                                        message, self.get_name(), values)])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._diag_pub.publish(msg)
+
+    def finish(self) -> None:
+        """Close the MQTT link before the node's teardown (agv_nodes.node_process)."""
+        self.link.close(clean=True)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point: ros2 run agv_nodes dispatcher [--ros-args ...]."""
+    return spin_main(DispatcherNode, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
