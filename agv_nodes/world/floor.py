@@ -85,8 +85,9 @@ class Floor:
                                       'or is named twice')
         places = list(s.set_down) or list(root.layout.parking)
         if len(places) < len(names) or s.set_down and len(places) != len(names):
-            given = 'set_down' if s.set_down else 'layout parking'
-            raise parameter_error(root, 'set_down', list(s.set_down),
+            given = 'set_down' if s.set_down else f'layout {root.layout.name} parking'
+            key, value = ('set_down', list(s.set_down)) if s.set_down else ('trucks', names)
+            raise parameter_error(root, key, value,
                                   f'{len(names)} trucks need a stop marker each; the {given} '
                                   f'names {len(places)} ({", ".join(places) or "none"})')
         loads = {sid: int(st.has_load) for sid, st in root.layout.stations.items()}
