@@ -4,6 +4,7 @@
         [time_factor:=1.0] [record_integrity:=e2e] [world:=sim|none] [bag:=/path/new_bag]
         [params_file:=<file>] [layout:=<name>] [respawn:=false] [realtime:=0]
         [vda5050:=false] [mqtt_url:=mqtt://host:port] [serial_number:=<name>]
+        [trucks:=0] [set_down:=W2.2,W0.1] [external_master:=false]
 
 Nodes, executables and roles come from share/agv_nodes/config/graph.yaml, and each node's
 parameters from agv_nodes.graph.parameters.node_parameters - the same description and function
@@ -13,7 +14,10 @@ world:=none the hardware topics must come from drivers (docs/hardware.md); recor
 bag:=<dir> here, or with `ros2 bag record -s mcap -a` alongside. With vda5050:=true the
 truck's VDA 5050 bridge starts too, on the broker of mqtt_url, else of AGV_MQTT_URL, else on a
 broker (`python3 -m agv_nodes.mqtt.broker`) this launch starts on port 1883; the bridge keeps
-trying until that broker listens.
+trying until that broker listens. With trucks:=N it starts a fleet as `agv-launch --trucks N`
+does (agv_nodes.graph.parameters.launch_units): each truck's nodes in /agvK, one world for the
+floor, whose per-truck parameters go in a file this launch writes (its nodes are made by the
+world process, so a dict for the launched node would not reach them).
 """
 
 from pathlib import Path
@@ -38,18 +42,27 @@ ARGUMENTS = {
     'vda5050': ('false', 'also start the VDA 5050 bridge: a master control drives the truck'),
     'mqtt_url': ('', "the bridge's MQTT broker (empty: AGV_MQTT_URL, else one started here)"),
     'serial_number': ('', "the truck's VDA 5050 serialNumber (empty: the namespace, or agv1)"),
+    'trucks': ('0', 'a fleet: N trucks on one floor in namespaces /agv1../agvN (0: one truck)'),
+    'set_down': ('', "a fleet's stop markers, one per truck, comma-separated (empty: parking)"),
+    'external_master': ('false', "a fleet's bridges wait for a master of your own"),
 }
 BROKER_PORT = 1883  # MQTT's own port: where a master control looks first
 
 
 def _nodes(context):
+    from dataclasses import replace
+    import tempfile
+
     from agv_nodes.graph.model import load_graph
     from agv_nodes.graph.parameters import (
         Options,
+        check_fleet,
         check_realtime,
         check_vda5050,
-        launched,
+        floor_parameters,
+        launch_units,
         node_parameters,
+        parameter_file_text,
         realtime_priority,
         truck_graph,
     )
@@ -64,10 +77,14 @@ def _nodes(context):
                       realtime=int(arg['realtime']),
                       params=Path(arg['params_file']) if arg['params_file'] else None,
                       layout=arg['layout'] or None, vda5050=arg['vda5050'] == 'true',
-                      mqtt_url=arg['mqtt_url'] or None, serial_number=arg['serial_number'])
+                      mqtt_url=arg['mqtt_url'] or None, serial_number=arg['serial_number'],
+                      trucks=int(arg['trucks']),
+                      set_down=[m for m in arg['set_down'].split(',') if m],
+                      external_master=arg['external_master'] == 'true')
     check_realtime(options)
     graph = truck_graph(graph, options)
     check_vda5050(graph, options)
+    check_fleet(graph, options)
     params_file = arg['params_file'] or str(graph.parameters)
     actions = []  # the broker, when this launch runs one, then the nodes
     if options.vda5050:
@@ -79,12 +96,17 @@ def _nodes(context):
             actions.append(ExecuteProcess(cmd=['python3', '-m', 'agv_nodes.mqtt.broker', '--port',
                                                str(BROKER_PORT)], name='mqtt_broker',
                                           output='screen'))
-    for spec in graph.nodes:
-        if not launched(spec, options):
-            continue
+    for _label, spec, namespace in launch_units(graph, options):
+        own = replace(options, namespace=namespace)
+        if options.trucks and spec.role == 'world':  # the floor's file: its nodes and theirs
+            with tempfile.NamedTemporaryFile('w', prefix='agv_floor_', suffix='.yaml',
+                                             delete=False) as floor:
+                floor.write(parameter_file_text(floor_parameters(graph, spec, own)))
+            params = floor.name
+        else:
+            params = node_parameters(graph, spec, own)
         actions.append(Node(package='agv_nodes', executable=spec.executable, name=spec.name,
-                          namespace=options.namespace,
-                          parameters=[params_file, node_parameters(graph, spec, options)],
+                          namespace=namespace, parameters=[params_file, params],
                           output='screen', respawn=arg['respawn'] == 'true' and
                           spec.role == 'node',
                           prefix=(f'chrt -f {realtime_priority(spec, options)}'

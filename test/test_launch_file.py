@@ -448,3 +448,33 @@ def test_vda5050_options_reach_the_bridge(monkeypatch):
             (Options(vda5050=True, layout='tape_1991'), 'concic2 truck')):
         with pytest.raises(GraphError, match=words):
             Launch(options)
+
+
+def test_launch_file_starts_a_fleet_as_agv_launch_does(launch_api, monkeypatch):
+    """trucks:=2: the same processes in the same namespaces, the floor's file for the world."""
+    from dataclasses import replace
+
+    from agv_nodes.graph.parameters import floor_parameters
+
+    monkeypatch.delenv('AGV_MQTT_URL', raising=False)
+    url = 'mqtt://10.0.0.5:1883'
+    actions = nodes_from_launch_file(trucks='2', vda5050='true', mqtt_url=url)
+    nodes = [a for a in actions if not isinstance(a, Process)]
+    options = Options(trucks=2, vda5050=True, mqtt_url=url)
+    launch = Launch(options)
+    try:
+        units = launch.units()
+        assert [(n.kwargs['name'], n.kwargs['namespace']) for n in nodes] == \
+            [(spec.name, ns) for _label, spec, ns in units]
+        graph = launch.graph
+        for node, (_label, spec, ns) in zip(nodes, units, strict=True):
+            params_file, params = node.kwargs['parameters']
+            own = replace(launch.o, namespace=ns)
+            if spec.role == 'world':  # a file with the floor's node and each truck's
+                assert yaml.safe_load(Path(params).read_text()) == \
+                    floor_parameters(graph, spec, own)
+                Path(params).unlink()
+            else:
+                assert params == node_parameters(graph, spec, own)
+    finally:
+        launch.stop()

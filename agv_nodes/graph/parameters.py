@@ -288,6 +288,22 @@ def floor_parameters(graph: Graph, spec: NodeSpec, options: Options,
     return out
 
 
+class _PlainDumper(yaml.SafeDumper):
+    """YAML without anchors and aliases (see parameter_file_text)."""
+
+    def ignore_aliases(self, data: object) -> bool:
+        return True
+
+
+def parameter_file_text(content: dict[str, object]) -> str:
+    """Return a ROS parameter file's text: YAML without anchors and aliases.
+
+    rcl's parameter file parser refuses them, and yaml writes them for any list that two
+    parameters share (a fleet's floor gives each truck's world the same lists).
+    """
+    return yaml.dump(content, Dumper=_PlainDumper)
+
+
 def serial_number(options: Options) -> str:
     """Return the bridge's serialNumber: --serial-number, else the namespace, else 'agv1'.
 
@@ -309,6 +325,24 @@ def launched(spec: NodeSpec, options: Options) -> bool:
                 or spec.role == 'bridge' and not options.vda5050
                 or spec.role == 'master' and not (options.trucks and options.vda5050
                                                   and not options.external_master))
+
+
+def launch_units(graph: Graph, options: Options) -> list[tuple[str, NodeSpec, str]]:
+    """Return the processes a launch starts, in order: (label, node, namespace).
+
+    `graph` is the truck's (truck_graph). One truck: each launched node once, labelled by its
+    name, in the namespace option. A fleet (`trucks`): the recorder and the world once, in the
+    root namespace (the world simulates every truck, agv_nodes.world.floor), the other nodes
+    once per truck in its namespace, labelled `agvK/name`; the master (the dispatcher) once.
+    """
+    specs = [n for n in graph.nodes if launched(n, options)]
+    if not options.trucks:
+        return [(spec.name, spec, options.namespace) for spec in specs]
+    shared = ('recorder', 'master', 'world')
+    return [(s.name, s, '') for s in specs if s.role == 'recorder'] + [
+        (f'{truck}/{s.name}', s, f'/{truck}') for truck in fleet_names(options)
+        for s in specs if s.role not in shared] + [
+        (s.name, s, '') for s in specs if s.role in ('master', 'world')]
 
 
 def check_vda5050(graph: Graph, options: Options) -> None:

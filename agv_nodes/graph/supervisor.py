@@ -31,35 +31,23 @@ import threading
 import time
 from typing import TextIO
 
-import yaml
-
 from agv_nodes.graph.model import GraphError, NodeSpec, load_graph
 from agv_nodes.graph.parameters import (
     Options,
     check_fleet,
     check_realtime,
     check_vda5050,
-    fleet_names,
     floor_parameters,
+    launch_units,
     launched,
     override_parameters,
+    parameter_file_text,
     realtime_priority,
     silent_records,
     truck_graph,
 )
 
 CHILD = 'agv_nodes.graph.child'
-
-
-class _PlainDumper(yaml.SafeDumper):
-    """YAML without anchors and aliases.
-
-    rcl's parameter file parser refuses them, and yaml writes them for any list that two
-    parameters share.
-    """
-
-    def ignore_aliases(self, data: object) -> bool:
-        return True
 
 
 def claim_domain(explicit: int | None = None) -> tuple[int, TextIO | None]:
@@ -173,22 +161,8 @@ class Launch:
         return [n for n in self.graph.nodes if launched(n, self.o)]
 
     def units(self) -> list[tuple[str, NodeSpec, str]]:
-        """Return the processes to start, in order: (label, node, namespace).
-
-        One truck: each node once, labelled by its name, in --namespace. A fleet (--trucks N):
-        the recorder and the world once, in the root namespace (the world simulates every
-        truck, agv_nodes.world.floor), the other nodes once per truck in its namespace,
-        labelled `agvK/name`; the master (the dispatcher) once, in the root namespace.
-        """
-        if not self.o.trucks:
-            return [(spec.name, spec, self.o.namespace) for spec in self.specs()]
-        shared = ('recorder', 'master', 'world')
-        first = [s for s in self.specs() if s.role == 'recorder']
-        per_truck = [s for s in self.specs() if s.role not in shared]
-        last = [s for s in self.specs() if s.role in ('master', 'world')]
-        return [(s.name, s, '') for s in first] + [
-            (f'{truck}/{s.name}', s, f'/{truck}') for truck in fleet_names(self.o)
-            for s in per_truck] + [(s.name, s, '') for s in last]
+        """Return the processes to start, in order: (label, node, namespace) (launch_units)."""
+        return launch_units(self.graph, self.o)
 
     def command(self, spec: NodeSpec, namespace: str | None = None,
                 label: str | None = None) -> list[str]:
@@ -206,7 +180,7 @@ class Launch:
         else:
             content = {f'/**/{spec.name}': {'ros__parameters': (
                 override_parameters(self.graph, spec, options, self.ready_file))}}
-        overrides.write_text(yaml.dump(content, Dumper=_PlainDumper))
+        overrides.write_text(parameter_file_text(content))
         return cmd + ['--params-file', str(self.params), '--params-file', str(overrides)]
 
     def _pump(self, name: str, stream) -> None:
