@@ -53,12 +53,12 @@ def broker_url(explicit: str | None) -> str | None:
     return format_mqtt_url(host, port)
 
 
-def _broker_config(port: int) -> dict[str, Any]:
+def _broker_config(host: str, port: int) -> dict[str, Any]:
     # Plugins listed explicitly replace amqtt's defaults (a $SYS publisher, event and packet
     # loggers); no persistence plugin either (amqtt's writes amqtt.db into the cwd). Anonymous
     # clients must be allowed by a plugin: with none, amqtt refuses every CONNECT.
     return {
-        'listeners': {_LISTENER: {'type': 'tcp', 'bind': f'{HOST}:{port}'}},
+        'listeners': {_LISTENER: {'type': 'tcp', 'bind': f'{host}:{port}'}},
         'plugins': {'amqtt.plugins.authentication.AnonymousAuthPlugin':
                     {'allow_anonymous': True}},
     }
@@ -82,7 +82,13 @@ class EmbeddedBroker:
     """
 
     def __init__(self, port: int = 0, start_timeout_s: float = 10.0,
-                 stop_timeout_s: float = 15.0) -> None:
+                 stop_timeout_s: float = 15.0, host: str = HOST) -> None:
+        """Listen on `host` and `port` (0: a free one).
+
+        `host` 127.0.0.1 serves this machine only; an interface's address serves a fleet whose
+        trucks are on other hosts.
+        """
+        self.host = host
         self._requested_port = port
         self._start_timeout_s = start_timeout_s
         self._stop_timeout_s = stop_timeout_s
@@ -96,10 +102,10 @@ class EmbeddedBroker:
 
     @property
     def url(self) -> str:
-        """mqtt://127.0.0.1:PORT of the running broker."""
+        """mqtt://HOST:PORT of the running broker."""
         if self.port is None:
             raise RuntimeError('the embedded MQTT broker is not running')
-        return format_mqtt_url(HOST, self.port)
+        return format_mqtt_url(self.host, self.port)
 
     def start(self) -> str:
         """Start amqtt, wait until its port listens and return its URL.
@@ -115,7 +121,7 @@ class EmbeddedBroker:
         self._ready.clear()
         self._stopping = False
         self._error = None
-        where = f'{HOST}:{self._requested_port or "<any free port>"}'
+        where = f'{self.host}:{self._requested_port or "<any free port>"}'
         self._thread = threading.Thread(target=self._run, name='mqtt-broker', daemon=True)
         self._thread.start()
         if not self._ready.wait(self._start_timeout_s):
@@ -185,7 +191,8 @@ class EmbeddedBroker:
 
     async def _serve(self) -> None:
         self._stop_request = asyncio.Event()
-        broker = Broker(_broker_config(self._requested_port), loop=asyncio.get_running_loop())
+        broker = Broker(_broker_config(self.host, self._requested_port),
+                        loop=asyncio.get_running_loop())
         try:
             await broker.start()
         except Exception as exc:  # amqtt wraps a bind error in BrokerError
@@ -252,6 +259,9 @@ def main(argv: list[str] | None = None) -> int:
                     'prints mqtt://127.0.0.1:PORT when ready.')
     parser.add_argument('--port', type=int, default=0,
                         help='port to listen on (default: a free one)')
+    parser.add_argument('--host', default=HOST,
+                        help='address to listen on (default 127.0.0.1: this machine only; an '
+                        "interface's address for trucks on other hosts)")
     args = parser.parse_args(argv)
     if not 0 <= args.port <= 65535:
         parser.error(f'--port {args.port}: give 0 (any free port) or 1-65535')
@@ -265,7 +275,7 @@ def main(argv: list[str] | None = None) -> int:
 
     signal.signal(signal.SIGINT, request_stop)
     signal.signal(signal.SIGTERM, request_stop)
-    broker = EmbeddedBroker(port=args.port)
+    broker = EmbeddedBroker(port=args.port, host=args.host)
     try:
         url = broker.start()
     except RuntimeError as exc:
