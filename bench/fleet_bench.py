@@ -4,10 +4,11 @@ Each truck is a whole lock-step truck (world core and seven node cores) on demo_
 the dispatcher through its VDA 5050 bridge core (agv_nodes.fleet.bridged). Two loads go round:
 A between W0 and W2, B between W1 and W3; the next transfer of a load is submitted when its last
 one is done, so every transfer is possible whatever the order the trucks finish in. The
-trucks start at stop markers (initPosition). demo_1983 has room for two: W0.1 and W2.2 are
-the stop markers a truck can be set down at and leave along the route map (W2.1 is 1.2 m from
-W2.2, closer than a truck's length; a truck set down at W1.1 or W3.1 does not know to leave by
-the SRM), so three trucks wait for a fleet layout.
+trucks start at stop markers, W2.2, W0.1 and W1.1, told so by initPosition (the bridge sends
+the truck the task `at N first|second`, so the truck at W1.1 leaves by L1's SRM). demo_1983
+has room for three: four trucks (the fourth at W3.1) would hold all four of its blocks, and on
+the one-way loop none could enter the next (test_fleet_bridged.py shows the watchdog report
+that deadlock); W2.1 is 1.2 m from W2.2, closer than a truck's length.
 
 Run: .venv/bin/python bench/fleet_bench.py [--seconds 900] [--trucks 1 2 3]
 Prints a Markdown table (bench/results/fleet_bench.md).
@@ -25,7 +26,7 @@ from agv_nodes.fleet.lockstep import Fleet
 from agv_nodes.fleet.track_graph import track_graph
 from agv_nodes.world.layout import layout_path, load_layout
 
-POSITIONS = ('W2.2', 'W0.1')  # where trucks 1 and 2 are set down
+POSITIONS = ('W2.2', 'W0.1', 'W1.1')  # where trucks 1, 2 and 3 are set down
 LOADS = {'A': ('W0', 'W2'), 'B': ('W1', 'W3')}  # each load's two stations, where it starts first
 
 
@@ -93,7 +94,7 @@ def main() -> None:
     """Print the table."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--seconds', type=float, default=900.0, help='simulated s per fleet size')
-    ap.add_argument('--trucks', type=int, nargs='+', default=[1, 2],
+    ap.add_argument('--trucks', type=int, nargs='+', default=[1, 2, 3],
                     choices=range(1, len(POSITIONS) + 1))
     args = ap.parse_args()
     print(f'Fleet in lock step on demo_1983, {args.seconds:g} s simulated per row; loads A '

@@ -2,12 +2,16 @@
 
 The master here is a script: it sends each truck one order when the truck first reports, and
 the test reads what the trucks answer. Without traffic control two trucks sent to one stop
-collide, and the master hears it as each truck's failed task.
+collide, and the master hears it as each truck's failed task. With the dispatcher as master,
+trucks set down at stop markers and told so by initPosition (which sends the truck the `at`
+task) run transfers without a collision: two, and three with one set down at W1.1, which
+leaves by L1's SRM; four fill demo_1983's four blocks, and the watchdog reports the deadlock.
 """
 
 from __future__ import annotations
 
 from itertools import pairwise
+from typing import Any
 
 import pytest
 
@@ -114,3 +118,82 @@ def test_the_dispatcher_runs_two_trucks_through_three_transfers_without_a_collis
     assert fleet.station_loads == {'W0': 1, 'W1': 0, 'W2': 0, 'W3': 1}
     moved = sum(e['event'] == 'load_moved' for h in fleet.trucks.values() for e in h.events)
     assert moved == 6
+
+
+def _dispatched(positions: dict[str, str]) -> tuple[Fleet, Any, BridgedFleet, list]:
+    """Trucks set down at `positions` (told by initPosition), the dispatcher as their master."""
+    from agv_nodes.fleet.dispatcher import Dispatcher
+    from agv_nodes.fleet.track_graph import track_graph
+    from agv_nodes.world.layout import layout_path, load_layout
+
+    lay = load_layout(layout_path('demo_1983'))
+    at = {m.name: (m.path, m.at) for m in lay.markers}
+    fleet = Fleet('demo_1983', [at[node] for node in positions.values()], names=list(positions))
+    graph = track_graph(lay)
+    dispatcher = Dispatcher(graph, fleet.names, positions=positions)
+    seen: list[tuple[str, State]] = []
+    record = dispatcher.on_state
+
+    def on_state(truck: str, state: State, now: float) -> None:
+        seen.append((truck, state))
+        record(truck, state, now)
+
+    dispatcher.on_state = on_state  # every state the trucks sent, for the checks
+    return fleet, dispatcher, BridgedFleet(fleet, dispatcher, graph=graph), seen
+
+
+@pytest.mark.timeout(900)
+def test_the_dispatcher_runs_three_trucks_one_set_down_at_w1_1_through_four_transfers():
+    """Three trucks, one at W1.1: told by initPosition (the `at` task), it leaves by L1's SRM.
+
+    Loads A (W0 -> W2 -> W0) and B (W1 -> W3 -> W1): a load's way back is submitted once its
+    way there is done, so each transfer finds its load.
+    """
+    from agv_nodes.fleet.dispatcher import TransportOrder
+
+    positions = {'agv1': 'W2.2', 'agv2': 'W0.1', 'agv3': 'W1.1'}
+    fleet, dispatcher, run, seen = _dispatched(positions)
+    back = {'t1': ('t3', 'W2', 'W0'), 't2': ('t4', 'W3', 'W1')}
+    dispatcher.submit(TransportOrder('t1', 'W0', 'W2'))
+    dispatcher.submit(TransportOrder('t2', 'W1', 'W3'))
+
+    def over() -> bool:
+        for done in [t for t in back if t in dispatcher.done]:
+            dispatcher.submit(TransportOrder(*back.pop(done)))
+        return len(dispatcher.done) + len(dispatcher.failed) == 4 or bool(fleet.collisions)
+
+    assert run.run(900.0, until=over), run.summary()
+    assert sorted(dispatcher.done) == ['t1', 't2', 't3', 't4'] and dispatcher.failed == []
+    assert fleet.collisions == [] and dispatcher.conflicts == [] and dispatcher.deadlocks == []
+    assert not [(t, e.error_type) for t, s in seen for e in s.errors]
+    # every truck was told where it stands, and took it
+    for name, node in positions.items():
+        n = node[1]
+        told = [r for r in fleet.reports(name) if r.startswith("task 1 'at ")]
+        assert told and told[-1].endswith(f'completed [last marker L{n}]'), told
+    # both loads went there and back
+    assert fleet.station_loads == {'W0': 1, 'W1': 1, 'W2': 0, 'W3': 0}
+    moved = sum(e['event'] == 'load_moved' for h in fleet.trucks.values() for e in h.events)
+    assert moved == 8
+
+
+def test_a_fourth_truck_at_w3_1_fills_every_block_and_the_watchdog_reports_the_deadlock():
+    """demo_1983 has four blocks; four trucks hold all of them and none can enter the next.
+
+    Traffic control admits one truck a block (docs/fleet.md), and on the one-way loop every
+    way out of a block is into the next: with every block held, nothing can move. The trucks
+    stand still, told where they are, and the dispatcher's watchdog names the cycle.
+    """
+    from agv_nodes.fleet.dispatcher import TransportOrder
+
+    positions = {'agv1': 'W2.2', 'agv2': 'W0.1', 'agv3': 'W1.1', 'agv4': 'W3.1'}
+    fleet, dispatcher, run, _seen = _dispatched(positions)
+    dispatcher.submit(TransportOrder('t1', 'W0', 'W2'))
+    assert run.run(20.0, until=lambda: bool(dispatcher.deadlocks)), run.summary()
+    run.run(5.0)
+    (cycle,) = dispatcher.deadlocks
+    assert sorted(cycle) == sorted(positions)
+    assert fleet.collisions == [] and dispatcher.done == []
+    for name, node in positions.items():
+        assert run.states[name].last_node_id == node and not run.states[name].driving
+        assert any(r.startswith("task 1 'at ") and 'completed' in r for r in fleet.reports(name))

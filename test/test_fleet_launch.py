@@ -16,7 +16,7 @@ from agv_nodes.graph.supervisor import Launch
 
 
 @pytest.mark.parametrize('options, words', [
-    (Options(trucks=3), "layout 'demo_1983' parking names 2 stop markers (W2.2, W0.1)"),
+    (Options(trucks=4), "layout 'demo_1983' parking names 3 stop markers (W2.2, W0.1, W1.1)"),
     (Options(trucks=2, set_down=['W2.2']), '--set-down names 1 stop markers'),
     (Options(trucks=1, set_down=['L0']), "no stop marker 'L0' in layout 'demo_1983'"),
     (Options(trucks=2, namespace='/x'), 'with --namespace'),

@@ -32,7 +32,7 @@ BIN = Path(PYTHON).parent
     ('world', 'time_factor', '-2.0', 'outside 0.0..1000.0'),
     ('world', 'pace_on', "['adc_snapshot']", 'unknown parameter'),
     ('world', 'trucks', "['agv1', 'agv1']", 'named twice'),
-    ('world', 'trucks', "['agv1', 'agv2', 'agv3']", '3 trucks need a stop marker each'),
+    ('world', 'trucks', "['agv1', 'agv2', 'agv3', 'agv4']", '4 trucks need a stop marker each'),
     ('world', 'set_down', "['L0']", "'L0' is no stop marker of layout demo_1983"),
     ('recorder', 'bag', str(REPO), 'exists already'),
 ])

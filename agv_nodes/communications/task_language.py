@@ -3,8 +3,9 @@
 Syntax only, as communications passes tasks on without interpreting them (Baker 1983, 3.5.3):
 the 1983 tasks of 7.2 and fig 3.1, and the 1991 camera truck's tape legs with their junction
 scripts and law (Rajagopalan 1991, App. F.5-F.7) and its dead-reckoning legs along a stored
-trajectory (App. F.9). A text that does not parse raises TaskError naming the
-column and the reason.
+trajectory (App. F.9). `at N [first|second]` is a modern addition: it tells a truck set down by
+hand (or by a fleet, VDA 5050 initPosition) at which stop marker it stands. A text that does
+not parse raises TaskError naming the column and the reason.
 """
 
 from dataclasses import dataclass, field
@@ -121,7 +122,7 @@ def parse_task(text: str, locations: tuple[int, ...] = (0, 1, 2, 3)) -> Task:
     """Parse one task of the task language (TaskError on anything else)."""
     t = _Tokens(text)
     verb = t.peek()
-    verbs = ('load', 'unload', 'wait', 'stop', 'srm', 'leave', 'tape', 'reckon', 'abort',
+    verbs = ('load', 'unload', 'wait', 'stop', 'srm', 'leave', 'at', 'tape', 'reckon', 'abort',
              'status')
     if verb not in verbs:
         what = 'empty task' if verb is None else f'unknown task {verb!r}'
@@ -152,6 +153,10 @@ def parse_task(text: str, locations: tuple[int, ...] = (0, 1, 2, 3)) -> Task:
         if destination == source:
             raise TaskError(text, t.items[t.i - 1][1], 'destination equals the source')
         task = Task(text, 'transfer', location=source, destination=destination, load_name=name)
+    elif verb == 'at':  # at N [first|second]: where the truck stands (modern)
+        task = Task(text, 'at', location=location())
+        if t.peek() in ('first', 'second'):
+            task.marker = t.take()
     elif verb in ('srm', 'leave'):
         if verb == 'leave':
             t.take('wire')

@@ -12,6 +12,8 @@ becomes an itinerary (fig 3.1, level 2) of steps, each run through the records (
 
 At each location marker reported the route map decides continue or SRM (the demo floor needs one at
 L1 and L3 every lap); wire changes run at `srm_demand`, slow until the next landmark (thesis 7.2).
+An `at` task (agv_nodes.executive.set_down; modern) runs no itinerary: it tells a truck set down
+by hand at which stop marker it stands, so that it leaves there as from a stop of its own.
 Traction's byte 2 stays non-zero while navigation positions the truck. Faults - wire or marker
 sensor lost, a stale status, over `reject_limit` rejected records in a second, a sub-system fault
 (traction tripped, radio stop, load failed) or restart (its status from a new writer: whatever it
@@ -28,6 +30,7 @@ from typing import Any
 
 from agv_nodes.executive.faults import SUBSYSTEM_OF, SUBSYSTEMS, FaultSupervision
 from agv_nodes.executive.itinerary import NO_TASK, Step, itinerary
+from agv_nodes.executive.set_down import SetDown
 from agv_nodes.executive.settings import ExecutiveParams, parse_srm_map
 from agv_nodes.executive.tape_legs import TapeLegs
 from agv_nodes.subsystem import SubsystemCore
@@ -37,7 +40,7 @@ TAPE_STEPS = ('tape', 'tape_reverse', 'reckon')
 CAMERA_OPS = ('tape', 'reckon')  # the camera truck's tasks
 
 
-class ExecutiveCore(FaultSupervision, SubsystemCore):
+class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
     """See the module docstring."""
 
     node, settings_type, period_setting = 'executive', ExecutiveParams, 'period'
@@ -77,6 +80,7 @@ class ExecutiveCore(FaultSupervision, SubsystemCore):
         self._srm_at: int | None = None
         self._srm_manoeuvre = 0
         self.stopped_at: int | None = None  # the location the truck last stopped at
+        self.stop_marker: int | None = None  # and its stop marker there (0 first, 1 second)
         self.distance = 0.0  # m travelled in the current step (from traction's speed)
         self.distance_since_landmark = 0.0
         self.positioning_distance = 0.0
@@ -134,10 +138,13 @@ class ExecutiveCore(FaultSupervision, SubsystemCore):
             self.report = {'state': 'completed', 'cause': 'none', 'subsystem': 'none'}
             self._log(now, f'task {self.task_id}: abort')
             return
+        foreign = (fields['op'] in CAMERA_OPS) != self.camera
+        if fields['op'] == 'at' and not foreign:  # where the truck stands (modern: set_down)
+            return self._set_down(fields, now)
         steps = itinerary(fields)
-        if not steps or (fields['op'] in CAMERA_OPS) != self.camera:
+        if not steps or foreign:
             self.report = {'state': 'rejected', 'cause': 'bad_task', 'subsystem': 'none'}
-            why = 'no itinerary' if not steps else \
+            why = 'no itinerary' if not foreign else \
                 f'a {fields["op"]} task, on a truck with {self.p.guidance} guidance'
             self._log(now, f'task {self.task_id}: rejected ({why})')
             return
@@ -197,7 +204,7 @@ class ExecutiveCore(FaultSupervision, SubsystemCore):
         self.report = {'state': 'running', 'cause': 'none', 'subsystem': 'none'}
         if step.kind in ('goto', 'srm', 'continue'):
             self.demand = self.p.cruise_demand
-            departing, self.stopped_at = self.stopped_at, None
+            departing, self.stopped_at, self.stop_marker = self.stopped_at, None, None
             if departing is not None and (departing in self.srm_map or (
                     step.kind == 'srm' and step.location == departing)):
                 # Stopped at an SRM location's workstation: the manoeuvre starts on departure.
@@ -234,7 +241,7 @@ class ExecutiveCore(FaultSupervision, SubsystemCore):
     def _advance(self, now: float) -> None:
         step = self.step
         if step is not None and step.kind in ('goto', 'next_marker'):
-            self.stopped_at = step.location
+            self.stopped_at, self.stop_marker = step.location, step.edge
         self.index += 1
         if self.index >= len(self.steps):
             last = self.steps[-1].kind

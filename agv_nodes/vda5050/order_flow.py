@@ -35,8 +35,9 @@ The mapping:
   task fails the rest of the order and clears its nodes; an `abort` then drops the tasks
   already queued, which the truck would otherwise go on with.
 - Instant actions (6.9): cancelOrder sends `abort` and is RUNNING until the abort task has
-  ended (6.6.3); stateRequest and factsheetRequest ask the bridge to publish; the truck has no
-  pause (startPause and stopPause FAIL); any other type FAILS with an error.
+  ended (6.6.3); initPosition at a stop marker sets lastNodeId and tells the truck by the task
+  `at N M` (docs/tasks.md); stateRequest and factsheetRequest ask the bridge to publish; the
+  truck has no pause (startPause and stopPause FAIL); any other type FAILS with an error.
 
 The truck stops at the decision point even when an update extends the base in time: its
 stop task is on the truck by then, and a task cannot be taken back.
@@ -59,18 +60,23 @@ from agv_nodes.vda5050.order_tasks import (
     NO_ROUTE_ERROR,
     ORDER_ERROR,
     ORDER_UPDATE_ERROR,
-    TASK_FAILED,
     TASK_STATES,
     AbortTask,
     Outcome,
+    PositionTask,
+    Sent,
     StopPoint,
     action_state,
     check_order,
     edge_state,
+    init_position_node,
     make_error,
     node_state,
     order_references,
+    position_refused,
+    position_text,
     stop_points,
+    task_failed_error,
 )
 from agv_nodes.vda5050.state import ActionState, ActionStatus, Error, ErrorLevel
 
@@ -92,8 +98,8 @@ class OrderFlow:
         self._actions: dict[str, ActionState] = {}  # order and instant actions, as received
         self._instant: set[str] = set()  # which of them are instant actions
         self._stops: list[StopPoint] = []  # the order's stop points not yet done
-        self._sent: deque[tuple[str, StopPoint | AbortTask]] = deque()  # sent, not yet queued
-        self._tasks: dict[int, StopPoint | AbortTask] = {}  # by the truck's task id
+        self._sent: deque[tuple[str, Sent]] = deque()  # sent, not yet queued
+        self._tasks: dict[int, Sent] = {}  # by the truck's task id
         self._base_end: tuple[str, int] | None = None  # the decision point (6.6.2)
         self._base_end_passed = True  # False: it is the start node, not reached yet
         self._marker: int | None = None  # the last location marker the truck reported
@@ -266,11 +272,12 @@ class OrderFlow:
 
         The truck knows where it is only by the markers it passes: a truck set down at a stop
         marker (a fleet's second truck, or one moved by hand) learns it this way. Only a stop
-        marker, where a truck can stand, and not while an order runs.
+        marker, where a truck can stand, and not while an order runs. The bridge takes it at
+        once (lastNodeId; FINISHED) and tells the truck by the task `at N M`, so that it leaves
+        as from a stop of its own (from W1.1 or W3.1 of demo_1983 by the location's SRM); a
+        refusal (moving, a task running) makes it FAILED after all (_instant_ended).
         """
-        node = next((str(p.value) for p in action.action_parameters or []
-                     if p.key == 'lastNodeId'), '')
-        why = ''
+        node, why = init_position_node(action), ''
         if self._order_active():
             why = f'order {self.order_id} is active: the truck is where it drives'
         elif node not in self.graph.nodes or not self.graph.nodes[node].stoppable:
@@ -280,7 +287,11 @@ class OrderFlow:
             state.result_description = why
             out.errors.append(make_error(INSTANT_ACTION_ERROR, f'initPosition: {why}', refs))
             return
+        before = (self.last_node_id, self.last_node_sequence_id)
         self.last_node_id, self.last_node_sequence_id = node, 0
+        text = position_text(self.graph.nodes[node])
+        self._sent.append((text, PositionTask(action.action_id, node, before)))
+        out.tasks.append(text)
 
     def _stop_order(self, why: str) -> bool:
         """End the order where the truck is: its unfinished actions FAILED, no nodes left."""
@@ -336,14 +347,10 @@ class OrderFlow:
         driving = state == 'running' and step == 0 and isinstance(target, StopPoint)
         out.publish_state = driving != self.driving
         self.driving = driving
-        if isinstance(target, AbortTask):
+        if not isinstance(target, StopPoint):
             if state in ('completed', 'FAILED', 'rejected') and not target.done:
                 target.done = True
-                cancel = self._actions.get(target.action_id or '')
-                if cancel is not None:  # 6.6.3: FINISHED once the truck stands still
-                    cancel.action_status = ActionStatus.FINISHED if state != 'rejected' \
-                        else ActionStatus.FAILED
-                    out.publish_state = True
+                out.publish_state |= self._instant_ended(target, task_id, state, cause)
             return out
         if not any(s is target for s in self._stops):
             return out  # a task of an order that has ended
@@ -361,6 +368,30 @@ class OrderFlow:
             out.tasks = self._fail(target, task_id, state, cause)
             out.publish_state = True
         return out
+
+    def _instant_ended(self, task: AbortTask | PositionTask, task_id: int, state: str,
+                       cause: str) -> bool:
+        """Take the end of an instant action's task; return True when the state changed.
+
+        An abort ends its cancelOrder (6.6.3: FINISHED once the truck stands still); an `at`
+        task the truck refused fails its initPosition and takes lastNodeId back.
+        """
+        action = self._actions.get(task.action_id or '')
+        if isinstance(task, AbortTask):
+            if action is not None:
+                action.action_status = ActionStatus.FINISHED if state != 'rejected' \
+                    else ActionStatus.FAILED
+            return action is not None
+        if state == 'completed':
+            return False  # the truck knows now what the bridge took at once
+        error = position_refused(task, task_id, state, cause)
+        if action is not None:
+            action.action_status = ActionStatus.FAILED
+            action.result_description = error.error_description
+        if self.last_node_id == task.node_id and not self._order_active():
+            self.last_node_id, self.last_node_sequence_id = task.before
+        self.errors.append(error)
+        return True
 
     def _passed_marker(self, marker: int, stop: StopPoint) -> bool:
         """Clear the nodes up to location `marker`, passed on the way to `stop`."""
@@ -398,15 +429,8 @@ class OrderFlow:
     def _fail(self, stop: StopPoint, task_id: int, state: str, cause: str) -> list[str]:
         """Stop the order at a failed or rejected task; return the tasks to send."""
         words = f'{state}: {cause}' if cause else state
-        refs = [('orderId', self.order_id), ('orderUpdateId', str(self.order_update_id)),
-                ('nodeId', stop.node_id), ('sequenceId', str(stop.sequence_id)),
-                ('taskId', str(task_id))]
-        if stop.action:
-            refs.append(('actionId', stop.action.action_id))
-        error = make_error(TASK_FAILED, f'task {task_id} {stop.text!r} to {stop.node_id}: '
-                           f'{words}; the truck stopped and the order with it: a new order is '
-                           'needed', refs)
-        self.errors.append(error)
+        self.errors.append(task_failed_error(stop, task_id, words, self.order_id,
+                                             self.order_update_id))
         self._set_action(stop, ActionStatus.FAILED, words)
         stop.done = True
         later = self._stop_order(f'the order stopped: task {task_id} {words}')

@@ -83,15 +83,52 @@ def _wait_seconds(action: Action) -> int | None:
     return int(value) if 0 <= value <= WAIT_MAX else None
 
 
+def _marker(node: TrackNode) -> str:
+    """Return the task language's word for stop marker `node`: first or second."""
+    return 'second' if node.conveyor == 1 else 'first'
+
+
 def task_text(node: TrackNode, action: Action | None) -> str:
     """Return the task that drives to stop marker `node` and carries out `action` there."""
-    marker = 'second' if node.conveyor == 1 else 'first'
+    marker = _marker(node)
     if action is None:
         return f'stop at {node.location} {marker}'
     verb = TASK_VERBS[action.action_type]
     if verb == 'wait':
         return f'wait at {node.location} for {_wait_seconds(action)} s {marker}'
     return f'{verb} at {node.location} {marker}'
+
+
+def position_text(node: TrackNode) -> str:
+    """Return the task that tells the truck it stands at stop marker `node` (initPosition)."""
+    return f'at {node.location} {_marker(node)}'
+
+
+def init_position_node(action: Action) -> str:
+    """Return initPosition's parameter lastNodeId ('' without one)."""
+    return next((str(p.value) for p in action.action_parameters or []
+                 if p.key == 'lastNodeId'), '')
+
+
+def position_refused(task: PositionTask, task_id: int, state: str, cause: str) -> Error:
+    """Return the instantActionError of an initPosition whose `at` task the truck refused."""
+    words = f'{state}: {cause}' if cause else state
+    return make_error(INSTANT_ACTION_ERROR, f'initPosition: the truck refused task {task_id} '
+                      f'(at {task.node_id}): {words}; it does not know where it stands',
+                      [('actionId', task.action_id), ('actionType', 'initPosition'),
+                       ('taskId', str(task_id))])
+
+
+def task_failed_error(stop: StopPoint, task_id: int, words: str, order_id: str,
+                      order_update_id: int) -> Error:
+    """Return the taskFailed error of the task to `stop` (`words`: its state and cause)."""
+    refs = [('orderId', order_id), ('orderUpdateId', str(order_update_id)),
+            ('nodeId', stop.node_id), ('sequenceId', str(stop.sequence_id)),
+            ('taskId', str(task_id))]
+    if stop.action:
+        refs.append(('actionId', stop.action.action_id))
+    return make_error(TASK_FAILED, f'task {task_id} {stop.text!r} to {stop.node_id}: {words}; '
+                      'the truck stopped and the order with it: a new order is needed', refs)
 
 
 def check_order(order: Order, graph: TrackGraph, *, update: bool) -> list[Error]:
@@ -322,6 +359,19 @@ class AbortTask:
 
     action_id: str | None
     done: bool = False
+
+
+@dataclass(eq=False)
+class PositionTask:
+    """The `at` task the flow sent for an initPosition (its actionId): where the truck stands."""
+
+    action_id: str
+    node_id: str
+    before: tuple[str, int]  # lastNodeId and lastNodeSequenceId before the initPosition
+    done: bool = False
+
+
+Sent = StopPoint | AbortTask | PositionTask  # what a task the flow sent is for
 
 
 def action_state(action: Action, status: ActionStatus) -> ActionState:
