@@ -199,6 +199,11 @@ class RecordSubscription(RecordReader):
             self._callback(fields)
 
 
+# /diagnostics levels as the ints diagnostic_status takes (DiagnosticStatus has them as bytes)
+OK, WARN, ERROR = (int.from_bytes(level) for level in (DiagnosticStatus.OK, DiagnosticStatus.WARN,
+                                                        DiagnosticStatus.ERROR))
+
+
 def diagnostic_status(node: Node, label: str, level: int, message: str, hardware_id: str,
                       values: Mapping[str, str]) -> DiagnosticStatus:
     """One /diagnostics row named `agv[/ns]/<label>` (the name agv-diag and the tests read)."""

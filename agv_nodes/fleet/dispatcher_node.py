@@ -27,12 +27,11 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Collection, Sequence
-import os
 import sys
 import time
 from typing import Any
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from std_msgs.msg import String
@@ -40,17 +39,14 @@ from std_msgs.msg import String
 from agv_nodes import qos
 from agv_nodes.fleet.dispatcher import Dispatcher
 from agv_nodes.fleet.mqtt_master import MqttMaster
-from agv_nodes.fleet.track_graph import track_graph
-from agv_nodes.mqtt.client import MqttLink, parse_mqtt_url
+from agv_nodes.mqtt.client import MqttLink
 from agv_nodes.node_process import spin_main
 from agv_nodes.params import declare, parameter_error, refuse_unknown
-from agv_nodes.ros_ports import diagnostic_status
+from agv_nodes.ros_ports import ERROR, OK, WARN, diagnostic_status
 from agv_nodes.settings import SettingError, settings_class
+from agv_nodes.vda5050.link_parameters import broker_parameter, graph_parameter
 from agv_nodes.vda5050.topics import topic
-from agv_nodes.world.layout import LayoutError, layout_path, load_layout
 
-OK, WARN, ERROR = (int.from_bytes(level) for level in (DiagnosticStatus.OK, DiagnosticStatus.WARN,
-                                                        DiagnosticStatus.ERROR))
 # A query, not a transport: answered with one line of counts and changing nothing, so a program
 # that starts with the node asks it until answered, which proves both directions of the topics
 # (a writer's first messages before the reader matched it back are lost).
@@ -117,18 +113,8 @@ class DispatcherNode(Node):
         super().__init__('dispatcher')
         s = declare(self, DispatcherSettings)
         refuse_unknown(self)
-        url = s.mqtt_url or os.environ.get('AGV_MQTT_URL', '')
-        if not url:
-            raise parameter_error(self, 'mqtt_url', s.mqtt_url, 'empty and AGV_MQTT_URL unset: '
-                                  'no broker to connect to')
-        try:
-            parse_mqtt_url(url)
-        except ValueError as exc:
-            raise parameter_error(self, 'mqtt_url', url, str(exc)) from None
-        try:
-            graph = track_graph(load_layout(layout_path(s.layout)))
-        except (LayoutError, OSError) as exc:
-            raise parameter_error(self, 'layout', s.layout, str(exc)) from None
+        url = broker_parameter(self, s.mqtt_url)
+        graph = graph_parameter(self, s.layout)
         stops = {n.id for n in graph.nodes.values() if n.stoppable}
         try:
             positions, parking = (truck_map(name, getattr(s, name), s.trucks, stops)

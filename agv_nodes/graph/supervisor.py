@@ -184,7 +184,7 @@ class Launch:
         return cmd + ['--params-file', str(self.params), '--params-file', str(overrides)]
 
     def _pump(self, name: str, stream) -> None:
-        width = max(len(label) for label, _s, _n in self.units())
+        width = max(len(label) for label in self._units)
         log = self._logs.get(name)
         for raw in stream:
             line = raw.rstrip('\n')

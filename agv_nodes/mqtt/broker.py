@@ -25,10 +25,9 @@ from typing import Any
 
 from amqtt.broker import Broker
 
-from agv_nodes.mqtt.client import format_mqtt_url, parse_mqtt_url
+from agv_nodes.mqtt.client import ENV_URL, format_mqtt_url, parse_mqtt_url
 
 HOST = '127.0.0.1'
-ENV_URL = 'AGV_MQTT_URL'
 _LISTENER = 'default'
 _log = logging.getLogger(__name__)
 

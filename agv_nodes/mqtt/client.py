@@ -26,6 +26,7 @@ from paho.mqtt.client import Client, MQTTv311, topic_matches_sub
 from paho.mqtt.enums import CallbackAPIVersion, MQTTErrorCode
 
 DEFAULT_PORT = 1883
+ENV_URL = 'AGV_MQTT_URL'  # the broker a node or launch uses when none is named
 _URL_FORM = 'expected mqtt://host[:port]'
 _log = logging.getLogger(__name__)
 

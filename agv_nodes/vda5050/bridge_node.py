@@ -16,32 +16,28 @@ the invalid ones (WARN while the last message was invalid, ERROR while the broke
 from __future__ import annotations
 
 from collections import deque
-import os
 import sys
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from std_msgs.msg import String
 
 from agv_nodes import qos
-from agv_nodes.fleet.track_graph import track_graph
 from agv_nodes.mqtt.client import LastWill, MqttLink
 from agv_nodes.node_process import spin_main
-from agv_nodes.params import declare, parameter_error, refuse_unknown
-from agv_nodes.ros_ports import diagnostic_status
+from agv_nodes.params import declare, refuse_unknown
+from agv_nodes.ros_ports import ERROR, OK, WARN, diagnostic_status
 from agv_nodes.settings import settings_class
 from agv_nodes.vda5050.bridge import INBOUND, BridgeCore, Outbox
 from agv_nodes.vda5050.codec import to_json
 from agv_nodes.vda5050.connection import ConnectionState
+from agv_nodes.vda5050.link_parameters import broker_parameter, graph_parameter
 from agv_nodes.vda5050.topics import TOPICS, topic
 from agv_nodes.vda5050.truck_factsheet import truck_factsheet
-from agv_nodes.world.layout import LayoutError, layout_path, load_layout
 
 STATUS_EVERY = 0.5  # wall s between `status` queries until communications answers
-OK, WARN, ERROR = (int.from_bytes(level) for level in (DiagnosticStatus.OK, DiagnosticStatus.WARN,
-                                                        DiagnosticStatus.ERROR))
 
 
 @settings_class
@@ -56,14 +52,8 @@ class BridgeNode(Node):
         super().__init__('vda5050_bridge')
         s = declare(self, BridgeSettings)
         refuse_unknown(self)
-        url = s.mqtt_url or os.environ.get('AGV_MQTT_URL', '')
-        if not url:
-            raise parameter_error(self, 'mqtt_url', s.mqtt_url, 'empty and AGV_MQTT_URL unset: '
-                                  'no broker to connect to')
-        try:
-            graph = track_graph(load_layout(layout_path(s.layout)))
-        except (LayoutError, OSError) as exc:
-            raise parameter_error(self, 'layout', s.layout, str(exc)) from None
+        url = broker_parameter(self, s.mqtt_url)
+        graph = graph_parameter(self, s.layout)
         self.settings = s
         self.core = BridgeCore(
             graph, s.manufacturer, s.serial_number,
