@@ -7,22 +7,40 @@ position_sensor_status, against the world's 340 Hz), snapshots lost (counter gap
 worst gaps of the records that carry the control loop. Also times the lock-step harness on
 the whole demonstration programme (real-time factor without DDS).
 
+With --baseline REF the lock-step timing runs side by side: the programme in a fresh process
+on this tree and on commit REF's agv_nodes (git archive into a temporary directory), the two
+alternated --rounds times so that both see the same machine, the best of each kept; the seeded
+runs' events, tasks and stop errors are compared (bench/lockstep_fingerprint.py).
+
 Run: .venv/bin/python bench/graph_bench.py [--seconds 30] [--time-factor 1.0] [-p NODE:NAME:=V]
+     [--no-live] [--baseline REF [--rounds 3]]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 from pathlib import Path
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
 
+from lockstep_fingerprint import first_difference
+
 from agv_nodes.graph.parameters import Options
 from agv_nodes.graph.supervisor import Launch
 from agv_nodes.harness import DEMO_PROGRAMME, submit, truck
+
+BENCH = Path(__file__).resolve().parent
+# One timed run of the programme on the agv_nodes of the tree it is started in (cwd).
+TIMED_RUN = ('import json, sys\n'
+             f'sys.path.insert(1, {str(BENCH)!r})\n'
+             'from lockstep_fingerprint import timed_fingerprint\n'
+             'fp, wall, cpu = timed_fingerprint()\n'
+             'print(json.dumps({"fp": fp, "wall": wall, "cpu": cpu}))\n')
 
 
 def cpu_seconds(pid: int) -> float:
@@ -120,6 +138,46 @@ def lockstep() -> None:
     where_the_time_goes()
 
 
+def timed_run(tree: Path) -> dict:
+    """Run the programme once in a fresh process on `tree`'s agv_nodes: fingerprint and times."""
+    env = {**os.environ, 'PYTHONPATH': str(tree)}
+    done = subprocess.run([sys.executable, '-c', TIMED_RUN], cwd=tree, env=env, check=True,
+                          capture_output=True, text=True, timeout=900)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def side_by_side(baseline: str, rounds: int) -> None:
+    """Time the programme on commit `baseline` and on this tree, alternated; compare results."""
+    here = BENCH.parent
+    with tempfile.TemporaryDirectory(prefix='agv_baseline_') as tmp:
+        archive = subprocess.run(['git', 'archive', baseline], cwd=here, check=True,
+                                 capture_output=True, timeout=120).stdout
+        subprocess.run(['tar', '-x', '-C', tmp], input=archive, check=True, timeout=120)
+        commit = subprocess.run(['git', 'rev-parse', '--short', baseline], cwd=here, check=True,
+                                capture_output=True, text=True, timeout=60).stdout.strip()
+        trees = {f'commit {commit}': Path(tmp), 'this tree': here}
+        runs: dict[str, list[dict]] = {name: [] for name in trees}
+        for _ in range(rounds):
+            for name, tree in trees.items():
+                runs[name].append(timed_run(tree))
+    best = {name: min(rs, key=lambda r: r['wall']) for name, rs in runs.items()}
+    names = list(trees)
+    print(f'\n| lock-step harness, whole programme (best of {rounds}) | '
+          + ' | '.join(names) + ' |\n|---|' + '---|' * len(names))
+    sim = {n: best[n]['fp']['simulated_s'] for n in names}
+    print('| simulated (s) | ' + ' | '.join(f'{sim[n]:.1f}' for n in names) + ' |')
+    print('| wall (s) | ' + ' | '.join(f'{best[n]["wall"]:.2f}' for n in names) + ' |')
+    print('| real-time factor | '
+          + ' | '.join(f'{sim[n] / best[n]["wall"]:.1f}x' for n in names) + ' |')
+    print('| CPU per simulated s (ms) | '
+          + ' | '.join(f'{1e3 * best[n]["cpu"] / sim[n]:.1f}' for n in names) + ' |')
+    old, new = names
+    print(f'| speed-up, wall | 1 | {best[old]["wall"] / best[new]["wall"]:.2f}x |')
+    difference = first_difference(best[old]['fp'], best[new]['fp'])
+    same = 'yes' if difference is None else f'no: first at {difference}'
+    print(f'| same events, tasks and stop errors | - | {same} |')
+
+
 def where_the_time_goes(seconds: float = 60.0) -> None:
     """Print the wall time per simulated second by part, over the programme's first minute.
 
@@ -175,12 +233,18 @@ def main() -> int:
                     'hardware configuration); the world paces itself at time factor 1')
     ap.add_argument('--no-live', action='store_true')
     ap.add_argument('--no-harness', action='store_true')
+    ap.add_argument('--baseline', metavar='REF',
+                    help='also time the lock-step programme on this commit, side by side')
+    ap.add_argument('--rounds', type=int, default=3, help='alternated runs per tree (--baseline)')
     ap.add_argument('-p', '--param', action='append', default=[],
                     help='NODE:NAME:=VALUE for one node, e.g. recorder:poll_period:=0')
     args = ap.parse_args()
     if not args.no_live:
         live(args.seconds, args.time_factor, args.param, args.wall_time)
-    if not args.no_harness:
+    if not args.no_harness and args.baseline:
+        side_by_side(args.baseline, args.rounds)
+        where_the_time_goes()
+    elif not args.no_harness:
         lockstep()
     return 0
 

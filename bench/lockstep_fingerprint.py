@@ -14,6 +14,7 @@ import argparse
 import json
 from pathlib import Path
 import sys
+import time
 from typing import Any
 
 from agv_nodes.harness import DEMO_PROGRAMME, submit, truck
@@ -21,12 +22,23 @@ from agv_nodes.harness import DEMO_PROGRAMME, submit, truck
 
 def fingerprint(seed: int = 1) -> dict[str, Any]:
     """Run the programme in lock step and collect what must not change."""
+    return timed_fingerprint(seed)[0]
+
+
+def timed_fingerprint(seed: int = 1) -> tuple[dict[str, Any], float, float]:
+    """Return the fingerprint, and the wall and CPU seconds the programme's steps took.
+
+    Only the steps are timed: building the truck and parsing the tasks are not the harness's
+    speed. bench/graph_bench.py --baseline runs this against another commit's agv_nodes.
+    """
     h = truck('demo_1983', seed=seed)
     for text in DEMO_PROGRAMME:
         submit(h, text)
     comms, executive = h.cores['communications'], h.cores['executive']
+    wall, cpu = time.perf_counter(), time.process_time()
     while comms.queue or executive.mode == 'running':
         h.step()
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     events = [{k: e[k] for k in ('event', 'marker', 'time', 'error', 'speed', 'lateral')}
               for e in h.events]
     return {
@@ -35,7 +47,7 @@ def fingerprint(seed: int = 1) -> dict[str, Any]:
         'tasks': [list(r) for r in comms.results],
         'stops_mm': [e['error'] for e in h.events if e['event'] == 'stopped' and e['marker']],
         'events': events,
-    }
+    }, wall, cpu
 
 
 def first_difference(old: Any, new: Any, where: str = '') -> str | None:

@@ -38,59 +38,31 @@ shows no errors. One off the broker (`set_online`) keeps its blocks and is sent 
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass, field
-from itertools import count, pairwise
+from itertools import count
 
 from pydantic import BaseModel
 
 from agv_nodes.fleet.blocks import TRUCK_LENGTH, Block, Reservations
+from agv_nodes.fleet.jobs import (
+    INSTANT_ACTIONS,
+    ORDER,
+    Job,
+    TransportOrder,
+    Truck,
+    hard_action,
+    header,
+    order_message,
+    task_failed,
+)
 from agv_nodes.fleet.track_graph import TrackGraph
-from agv_nodes.vda5050 import VERSION, common
 from agv_nodes.vda5050.common import Action, ActionParameter, BlockingType
-from agv_nodes.vda5050.order import Edge, InstantActions, Node, Order
-from agv_nodes.vda5050.order_tasks import TASK_FAILED, task_way
+from agv_nodes.vda5050.order import InstantActions
+from agv_nodes.vda5050.order_tasks import task_way
 from agv_nodes.vda5050.state import ActionStatus, State
 
-ORDER = 'order'
-INSTANT_ACTIONS = 'instantActions'
+__all__ = ['Dispatcher', 'TransportOrder']
+
 TRAIL = 12  # nodes of a truck's way kept behind it: enough for its footprint
-
-
-@dataclass(frozen=True)
-class TransportOrder:
-    """Load at station `source` (e.g. 'W0') and take the load to station `destination`."""
-
-    id: str
-    source: str
-    destination: str
-
-
-@dataclass
-class _Job:
-    """One VDA 5050 order of a truck: a transport, or a drive to a parking or passing place."""
-
-    order_id: str
-    transport: TransportOrder | None
-    path: list[str]  # node i has sequenceId 2 i
-    actions: dict[int, Action]  # by path index
-    passed: bool  # path[0] is a node the truck has passed (False: the layout's start)
-    base_end: int = 0  # the decision point's path index
-    update_id: int = 0
-    sent: bool = False
-    over: bool = False
-    failed: bool = False
-
-
-@dataclass
-class _Truck:
-    name: str
-    state: State | None = None
-    job: _Job | None = None
-    pos: int = 0  # the path index of the job's node the truck last reached
-    trail: list[str] = field(default_factory=list)  # the way it came, ending at its last node
-    broken: bool = False
-    offline: bool = False  # off the broker: no messages reach it (set_online)
-    headers: dict[str, int] = field(default_factory=lambda: {ORDER: 0, INSTANT_ACTIONS: 0})
 
 
 class Dispatcher:
@@ -117,7 +89,7 @@ class Dispatcher:
         self.deadlocks: list[list[str]] = []  # the wait cycles of the last step
         self.conflicts: list[tuple[str, str, str]] = []  # (block, truck, holder) found there
         self.trucks = list(trucks)  # their serial numbers
-        self._trucks = {name: _Truck(name) for name in trucks}
+        self._trucks = {name: Truck(name) for name in trucks}
         self._positions = dict(positions or {})
         self._placing: set[str] = set()  # trucks sent their initPosition
         self._ways: dict[tuple[str, bool, str], list[str] | None] = {}
@@ -147,7 +119,7 @@ class Dispatcher:
                 t.pos = index
             statuses = {a.action_id: a.action_status for a in state.action_states}
             mine = [statuses.get(a.action_id) for a in job.actions.values()]
-            if not job.over and (ActionStatus.FAILED in mine or self._task_failed(state)):
+            if not job.over and (ActionStatus.FAILED in mine or task_failed(state)):
                 job.over = job.failed = True
                 if job.transport is not None:
                     self.failed.append(job.transport.id)
@@ -164,7 +136,7 @@ class Dispatcher:
             other = self.reservations.occupy(truck, block)  # it is there, granted or not
             if other is not None:
                 self.conflicts.append((block, truck, other))
-        if self._task_failed(state):
+        if task_failed(state):
             t.broken = True
         elif not state.errors:
             t.broken = False
@@ -178,7 +150,7 @@ class Dispatcher:
             if self._unplaced(t) and t.name not in self._placing and not t.offline:
                 self._placing.add(t.name)
                 out.append((t.name, INSTANT_ACTIONS, InstantActions(
-                    **self._header(t, INSTANT_ACTIONS), actions=[Action(
+                    **header(t, INSTANT_ACTIONS, self.manufacturer), actions=[Action(
                         action_type='initPosition', action_id=f'init-{t.name}',
                         blocking_type=BlockingType.HARD, action_parameters=[ActionParameter(
                             key='lastNodeId', value=self._positions[t.name])])])))
@@ -204,7 +176,7 @@ class Dispatcher:
         wait that long to hear of a truck.
         """
         return [(t.name, INSTANT_ACTIONS, InstantActions(
-            **self._header(t, INSTANT_ACTIONS), actions=[Action(
+            **header(t, INSTANT_ACTIONS, self.manufacturer), actions=[Action(
                 action_type='stateRequest', action_id=f'state-{t.name}-{next(self._asked)}',
                 blocking_type=BlockingType.NONE)])) for t in self._trucks.values()]
 
@@ -217,7 +189,7 @@ class Dispatcher:
         return self.reservations.held(truck)
 
     # -- blocks ------------------------------------------------------------------------------
-    def _needed(self, t: _Truck) -> set[str]:
+    def _needed(self, t: Truck) -> set[str]:
         """Return the blocks a truck must keep: its footprint and the rest of its base."""
         keep = self.reservations.footprint(t.trail, self.truck_length)
         job = t.job
@@ -258,7 +230,7 @@ class Dispatcher:
                 actions[len(path) - 1] = action
         return path, actions
 
-    def _next_end(self, job: _Job, e: int) -> int:
+    def _next_end(self, job: Job, e: int) -> int:
         """Return the first path index after `e` where the base may end (a stop point's way)."""
         stop = min([i for i in job.actions if i > e] + [len(job.path) - 1])
         path, passed = job.path, job.passed or e > 0
@@ -270,19 +242,19 @@ class Dispatcher:
         return stop
 
     # -- trucks ------------------------------------------------------------------------------
-    def _where(self, t: _Truck) -> tuple[str, bool]:
+    def _where(self, t: Truck) -> tuple[str, bool]:
         node = t.state.last_node_id if t.state else ''
         return (node or self.graph.start), bool(node)
 
-    def _idle(self, t: _Truck) -> bool:
+    def _idle(self, t: Truck) -> bool:
         return t.state is not None and not t.broken and not t.offline \
             and (t.job is None or t.job.over) and not self._unplaced(t)
 
-    def _unplaced(self, t: _Truck) -> bool:
+    def _unplaced(self, t: Truck) -> bool:
         """Return True for a truck set down at a position it has not been told yet."""
         return t.name in self._positions and t.state is not None and not t.state.last_node_id
 
-    def _stalled(self, t: _Truck) -> bool:
+    def _stalled(self, t: Truck) -> bool:
         """Return True when a truck has run out of granted way (or has not started its job)."""
         job = t.job
         if job is None or job.over:
@@ -305,16 +277,17 @@ class Dispatcher:
                 return
             t = self._trucks[best[1]]
             start, passed = self._where(t)
+            drop = self._stop_of(transport.destination)
             plan = self._plan(start, passed, [
-                (pick, _action(f'{transport.id}-pick', 'pick')),
-                (self._stop_of(transport.destination), _action(f'{transport.id}-drop', 'drop'))])
+                (pick, hard_action(f'{transport.id}-pick', 'pick')),
+                (drop, hard_action(f'{transport.id}-drop', 'drop'))])
             if plan is None:
                 return
             self.queue.popleft()
             self.assignments[transport.id] = t.name
-            t.job, t.pos = _Job(transport.id, transport, plan[0], plan[1], passed), 0
+            t.job, t.pos = Job(transport.id, transport, plan[0], plan[1], passed), 0
 
-    def _extend(self, t: _Truck, out: list[tuple[str, str, BaseModel]]) -> None:
+    def _extend(self, t: Truck, out: list[tuple[str, str, BaseModel]]) -> None:
         """Grant what corridors can be granted and release them by an order or update."""
         job = t.job
         assert job is not None
@@ -334,10 +307,11 @@ class Dispatcher:
         job.base_end = end
         if job.sent:
             job.update_id += 1
-        out.append((t.name, ORDER, self._order(t, job, first if job.sent else 0)))
+        out.append((t.name, ORDER, order_message(self.graph, t, job, first if job.sent else 0,
+                                                   self.manufacturer)))
         job.sent = True
 
-    def _passing_place(self, t: _Truck, job: _Job, e: int) -> int:
+    def _passing_place(self, t: Truck, job: Job, e: int) -> int:
         """Re-route a stalled truck to a stop marker of its next block; return the new end.
 
         Such a truck waits only for its next block when that block has a stop marker it can
@@ -369,7 +343,7 @@ class Dispatcher:
         job.actions.update({e + i: a for i, a in actions.items()})
         return e + len(way) - 1
 
-    def _park_or_yield(self, t: _Truck, out: list[tuple[str, str, BaseModel]]) -> None:
+    def _park_or_yield(self, t: Truck, out: list[tuple[str, str, BaseModel]]) -> None:
         """Send an idle truck to its parking spot, or out of the way of a waiting truck.
 
         One in the way that cannot move waits for its way out in turn, so that the idle
@@ -400,41 +374,12 @@ class Dispatcher:
                 continue
             self._serial += 1
             kind = 'park' if goal == park else 'yield'
-            job = _Job(f'{kind}-{t.name}-{self._serial}', None, list(way), {}, passed,
+            job = Job(f'{kind}-{t.name}-{self._serial}', None, list(way), {}, passed,
                        base_end=len(way) - 1, sent=True)
             t.job, t.pos = job, 0
-            out.append((t.name, ORDER, self._order(t, job, 0)))
+            out.append((t.name, ORDER, order_message(self.graph, t, job, 0, self.manufacturer)))
             return
         if in_the_way and corridors:
             self.reservations.wait(t.name, (corridors[0][2] or [])[:1])
 
-    # -- messages ------------------------------------------------------------------------------
-    def _header(self, t: _Truck, topic: str) -> dict[str, object]:
-        header_id = t.headers[topic]
-        t.headers[topic] += 1
-        return {'header_id': header_id, 'timestamp': common.now(), 'version': VERSION,
-                'manufacturer': self.manufacturer, 'serial_number': t.name}
 
-    def _order(self, t: _Truck, job: _Job, first: int) -> Order:
-        """Return the order (first 0) or the update stitched on at path index `first`."""
-        nodes = [Node(node_id=n, sequence_id=2 * i, released=i <= job.base_end,
-                      actions=[job.actions[i]] if i in job.actions and i > first else [])
-                 for i, n in enumerate(job.path) if i >= first]
-        edges = []
-        for i, (a, b) in enumerate(pairwise(job.path)):
-            if i >= first:
-                edge = self.graph.edge(a, b)
-                assert edge is not None, f'{a}-{b} is no edge: a planning error'
-                edges.append(Edge(edge_id=edge.id, sequence_id=2 * i + 1,
-                                  released=i + 1 <= job.base_end, start_node_id=a,
-                                  end_node_id=b, actions=[]))
-        return Order(**self._header(t, ORDER), order_id=job.order_id,
-                     order_update_id=job.update_id, nodes=nodes, edges=edges)
-
-    @staticmethod
-    def _task_failed(state: State) -> bool:
-        return any(e.error_type == TASK_FAILED for e in state.errors)
-
-
-def _action(action_id: str, kind: str) -> Action:
-    return Action(action_id=action_id, action_type=kind, blocking_type=BlockingType.HARD)
