@@ -17,6 +17,7 @@ from agv_nodes.route_following.dual_camera import (
     is_curved,
     travel_frame,
 )
+from agv_nodes.route_following.dual_pose_law import pose_of
 from agv_nodes.world.core import WorldCore
 from agv_nodes.world.settings import WorldParams
 
@@ -316,3 +317,76 @@ def test_dual_backwards_brings_the_front_onto_a_straight() -> None:
     assert not res.stopped
     assert bench.settle_time(res.trace, 1) < 6.0
     assert bench.settle_time(res.trace, 2) < 6.0
+
+
+# -- our pose law (DualCameraParams law = pose, dual_pose_law.py) ---------------------------------
+
+def pose(**changes: object) -> DualCameraGuidance:
+    return DualCameraGuidance(DualCameraParams(law='pose', **changes))
+
+
+def test_the_thesis_law_stays_the_default_and_bad_pose_options_are_refused() -> None:
+    assert DualCameraParams().law == 'thesis'
+    with pytest.raises(ValueError, match='law'):
+        DualCameraGuidance(DualCameraParams(law='state'))
+    with pytest.raises(ValueError, match='pose_max_heading'):
+        pose(pose_max_heading=0.0)
+    with pytest.raises(ValueError, match='pose_predict'):
+        pose(pose_predict=-0.1)
+
+
+@pytest.mark.parametrize(('lateral', 'heading', 'radius'),
+                         [(0.03, 0.05, 0.0), (-0.02, -0.08, 0.0), (0.0, 0.0, 3.0),
+                          (0.01, 0.0, -5.0)])
+def test_pose_of_the_windows(lateral: float, heading: float, radius: float) -> None:
+    """Window offsets of a known pose give it back (and the curvature, from the angles)."""
+    lc = 0.64
+    w_f, w_r = lateral + lc * math.sin(heading), lateral - lc * math.sin(heading)
+    kappa = 1.0 / radius if radius else 0.0
+    got = pose_of(-w_f, -heading + lc * kappa, -w_r, -heading - lc * kappa, lc)
+    assert got.y == pytest.approx(lateral, abs=1e-12)
+    assert got.psi == pytest.approx(heading, abs=1e-12)
+    assert got.kappa == pytest.approx(kappa, abs=1e-12)
+
+
+def test_pose_law_turns_towards_the_tape_and_holds_a_curve() -> None:
+    g = pose()
+    # Both windows right of the tape (the tape left of them): turn left.
+    assert g.update(meas(0.05), meas(-0.05), DT, speed=0.47) > 0
+    g = pose()
+    assert g.update(meas(-0.05), meas(0.05), DT, speed=0.47) < 0
+    # On the chord of a left curve of R = 3 m, nothing to predict: the caster angle of that
+    # curve, tan(theta_s) = L_ae / R.
+    g, lc = pose(pose_curvature_filter=1.0, pose_predict=0.0), 0.64
+    theta = g.update(meas(0.0, lc / 3.0), meas(0.0, -lc / 3.0), DT, speed=0.47)
+    assert math.tan(theta) / (0.31 + 0.05 * (1.0 - math.cos(theta))) == \
+        pytest.approx(1.0 / 3.0, rel=1e-6)
+
+
+def test_pose_law_reverse_travel_swaps_the_cameras() -> None:
+    back, ahead = pose(), pose()
+    for f, r in ((meas(0.03, 0.02), meas(-0.05, 0.02)), (meas(0.01, -0.1), meas(0.04, 0.1))):
+        assert back.update(f, r, DT, -1, 0.47) == ahead.update(r, f, DT, 1, 0.47)
+
+
+def test_pose_law_with_the_trailing_camera_lost_steers_by_the_leading_one() -> None:
+    g = pose(trailing_lost='lead_only')
+    g.update(meas(0.02), meas(-0.02), DT, speed=0.47)
+    for _ in range(4):
+        theta = g.update(meas(0.03), meas(0.0, validity=Validity.ABSENT), DT, speed=0.47)
+    assert theta is not None and theta > 0
+
+
+@pytest.mark.timeout(600)
+@pytest.mark.parametrize(('radius', 'front', 'rear'),
+                         [(r, f, b) for _n, r, f, b, _t in bench.SCENARIOS],
+                         ids=['straight_same_side', 'straight_opposite_sides',
+                              'circle_same_side', 'circle_opposite_sides'])
+def test_pose_law_brings_both_windows_onto_the_tape(radius: float, front: float,
+                                                    rear: float) -> None:
+    """From each bench start both windows come within 0.01 m for good, the tape held."""
+    res = bench.run(bench.tape_layout(radius), 'pose', front, rear, 8.0)
+    assert not res.stopped
+    assert bench.settle_time(res.trace, 1) < 5.0
+    assert bench.settle_time(res.trace, 2) < 5.0
+    assert bench.steady(res.trace, 2) < 0.005

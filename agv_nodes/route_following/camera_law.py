@@ -86,7 +86,7 @@ class CameraLaw:
         self.cameras = params.cameras
         self.analysers = {name: ImageAnalyser(params.image) for name in ('front', 'rear')}
         self.single = CameraSteering(params.steering)
-        self.dual = DualCameraGuidance(params.dual, params.steering)
+        self.dual = DualCameraGuidance(params.dual, params.steering, params.turning)
         # Always there: its pose follows the odometry, so a later leg can feed it or drive the
         # track it identified (dead reckoning, App. F.9); a leg's law says whether it steers.
         self.track = TrackGuidance(params)
@@ -217,7 +217,7 @@ class CameraLaw:
         if view.lead.validity in SEEN and trail is not None and self._trail_seen \
                 and trail.validity is not Validity.ABSENT:
             front, rear = (view.lead, trail) if self.direction == 1 else (trail, view.lead)
-            theta = self.dual.update(front, rear, dt, self.direction)
+            theta = self.dual.update(front, rear, dt, self.direction, speed)
             if theta is not None:
                 self.law = 'dual'
                 self.single.theta_s, self.single.absent = theta, 0

@@ -24,16 +24,21 @@ raw sign, writes sgn(e_df) = -sgn(e_dr) (Fig. 5.2). On a straight track e_tf = e
 curve they have opposite signs, as Sec. 5.3.3 says (the printed Eq. 5.18 has equal signs).
 Travelling backwards (direction = -1) the rear camera leads: the same law runs in the frame of
 travel with the cameras' roles swapped, and `wheel_speeds` maps its output back to the wheels.
+
+DualCameraParams law = pose runs our own law instead (dual_pose_law.py, not the thesis's): the
+pose of the truck measured from both windows, and a bounded heading towards the tape.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
 import enum
+import math
 from typing import NamedTuple
 
 from agv_nodes.route_following.camera_guidance import CameraSteering, Measurement, Validity
-from agv_nodes.route_following.settings import DualCameraParams, SteeringParams
+from agv_nodes.route_following.dual_pose_law import PoseLaw, pose_of
+from agv_nodes.route_following.settings import DualCameraParams, SteeringParams, TurningParams
 from agv_nodes.settings import build, values_of
 
 
@@ -91,11 +96,15 @@ class DualCameraGuidance:
     """The dual-camera law with its gain schedule, one frame pair at a time."""
 
     def __init__(self, params: DualCameraParams | None = None,
-                 steering: SteeringParams | None = None) -> None:
+                 steering: SteeringParams | None = None,
+                 turning: TurningParams | None = None) -> None:
         self.p = params or DualCameraParams()
         build(DualCameraParams, values_of(self.p))  # SettingError: a value out of its range
         # The geometry, caster limit and absent-frame count are the single-camera law's.
         self.steering = CameraSteering(steering or SteeringParams())
+        # L_c, both windows' distance from the axle centre (the junction turn's camera_ahead)
+        self.camera_ahead = (turning or TurningParams()).camera_ahead
+        self.pose_law = PoseLaw(self.p, self.steering.p, self.camera_ahead)
         self.direction = 1
         self.reset()
 
@@ -107,6 +116,7 @@ class DualCameraGuidance:
         self.decision = Decision()
         self._last: dict[str, Offsets | None] = {'front': None, 'rear': None}
         self._absent = {'lead': 0, 'trail': 0}
+        self.pose_law.reset()
 
     def gains(self, same_side: bool, curved: bool, crossed: bool) -> tuple[float, float]:
         """Return (first gain, G2) for a situation, by the rules of Sec. 5.3.6."""
@@ -166,7 +176,7 @@ class DualCameraGuidance:
         return True
 
     def update(self, front: Measurement, rear: Measurement, dt: float,
-               direction: int = 1) -> float | None:
+               direction: int = 1, speed: float | None = None) -> float | None:
         """Return theta_s in the frame of travel for one frame pair, or None to stop.
 
         `front` and `rear` are each camera's ImageAnalyser reading in its own image frame;
@@ -175,6 +185,7 @@ class DualCameraGuidance:
         or an absent one before absent_frames of them, repeats that camera's last reading
         (Rajagopalan 1991, 6.3.11); the leading camera absent for absent_frames stops the
         vehicle, the trailing one stops it or leaves the leading camera alone (trailing_lost).
+        `speed`: the cruise, m/s, which law = pose needs; the thesis law ignores it.
         """
         if direction != self.direction:
             self.direction = direction
@@ -193,13 +204,29 @@ class DualCameraGuidance:
             lead_o = front_o if direction == 1 else rear_o
             if lead_o is None:
                 return self.decision.theta_s
+            if self.p.law == 'pose':  # the heading from the leading window's angle alone
+                return self._pose(lead_o, Offsets(lead_o.eps_d - 2.0 * self.camera_ahead
+                                                  * math.sin(lead_o.eps_theta),
+                                                  lead_o.eps_theta), dt, speed)
             # trailing_lost = lead_only (or no trailing reading yet): a P law on the lead.
             p, limit = self.p, self.steering.p.max_angle
             theta = p.g1_low * lead_o.eps_d + p.g2_straight * lead_o.eps_theta
             self.decision = replace(self.decision, theta_s=max(-limit, min(limit, theta)))
             return self.decision.theta_s
         lead, trail = travel_frame(front_o, rear_o, direction)
+        if self.p.law == 'pose':
+            return self._pose(lead, trail, dt, speed)
         return self.steer(lead, trail, dt)
+
+    def _pose(self, lead: Offsets, trail: Offsets, dt: float, speed: float | None) -> float:
+        if speed is None:
+            raise ValueError('the pose law (DualCameraParams law pose) needs the cruise speed')
+        # our pose law (dual_pose_law.py) from travel-frame offsets
+        pose = pose_of(lead.eps_d, lead.eps_theta, trail.eps_d, trail.eps_theta,
+                       self.camera_ahead)
+        theta = self.pose_law.steer(pose, dt, speed)
+        self.decision = replace(self.decision, theta_s=theta)
+        return theta
 
     def wheel_speeds(self, speed: float, theta_s: float, direction: int = 1
                      ) -> tuple[float, float]:

@@ -46,7 +46,8 @@ class DualCameraParams:
     law is linear in the axle's offset y and heading psi along the track: per metre travelled,
     y'' + (G L_c / L_a) y' + ((G + 2 Gx) / L_a) y = 0, G = G1 or G4 and Gx = G3 or G5. The
     straight start gains put both roots at 4.2 per m with damping 0.86, the low ones at 3.2
-    per m with damping 0.82.
+    per m with damping 0.82. law = pose steers by our law instead (dual_pose_law.py, keys
+    pose_*; L_c is TurningParams camera_ahead), tuned on the same bench on both CONCIC-II models.
     """
 
 
