@@ -12,7 +12,6 @@ Records a core returns are delivered at once (breadth first) within the world sa
 boards' pigeon-holes were read on the next loop; timers run after it on the simulated clock.
 """
 
-from collections import deque
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -86,8 +85,10 @@ class Harness:
                               if s.writer == 'world'}
         self.world_readers = {s.name: RecordReader(s, 'none') for s in self.codec
                               if 'world' in s.readers}
-        # record -> its readers [(member, reader)], built on first delivery after an add().
-        self._routes: dict[str, list[tuple[_Member, RecordReader]]] = {}
+        # record -> (world's reader, [(member, reader)], decode), built on first delivery after
+        # an add() (`_route`)
+        self._routes: dict[str, tuple] = {}
+        self._ns_of, self._now_ns = None, 0  # the sim time _now_ns (ns) is of
         for core in cores:
             self.add(core)
 
@@ -138,44 +139,77 @@ class Harness:
         now = self.world.time
         for tap in self.taps:
             tap(record, raw, now)
-        now_ns = round(now * 1e9)
-        if (world_reader := self.world_readers.get(record)) is not None:
-            if (fields := world_reader.accept(raw, now_ns)) is not None:
-                self.world.on_record(record, fields, now)
-        routes = self._routes.get(record)
-        if routes is None:
-            routes = self._routes[record] = [(m, m.readers[record]) for m in self.members
-                                             if record in m.readers]
-        if not routes:
-            return
-        queue = deque()
-        for m, reader in routes:
-            fields = reader.accept(raw, now_ns)
-            if fields is not None:
-                if reader.restarted:
-                    queue.append((m, m.core.on_writer_restart(record, now)))
-                queue.append((m, m.core.on_record(record, fields, now)))
-            elif hasattr(m.core, 'on_reject'):
-                queue.append((m, m.core.on_reject(record, reader.last_reason, now)))
-        self._publish_all(queue)
+        route = self._routes.get(record)
+        if route is None:
+            route = self._route(record)
+        world_reader, readers, decode = route
+        if now != self._ns_of:
+            self._ns_of, self._now_ns = now, round(now * 1e9)
+        now_ns = self._now_ns
+        # The readers judge the bytes alike: decoded once, each takes (and keeps) a copy. None:
+        # each reader's own general path judges, counts and names it.
+        fields = None if decode is None else decode(raw)
+        given = False
+        if world_reader is not None:
+            if fields is None:
+                taken = world_reader.accept(raw, now_ns)
+            else:
+                taken, given = world_reader.take(raw, fields, now_ns), True
+            if taken is not None:
+                self.world.on_record(record, taken, now)
+        out = []
+        for m, reader in readers:
+            if fields is None:
+                taken = reader.accept(raw, now_ns)
+            else:
+                if given:
+                    fields = dict(fields)
+                taken, given = reader.take(raw, fields, now_ns), True
+            if taken is not None:
+                if reader.restarted and (o := m.core.on_writer_restart(record, now)):
+                    out.append((m, o))
+                if o := m.core.on_record(record, taken, now):
+                    out.append((m, o))
+            elif hasattr(m.core, 'on_reject') and \
+                    (o := m.core.on_reject(record, reader.last_reason, now)):
+                out.append((m, o))
+        if out:
+            self._publish_all(out)
+
+    def _route(self, record: str) -> tuple[RecordReader | None,
+                                           list[tuple[_Member, RecordReader]], Callable | None]:
+        """Return (the world's reader, [(member, reader)], decode) of `record`.
+
+        `decode`: the readers' fast decoding when every one judges bytes alike (the same schema
+        and integrity), else None.
+        """
+        world_reader = self.world_readers.get(record)
+        readers = [(m, m.readers[record]) for m in self.members if record in m.readers]
+        every = [r for r in (world_reader, *(r for _m, r in readers)) if r is not None]
+        alike = every and all(r.schema is every[0].schema and r.integrity == every[0].integrity
+                              for r in every)
+        self._routes[record] = route = (world_reader, readers,
+                                        every[0].fast_decode if alike else None)
+        return route
 
     def _publish(self, m: _Member, outputs: dict | None) -> None:
-        self._publish_all(deque([(m, outputs)]))
+        if outputs:
+            self._publish_all([(m, outputs)])
 
-    def _publish_all(self, queue: deque) -> None:
-        hops = 0
-        while queue:
-            m, outputs = queue.popleft()
-            if not outputs:
-                continue
-            hops += 1
-            if hops > 10_000:
-                raise RuntimeError('harness: records keep triggering records (a loop?)')
+    def _publish_all(self, queue: list[tuple[_Member, dict]]) -> None:
+        """Send each member's outputs in turn (each record delivered at once, depth first)."""
+        if len(queue) > 10_000:
+            raise RuntimeError('harness: records keep triggering records (a loop?)')
+        links = self.links
+        for m, outputs in queue:
             for record, fields in outputs.items():
                 writer = m.writers.get(record)
                 if writer is None:
                     raise KeyError(f'{m.core.node} is not the writer of {record} (msg_schemas)')
-                self._send(m.core.node, record, writer.pack(fields))
+                if record in links:
+                    self._send(m.core.node, record, writer.pack(fields))
+                else:
+                    self._deliver(record, writer.pack(fields))
 
     def set_radio_stop(self, on: bool) -> None:
         """Set the hw/radio_stop input: to the world and every core that reads it."""

@@ -25,12 +25,16 @@ black test compares only the high bytes of TOTAL and THROFF, and EDGE is searche
 entries, so stop views 6 and 7 never match; `intended` (default) is the design as described.
 """
 
+from collections.abc import Sequence
+from operator import itemgetter
 from typing import Any
 
 from agv_nodes.markers import DARK_FIELDS, LIT_FIELDS, LOCATION_TABLE, STOP_VIEWS
 from agv_nodes.position_sensor.sequence import SequenceDecoder
 from agv_nodes.position_sensor.settings import SensorProcessing
 from agv_nodes.subsystem import SubsystemCore
+
+_lit, _dark = itemgetter(*LIT_FIELDS), itemgetter(*DARK_FIELDS)  # a snapshot's 8 + 8 values
 
 
 class PositionSensorCore(SubsystemCore):
@@ -108,9 +112,9 @@ class PositionSensorCore(SubsystemCore):
                 self._reset_filter()
             return None
         self._last_adc = now
-        return self.sample([fields[k] for k in LIT_FIELDS], [fields[k] for k in DARK_FIELDS], now)
+        return self.sample(_lit(fields), _dark(fields), now)
 
-    def sample(self, lit: list[int], dark: list[int], now: float) -> dict | None:
+    def sample(self, lit: Sequence[int], dark: Sequence[int], now: float) -> dict | None:
         """One SAMPLE + DECODE; returns a status record when a recognition is made."""
         p = self.p
         self.samples = (self.samples + 1) & 0xFFFF
@@ -119,14 +123,16 @@ class PositionSensorCore(SubsystemCore):
         code, valid, decisive = 0, True, True
         as_listed = p.variant == 'as_listed'
         hold, held = p.invalid_band == 'hold', self._held
+        totals, white, black = self._total, self._white, self._black
         for d in range(8):
-            x = max(lit[d] - dark[d], 0)  # SUBT clamp
-            self._total[d] += x - row[d]
+            x = lit[d] - dark[d]
+            if x < 0:  # SUBT clamp
+                x = 0
+            totals[d] = total = totals[d] + (x - row[d])
             row[d] = x
-            total = self._total[d]
-            if total > self._white[d]:
+            if total > white[d]:
                 code, held[d] = code << 1 | 1, 1
-            elif (total >> 8 <= self._black[d] >> 8) if as_listed else (total <= self._black[d]):
+            elif (total >> 8 <= black[d] >> 8) if as_listed else (total <= black[d]):
                 code, held[d] = code << 1, 0
             elif hold and held[d] is not None:
                 code = code << 1 | held[d]  # in the band: the detector's last decision
@@ -176,12 +182,11 @@ class PositionSensorCore(SubsystemCore):
         """Sum SUBT's `x` over the sequence decoder's run, in band units (0 THROFF, 1 THRON)."""
         row, total = self._seq_oldest[self._seq_row], self._seq_total
         self._seq_row = (self._seq_row + 1) % self.p.sequence_run_length
-        z = []
         for d in range(8):
-            t = total[d] + x[d] - row[d]
-            total[d], row[d] = t, x[d]
-            z.append((t - self._seq_black[d]) / self._seq_band[d])
-        return z
+            total[d] = total[d] + x[d] - row[d]
+        row[:] = x
+        return [(t - b) / band for t, b, band in zip(total, self._seq_black, self._seq_band,
+                                                     strict=True)]
 
     def _recognised(self, match: int, now: float) -> dict[str, Any]:
         """Report a recognition: identity (navigating) or stop view (positioning) and status."""
