@@ -173,49 +173,54 @@ class WorldCore:
     def step(self) -> dict[str, Any]:
         """Advance one sample; return {'records': {...}, 'frames': {...}, 'events': [...]}."""
         self.sample += 1
+        sample = self.sample
         self.events = []
         if self.layout.kind == 'rig':
             return self._step_rig()
-        self._apply_safety()
+        now = sample * self.dt  # self.time
+        self._apply_safety(now)
         sub = self.dt / self.p.substeps
-        for _ in range(self.p.substeps):
-            self.vehicle.step(sub)
+        if isinstance(self.vehicle, Electruk):  # a sample's substeps in one call
+            self.vehicle.step(sub, self.p.substeps)
+        else:
+            for _ in range(self.p.substeps):
+                self.vehicle.step(sub)
         records: dict[str, dict[str, Any]] = {}
         if self.marker_sensor:
             records['adc_snapshot'] = self._adc()
-        if self.pickup is not None and self._wire_every.due(self.sample):
+        if self.pickup is not None and self._wire_every.due(sample):
             records['guide_wire'] = self._guide_wire()
-        if self._odo_every.due(self.sample):
+        if self._odo_every.due(sample):
             records['wheel_odometry'] = self._odometry()
-        if self.pal is not None and self._drive_every.due(self.sample):
+        if self.pal is not None and self._drive_every.due(sample):
             records['drive_status'] = self.pal.record()
         at_rest = abs(self.vehicle.state.speed) <= 0.01
-        moved = self.conveyors.step(self.time, self.dt, at_rest, self.lens_pose)
+        moved = self.conveyors.step(now, self.dt, at_rest, self.lens_pose)
         if moved is not None:
             self._event('load_moved', marker=moved)
-        if self._conv_every.due(self.sample):
+        if self._conv_every.due(sample):
             records['conveyor_status'] = self.conveyors.status(at_rest, self.lens_pose)
         frames = {}
-        if self.camera is not None and self._cam_every.due(self.sample):
+        if self.camera is not None and self._cam_every.due(sample):
             frames = self._frames()
         self._detect_stop()
         self._detect_drive_off()
         return {'records': records, 'frames': frames, 'events': self.events}
 
-    def _apply_safety(self) -> None:
+    def _apply_safety(self, now: float) -> None:
         v = self.vehicle
         v.radio_stop = self.radio_stop or self.bumper
         if isinstance(v, Electruk):
             # The trip relay's monostable: no watchdog change for 200 ms releases the relay and
             # with it the main contactor; retriggering closes it again (Baker 1983, B.2.1).
-            v.relay_closed = self.time - self._watchdog_time <= self.p.drive_watchdog
-            if self.time - self._steer_time > self.p.steering_timeout:
+            v.relay_closed = now - self._watchdog_time <= self.p.drive_watchdog
+            if now - self._steer_time > self.p.steering_timeout:
                 v.steer_enable = False
         elif self.pal is not None:
             # The safety PAL powers the amplifiers only in its ready state: a fault (its
             # watchdog among them) cuts them and the wheels coast down together, as after a
             # motor-off command (Rajagopalan 1991, 6.3.11).
-            self.pal.step(self.time)
+            self.pal.step(now)
             if not self.pal.powered:
                 v.enable = False
 

@@ -50,6 +50,10 @@ class GuideWirePickup:
         self._near_idx = np.zeros(0, dtype=int)  # their indices
         self._near_mid = np.zeros((0, 2))
         self._near_length = np.zeros(0)
+        # their a, u, length and current as rows (ax, ay, ux, uy, length, current): one
+        # selection a call, where `field` indexes four arrays
+        self._near_rows = np.zeros((6, 0))
+        self._near_mid_x = self._near_mid_y = self._near_half = np.zeros(0)
         self._near_at = (math.inf, math.inf)
 
     def field(self, xy: np.ndarray, segments: np.ndarray | None = None) -> np.ndarray:
@@ -96,16 +100,15 @@ class GuideWirePickup:
             self._refresh_near(x, y)
         points = ((x + half * lx, y + half * ly), (x - half * lx, y - half * ly))
         if len(self._near) > SCALAR_SEGMENTS:
-            keep = np.hypot(self._near_mid[:, 0] - x, self._near_mid[:, 1] - y) \
-                - 0.5 * self._near_length < self.p.reach
-            fields = self.field(np.array(points), segments=self._near_idx[keep])
-            lateral = [bx * lx + by * ly for bx, by, _bz in fields.tolist()]
+            lateral = self._lateral_numpy(points, x, y, lx, ly)
         else:
             lateral = self._lateral_scalar(points, x, y, lx, ly)
         out = []
+        gain, noise, gauss = self.p.gain, self.p.noise, self.rng.gauss
         for b in lateral:
-            value = self.p.gain * abs(b) * 4 * math.pi + self.rng.gauss(0.0, self.p.noise)
-            out.append(int(min(max(round(value), 0), 4095)))
+            value = gain * abs(b) * 4 * math.pi + gauss(0.0, noise)
+            value = round(value)
+            out.append(0 if value < 0 else 4095 if value > 4095 else int(value))
         return out[0], out[1]
 
     def _refresh_near(self, x: float, y: float) -> None:
@@ -115,7 +118,34 @@ class GuideWirePickup:
         self._near = [self._segments[i] for i in self._near_idx]
         self._near_mid = self._mid[self._near_idx]
         self._near_length = self._length[self._near_idx]
+        i = self._near_idx
+        self._near_rows = np.array([self._a[i, 0], self._a[i, 1], self._u[i, 0], self._u[i, 1],
+                                    self._length[i], self._current[i]])
+        self._near_mid_x = self._near_mid[:, 0].copy()
+        self._near_mid_y = self._near_mid[:, 1].copy()
+        self._near_half = 0.5 * self._near_length
         self._near_at = (x, y)
+
+    def _lateral_numpy(self, points, x: float, y: float, lx: float, ly: float) -> list[float]:
+        """`field`'s arithmetic on the candidates in reach, x and y components only."""
+        keep = np.hypot(self._near_mid_x - x, self._near_mid_y - y) - self._near_half \
+            < self.p.reach
+        ax, ay, ux, uy, length, current = self._near_rows[:, keep]
+        if not len(ax):
+            return [0.0 * lx + 0.0 * ly] * 2
+        h = self.p.coil_height
+        (p0x, p0y), (p1x, p1y) = points
+        rx = np.array([[p0x], [p1x]]) - ax
+        ry = np.array([[p0y], [p1y]]) - ay
+        along = rx * ux + ry * uy
+        px, py = rx - along * ux, ry - along * uy
+        rho2 = px * px + py * py + h * h
+        beyond = along - length
+        mag = current * (along / np.sqrt(along * along + rho2)
+                         - beyond / np.sqrt(beyond * beyond + rho2)) / (4 * math.pi * rho2)
+        bx = ((mag * uy).sum(axis=1) * h).tolist()
+        by = (-(mag * ux).sum(axis=1) * h).tolist()
+        return [bx[0] * lx + by[0] * ly, bx[1] * lx + by[1] * ly]
 
     def _lateral_scalar(self, points, x: float, y: float, lx: float, ly: float) -> list[float]:
         near = [s for s in self._near

@@ -20,6 +20,7 @@ from agv_nodes.markers import ELEMENT_HEIGHT, ELEMENT_WIDTH, LOCATION_PATTERNS, 
 from agv_nodes.world.settings import SensorParams
 
 NOISE_PER_SNAPSHOT = 17  # standard normals a snapshot uses: 8 lit, 8 dark, 1 ambient
+NOISE_BLOCK = 256  # snapshots whose noise is drawn (and converted) at once
 # Lens-to-card ranges of the threshold experiment (Baker 1983, 7.1.2-7.1.3), which `calibrate`
 # repeats: Table 7.1's thresholds are set for the worst of them.
 CALIBRATION_RANGES = tuple(0.280 + 0.005 * k for k in range(9))
@@ -74,10 +75,17 @@ class MarkerSensorModel:
         self.rng = rng
         # The conversions' noise comes in blocks of standard normals from a numpy generator
         # seeded from `rng` (17 random.gauss calls a snapshot were a tenth of the lock-step
-        # harness's time); the block is a list of floats, read in order.
+        # harness's time), a row of 17 a snapshot, read in order. What of a conversion does not
+        # depend on the signals (the base level, the dark conversions, the lit ones with no card
+        # in view) is worked out for the whole block with numpy, in the same arithmetic.
         self._normals = np.random.default_rng(rng.getrandbits(64))
-        self._noise: list[float] = []
-        self._noise_at = 0
+        self._z = np.zeros((0, NOISE_PER_SNAPSHOT))
+        self._row = NOISE_BLOCK  # the next snapshot's row of the block (spent: draw anew)
+        self._block_key: tuple | None = None  # the settings the block's conversions hold for
+        self._base: list[float] = []  # per row: dark level + ambient + its noise
+        self._lit_noise: list[list[float]] = []  # per row: the lit conversions' noise, counts
+        self._dark: list[list[int]] = []  # per row: the dark conversions
+        self._quiet: tuple | None = None  # (gains, blacks, signals, lit) with no card in view
         gains, blacks = calibrate(params) if not params.gains or not params.blacks else ((), ())
         self.gains, self.blacks = params.gains or gains, params.blacks or blacks
         if len(self.gains) != 8 or len(self.blacks) != 8 or len(params.skew) != 8:
@@ -87,62 +95,104 @@ class MarkerSensorModel:
     def optics(self, lens: tuple[float, float], heading: float, cards: list,
                height: float = 0.0) -> list[tuple[float, float]]:
         """Per detector 1..8: (illumination factor, fraction of the patch that is white)."""
-        p = self.p
-        fx, fy = math.cos(heading), math.sin(heading)  # forward
-        ax, ay = fy, -fx  # optical axis: right of the truck
         out = [(1.0, 0.0)] * 8  # nothing in view: black background
+        for d, value in self._seen(lens, heading, cards, height):
+            out[d] = value
+        return out
+
+    def _seen(self, lens: tuple[float, float], heading: float, cards: list,
+              height: float) -> list[tuple[int, tuple[float, float]]]:
+        """(detector, (illumination, white fraction)) of each detector a card is seen by.
+
+        In card order (a later card's view of a detector replaces an earlier one's). Most
+        samples have no card within 0.6 m: they cost one distance test per card. A card nearer
+        than that is passed over when the outermost rays both meet its line beyond reach on the
+        same side: the rays between them meet it between those points, no wider a patch or
+        farther. The detector model is inline, its per-card and per-pose constants worked out
+        once.
+        """
+        p = self.p
+        lx, ly = lens
+        seen: list[tuple[int, tuple[float, float]]] = []
+        outer = rays = None
         for card in cards:
             cx, cy = card.centre
-            nx, ny = card.normal
-            ex, ey = card.along
-            dx, dy = cx - lens[0], cy - lens[1]
+            dx, dy = cx - lx, cy - ly
             if dx * dx + dy * dy > 0.36:  # only cards within 0.6 m can be in view
                 continue
+            if outer is None:
+                focus, blur, defocus = p.focus, p.base_blur, p.defocus_blur
+                width, aperture, flat = p.aperture_width, p.aperture_height, p.flat_height
+                up = p.row_pitch / 2.0
+                offsets, first, last = _offsets(p.column_pitch, tuple(p.skew))
+                fx, fy = math.cos(heading), math.sin(heading)  # forward
+                # optical axis (fy, -fx), right of the truck, times the focus
+                axis = (fy * focus, -fx * focus)
+                outer = _ray(axis, fx, fy, offsets[first]), _ray(axis, fx, fy, offsets[last])
+            nx, ny = card.normal
+            ex, ey = card.along
+            half_card, runs = _card_runs(card.rows)
+            # the outermost rays: where they meet the card's line, and the widest patch
+            (r1x, r1y), (r2x, r2y) = outer
+            den1, den2 = r1x * nx + r1y * ny, r2x * nx + r2y * ny
+            if den1 <= EDGE_ON and den2 <= EDGE_ON:
+                dn = dx * nx + dy * ny
+                t1, t2 = dn / den1, dn / den2
+                u1 = (lx + t1 * r1x - cx) * ex + (ly + t1 * r1y - cy) * ey
+                u2 = (lx + t2 * r2x - cx) * ex + (ly + t2 * r2y - cy) * ey
+                widest = width * (t1 if t1 > t2 else t2) / focus \
+                    / max(-den1 if den1 > den2 else -den2, 0.3)
+                reach = half_card + 0.02 + widest * (1.0 + 1e-9) + 1e-9  # margin: rounding
+                if u1 > reach and u2 > reach or u1 < -reach and u2 < -reach:
+                    continue
+            lift = card.height + height
+            if rays is None:
+                rays = [_ray(axis, fx, fy, x_off) for x_off in offsets]
             for d in range(8):
-                column = d % 4
-                x_off = (1.5 - column) * p.column_pitch + p.skew[d]
-                # Ray through this detector's patch: axis*focus + forward*x_off.
-                rx, ry = ax * p.focus + fx * x_off, ay * p.focus + fy * x_off
-                norm = math.hypot(rx, ry)
-                rx, ry = rx / norm, ry / norm
+                rx, ry = rays[d]
                 denom = rx * nx + ry * ny
                 if denom > EDGE_ON:  # card seen edge-on or from behind
                     continue
                 t = (dx * nx + dy * ny) / denom
                 if not 0.05 < t < 0.8:
                     continue
-                hx, hy = lens[0] + t * rx - cx, lens[1] + t * ry - cy
-                u = hx * ex + hy * ey
-                value = self._detector(card, d, u, t, -denom, height)
-                if value is not None:
-                    out[d] = value
-        return out
-
-    def _detector(self, card, d: int, u: float, rng_: float, cos_inc: float,
-                  height: float) -> tuple[float, float] | None:
-        p = self.p
-        n = card.columns
-        half_card = n * ELEMENT_WIDTH / 2.0
-        scale = rng_ / p.focus
-        w = p.aperture_width * scale / max(cos_inc, 0.3)
-        if abs(u) > half_card + w + 0.02:
-            return None
-        sigma = math.hypot(p.base_blur, p.defocus_blur * (rng_ - p.focus))
-        lo, hi = u - w / 2.0, u + w / 2.0
-        # Vertical: patch centre in card coordinates (card centre = 0, up +).
-        v = (p.row_pitch / 2.0 if d < 4 else -p.row_pitch / 2.0) * scale - (card.height + height)
-        big = p.aperture_height * scale
-        weights = (_trapezoid_mass(0.0 - v, ELEMENT_HEIGHT - v, big, p.flat_height),
-                   _trapezoid_mass(-ELEMENT_HEIGHT - v, 0.0 - v, big, p.flat_height))
-        white_cover = 0.0
-        for row, weight in zip(card.rows, weights, strict=True):
-            if weight <= 1e-6:
-                continue
-            cover = 0.0
-            for a, b in _white_runs(row):
-                cover += _box_blur_cover(a - half_card, b - half_card, lo, hi, sigma)
-            white_cover += weight * cover / w
-        return (p.focus / rng_) ** 2 * cos_inc, white_cover
+                u = (lx + t * rx - cx) * ex + (ly + t * ry - cy) * ey
+                cos_inc = -denom
+                scale = t / focus
+                w = width * scale / (0.3 if 0.3 > cos_inc else cos_inc)
+                if abs(u) > half_card + w + 0.02:
+                    continue
+                sigma = math.hypot(blur, defocus * (t - focus))
+                lo, hi = u - w / 2.0, u + w / 2.0
+                # Vertical: patch centre in card coordinates (card centre = 0, up +).
+                v = (up if d < 4 else -up) * scale - lift
+                b = aperture * scale / 2.0
+                a = flat * b
+                middle = _cdf(0.0 - v, a, b)
+                white_cover = 0.0
+                for row_runs, weight in zip(runs, (
+                        (_cdf(ELEMENT_HEIGHT - v, a, b) - middle) / (a + b),
+                        (middle - _cdf(-ELEMENT_HEIGHT - v, a, b)) / (a + b)), strict=True):
+                    if weight <= 1e-6:
+                        continue
+                    cover = 0.0
+                    for ra, rb in row_runs:
+                        if sigma <= 0.0:
+                            cover += _box_blur_cover(ra, rb, lo, hi, sigma)
+                            continue
+                        # _box_blur_cover inline; _psi is 0 at and below -8.5, z at and above
+                        # 8.5: a run 8.5 sigma short of the patch adds nothing
+                        z1 = (rb - lo) / sigma
+                        if z1 <= -8.5:
+                            continue
+                        z2, z3, z4 = (rb - hi) / sigma, (ra - lo) / sigma, (ra - hi) / sigma
+                        if z4 >= 8.5:  # the smallest
+                            cover += sigma * (z1 - z2 - z3 + z4)
+                        else:
+                            cover += sigma * (_psi(z1) - _psi(z2) - _psi(z3) + _psi(z4))
+                    white_cover += weight * cover / w
+                seen.append((d, ((focus / t) ** 2 * cos_inc, white_cover)))
+        return seen
 
     # -- electronics ----------------------------------------------------------------------
     def signals(self, optics: list[tuple[float, float]]) -> list[float]:
@@ -152,27 +202,92 @@ class MarkerSensorModel:
 
     def adc(self, signals: list[float]) -> tuple[list[int], list[int]]:
         """Lit and dark 8-bit conversions: ambient and noise on both, the IRED signal on lit."""
-        p = self.p
-        at = self._noise_at
-        if at + NOISE_PER_SNAPSHOT > len(self._noise):
-            self._noise = self._normals.standard_normal(NOISE_PER_SNAPSHOT * 256).tolist()
-            at = 0
-        self._noise_at = at + NOISE_PER_SNAPSHOT
-        z = self._noise[at:at + NOISE_PER_SNAPSHOT]
-        sigma = p.noise
-        base = p.dark_level + p.ambient + z[16] * p.ambient_noise
-        lit = [_adc8(base + signals[d] + z[d] * sigma) for d in range(8)]
-        dark = [_adc8(base + z[8 + d] * sigma) for d in range(8)]
-        return lit, dark
+        row = self._next_row()
+        return self._lit(row, signals), self._dark[row]
 
     def snapshot(self, lens: tuple[float, float], heading: float, cards: list,
                  height: float = 0.0) -> tuple[list[int], list[int]]:
-        """One on/off snapshot: (lit[8], dark[8]) ADC counts."""
-        return self.adc(self.signals(self.optics(lens, heading, cards, height)))
+        """One on/off snapshot: (lit[8], dark[8]) ADC counts.
+
+        adc(signals(optics(...))), with what no card is seen by worked out once: the signals of
+        such detectors, and with no card in view at all the whole snapshot (a block's worth at
+        a time); test_world_speed_paths holds the two to the same counts.
+        """
+        seen = self._seen(lens, heading, cards, height)
+        row = self._next_row()
+        gains, blacks = self.gains, self.blacks
+        quiet = self._quiet
+        if quiet is None or quiet[0] is not gains or quiet[1] is not blacks:
+            signals = self.signals([(1.0, 0.0)] * 8)
+            quiet = self._quiet = (gains, blacks, signals, self._quiet_lit(signals))
+        elif quiet[3] is None:
+            quiet = self._quiet = quiet[:3] + (self._quiet_lit(quiet[2]),)
+        if not seen:
+            return quiet[3][row], self._dark[row]
+        signals = list(quiet[2])
+        for d, (illum, cover) in seen:
+            b = blacks[d]
+            signals[d] = gains[d] * illum * (b + (1.0 - b) * cover)
+        return self._lit(row, signals), self._dark[row]
+
+    def _next_row(self) -> int:
+        """Return this snapshot's row of the noise block (drawn, converted when spent, stale)."""
+        p = self.p
+        key = (p.dark_level, p.ambient, p.ambient_noise, p.noise)
+        row = self._row
+        if row >= NOISE_BLOCK:
+            self._z = self._normals.standard_normal(
+                NOISE_PER_SNAPSHOT * NOISE_BLOCK).reshape(NOISE_BLOCK, NOISE_PER_SNAPSHOT)
+            row, self._block_key = 0, None
+        if key != self._block_key:  # a new block, or the settings changed (the ambient light)
+            self._block_key = key
+            z = self._z
+            base = (p.dark_level + p.ambient) + z[:, 16] * p.ambient_noise
+            self._base = base.tolist()
+            self._lit_noise = (z[:, :8] * p.noise).tolist()
+            self._dark = _adc8(base[:, None] + z[:, 8:16] * p.noise).tolist()
+            if self._quiet is not None:
+                self._quiet = self._quiet[:3] + (None,)
+        self._row = row + 1
+        return row
+
+    def _quiet_lit(self, signals: list[float]) -> list[list[int]]:
+        """Return the lit conversions of each row of the block with these signals."""
+        return _adc8((np.array(self._base)[:, None] + np.array(signals))
+                     + np.array(self._lit_noise)).tolist()
+
+    def _lit(self, row: int, signals: list[float]) -> list[int]:
+        base = self._base[row]
+        return [0 if (x := base + s + n) <= 0 else 255 if x >= 255 else int(x + 0.5)
+                for s, n in zip(signals, self._lit_noise[row], strict=True)]
 
 
-def _adc8(value: float) -> int:
-    return 0 if value <= 0 else 255 if value >= 255 else int(value + 0.5)
+def _adc8(value: np.ndarray) -> np.ndarray:
+    """8-bit conversion of each value, as int(v + 0.5) within 0..255."""
+    return np.where(value <= 0, 0, np.where(value >= 255, 255, np.floor(value + 0.5))) \
+        .astype(np.int64)
+
+
+@functools.cache
+def _offsets(pitch: float, skew: tuple[float, ...]) -> tuple[tuple[float, ...], int, int]:
+    """Each detector's patch offset forward (m at the focus); the outermost two's detectors."""
+    offsets = tuple((1.5 - d % 4) * pitch + skew[d] for d in range(8))
+    return offsets, offsets.index(min(offsets)), offsets.index(max(offsets))
+
+
+def _ray(axis: tuple[float, float], fx: float, fy: float, x_off: float) -> tuple[float, float]:
+    """Return the unit ray through a detector's patch: axis*focus + forward*x_off."""
+    rx, ry = axis[0] + fx * x_off, axis[1] + fy * x_off
+    norm = math.hypot(rx, ry)
+    return rx / norm, ry / norm
+
+
+@functools.cache
+def _card_runs(rows: tuple[str, ...]) -> tuple[float, tuple[tuple[tuple[float, float], ...], ...]]:
+    """Half the card's length and each row's white runs, m from the card centre (downstream +)."""
+    half_card = len(rows[0]) * ELEMENT_WIDTH / 2.0
+    return half_card, tuple(tuple((a - half_card, b - half_card) for a, b in _white_runs(row))
+                            for row in rows)
 
 
 @functools.cache
@@ -199,23 +314,17 @@ def _box_blur_cover(a: float, b: float, lo: float, hi: float, sigma: float) -> f
     return s * (_psi((b - lo) / s) - _psi((b - hi) / s) - _psi((a - lo) / s) + _psi((a - hi) / s))
 
 
-def _trapezoid_mass(z0: float, z1: float, height: float, flat: float) -> float:
-    """Fraction of a trapezoidal vertical aperture (centred on 0) lying in [z0, z1]."""
-    b = height / 2.0
-    a = flat * b
-
-    def cdf(z: float) -> float:
-        if z <= -b:
-            return 0.0
-        if z < -a:
-            return (z + b) ** 2 / (2.0 * (b - a))
-        if z <= a:
-            return (b - a) / 2.0 + (z + a)
-        if z < b:
-            return (a + b) - (b - z) ** 2 / (2.0 * (b - a))
-        return a + b
-
-    return (cdf(z1) - cdf(z0)) / (a + b)
+def _cdf(z: float, a: float, b: float) -> float:
+    """Mass of the trapezoid (flat top -a..a, feet -b..b; a + b in all) below z."""
+    if z <= -b:
+        return 0.0
+    if z < -a:
+        return (z + b) ** 2 / (2.0 * (b - a))
+    if z <= a:
+        return (b - a) / 2.0 + (z + a)
+    if z < b:
+        return (a + b) - (b - z) ** 2 / (2.0 * (b - a))
+    return a + b
 
 
 # -- calibration from Table 7.1 ---------------------------------------------------------------

@@ -113,48 +113,82 @@ class Electruk:
                 p.motors * p.viscous_friction * (p.gear_ratio / p.wheel_radius) ** 2)
         return self._step_constants
 
-    def step(self, dt: float) -> None:
-        """Advance by dt seconds."""
+    def step(self, dt: float, n: int = 1) -> None:
+        """Advance by `n` steps of dt seconds (the world's substeps of a sample in one call)."""
         p, s = self.p, self.state
         field_gain, decay, m_eff, coulomb, viscous_per_speed = self._constants(dt)
+        # The inputs hold over the n steps: what depends only on them is worked out once, and
+        # the state is carried in locals (the arithmetic and its order are those of one step).
         powered = self.contactor and self.relay_closed and not self.radio_stop
         # Field: first-order toward duty x direction; with the contactor open it decays too.
         target = (self.field_duty * (1 if self.field_forward else -1)
                   if powered and self.field_enable else 0.0)
-        self.flux += (target - self.flux) * field_gain
-        w_m = s.speed / p.wheel_radius * p.gear_ratio
-        back_emf = p.k_phi * self.flux * w_m
-        if powered and self.armature_enable:
-            v_arm = self.armature_duty * p.battery_voltage
-            i_ss = (v_arm - back_emf) / p.armature_resistance
-            self.current = i_ss + (self.current - i_ss) * decay
-        else:  # chopper off: the current freewheels away through the diode
-            self.current *= decay
-        self.current = min(max(self.current, 0.0), p.current_limit)
-        if self.current < 1e-6:
-            self.current = 0.0
-        torque = p.motors * p.k_phi * self.flux * self.current  # at the motor shafts
-        drive_force = torque * p.gear_ratio / p.wheel_radius
-        # Friction: Coulomb drivetrain + rolling resistance + viscous, opposing motion; at rest
-        # it holds the truck unless the drive force exceeds it (stiction = same level).
-        viscous = viscous_per_speed * s.speed
-        v = s.speed
-        if v == 0.0 and abs(drive_force) <= coulomb:
-            v_new = 0.0  # stiction holds it
-        else:
-            direction = math.copysign(1.0, v if v != 0.0 else drive_force)
-            v_new = v + (drive_force - direction * coulomb - viscous) / m_eff * dt
-            if v != 0.0 and math.copysign(1.0, v_new) != direction and \
-                    abs(drive_force) <= coulomb:
-                v_new = 0.0  # friction brings it to rest; it does not reverse it
-        # Steering actuator: rate- and angle-limited toward the demand.
-        if self.steer_enable:
-            demand = min(max(self.steer_demand, -p.max_steer), p.max_steer)
-            delta = min(max(demand - self.steer, -p.steer_rate * dt), p.steer_rate * dt)
-            self.steer += delta
-        v_mid = 0.5 * (v + v_new)
-        advance_pose(s, v_mid, v_mid * math.tan(self.steer) / p.wheelbase, dt)
-        s.speed = v_new
+        driven = powered and self.armature_enable
+        v_arm = self.armature_duty * p.battery_voltage
+        radius, gear, k_phi = p.wheel_radius, p.gear_ratio, p.k_phi
+        resistance, limit, wheelbase = p.armature_resistance, p.current_limit, p.wheelbase
+        motors_k_phi = p.motors * k_phi
+        steering = self.steer_enable
+        if steering:
+            demand, most = self.steer_demand, p.max_steer
+            if demand < -most:
+                demand = -most
+            if demand > most:
+                demand = most
+            rate = p.steer_rate * dt
+        copysign, tan, cos, sin = math.copysign, math.tan, math.cos, math.sin
+        flux, current, steer = self.flux, self.current, self.steer
+        tan_of, tan_steer = steer, tan(steer)  # tan of the steer angle, redone when it moves
+        x, y, heading, distance, v = s.x, s.y, s.heading, s.distance, s.speed
+        yaw = s.yaw_rate
+        for _ in range(n):
+            flux += (target - flux) * field_gain
+            back_emf = k_phi * flux * (v / radius * gear)
+            if driven:
+                i_ss = (v_arm - back_emf) / resistance
+                current = i_ss + (current - i_ss) * decay
+            else:  # chopper off: the current freewheels away through the diode
+                current *= decay
+            if current < 0.0:
+                current = 0.0
+            if current > limit:
+                current = limit
+            if current < 1e-6:
+                current = 0.0
+            # torque at the motor shafts, then the force at the wheels
+            drive_force = motors_k_phi * flux * current * gear / radius
+            # Friction: Coulomb drivetrain + rolling resistance + viscous, opposing motion; at
+            # rest it holds the truck unless the drive force exceeds it (stiction = same level).
+            held = -coulomb <= drive_force <= coulomb
+            if v == 0.0 and held:
+                v_new = 0.0  # stiction holds it
+            else:
+                direction = copysign(1.0, v if v != 0.0 else drive_force)
+                v_new = v + (drive_force - direction * coulomb - viscous_per_speed * v) \
+                    / m_eff * dt
+                if v != 0.0 and held and copysign(1.0, v_new) != direction:
+                    v_new = 0.0  # friction brings it to rest; it does not reverse it
+            # Steering actuator: rate- and angle-limited toward the demand.
+            if steering:
+                delta = demand - steer
+                if delta < -rate:
+                    delta = -rate
+                if delta > rate:
+                    delta = rate
+                steer += delta
+                if steer != tan_of or steer == 0.0:  # (a zero's sign matters to tan)
+                    tan_of, tan_steer = steer, tan(steer)
+            # advance_pose, inline: midpoint heading
+            v_mid = 0.5 * (v + v_new)
+            yaw = v_mid * tan_steer / wheelbase
+            h_mid = heading + 0.5 * yaw * dt
+            x += v_mid * cos(h_mid) * dt
+            y += v_mid * sin(h_mid) * dt
+            heading += yaw * dt
+            distance += v_mid * dt
+            v = v_new
+        self.flux, self.current, self.steer = flux, current, steer
+        s.x, s.y, s.heading, s.distance, s.speed, s.yaw_rate = x, y, heading, distance, v, yaw
 
     def wheel_speeds(self) -> tuple[float, float]:
         """Rear (driven) wheel rim speeds, left and right, m/s."""
