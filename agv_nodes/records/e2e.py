@@ -57,22 +57,22 @@ def _table() -> tuple[int, ...]:
     return tuple(table)
 
 
-_TABLE = _table()
+CRC_TABLE = _table()  # CRC-8 SAE J1850 of each byte value (the generated fast paths use it too)
 
 
 def crc8_sae_j1850(data: bytes | bytearray, init: int = INIT) -> int:
     """CRC-8/SAE-J1850 of `data` (check value of b'123456789' is 0x4B)."""
     crc = init
     for byte in data:
-        crc = _TABLE[crc ^ byte]
+        crc = CRC_TABLE[crc ^ byte]
     return crc ^ XOROUT
 
 
 def record_crc(data_id: int, first15: bytes | bytearray) -> int:
     """Return the byte-16 CRC of a protected record: over data_id then bytes 1-15."""
-    crc = _TABLE[INIT ^ data_id]  # = crc8_sae_j1850(bytes((data_id,)) + first15)
+    crc = CRC_TABLE[INIT ^ data_id]  # = crc8_sae_j1850(bytes((data_id,)) + first15)
     for byte in first15:
-        crc = _TABLE[crc ^ byte]
+        crc = CRC_TABLE[crc ^ byte]
     return crc ^ XOROUT
 
 

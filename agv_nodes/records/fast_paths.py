@@ -14,7 +14,7 @@ field, on every record a node or the lock-step harness sends and takes.
 from collections.abc import Callable
 from typing import Any
 
-from agv_nodes.records.e2e import _TABLE, INIT, XOROUT
+from agv_nodes.records.e2e import CRC_TABLE, INIT, XOROUT
 
 RECORD_LENGTH = 16
 
@@ -112,11 +112,11 @@ def compile_port_paths(schema: Any, integrity: str) -> tuple[Callable, Callable]
     `check(data)` -> what `schema.decode(data, integrity=integrity)` gives for 16 bytes (type
     bytes) that pass every check and unpack fast; else None.
     """
-    env: dict[str, Any] = {'T': _TABLE}
+    env: dict[str, Any] = {'T': CRC_TABLE}
     e2e = schema.protected and integrity == 'e2e'
     spare_bytes = 14 if schema.protected else RECORD_LENGTH
     checks, unpack, byte_parts = _field_code(schema, env, lambda i: f'd{i}')
-    crc_start = _TABLE[INIT ^ schema.data_id]
+    crc_start = CRC_TABLE[INIT ^ schema.data_id]
     n = len(schema.fields)
 
     # a plain dict only: a Mapping's __missing__ could answer for a name not in it
