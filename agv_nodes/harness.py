@@ -8,8 +8,10 @@ ports, as in the graph (docs/architecture.md, "The lock-step harness"). A node c
     on_record(record, fields, now) -> {record: fields} | None   # an accepted input
     tick(now) -> {record: fields} | None                         # its timer
 
-Records a core returns are delivered at once (breadth first) within the world sample, as the 1983
-boards' pigeon-holes were read on the next loop; timers run after it on the simulated clock.
+Records a core returns are delivered at once within the world sample, as the 1983 boards'
+pigeon-holes were read on the next loop: every reader of a record takes it before the records
+they return go out, each in turn and on to its readers; timers run after it on the simulated
+clock.
 """
 
 from collections.abc import Callable, Iterable, Mapping
@@ -22,6 +24,10 @@ from agv_nodes.records.codec import Codec
 from agv_nodes.records.codec import codec as installed_codec
 from agv_nodes.records.ports import RecordReader, RecordWriter
 from agv_nodes.world.core import WorldCore
+
+# Records sent in answer to records, nested, before the harness calls it a loop (a real chain
+# is a few deep: a sensor record, the navigation's answer, traction's).
+MAX_CHAIN = 100
 
 
 def run_for(stepped: Any, seconds: float, until: Callable[[], bool] | None = None) -> bool:
@@ -89,6 +95,7 @@ class Harness:
         # an add() (`_route`)
         self._routes: dict[str, tuple] = {}
         self._ns_of, self._now_ns = None, 0  # the sim time _now_ns (ns) is of
+        self._depth = 0  # records delivered in answer to records, nested
         for core in cores:
             self.add(core)
 
@@ -198,18 +205,24 @@ class Harness:
 
     def _publish_all(self, queue: list[tuple[_Member, dict]]) -> None:
         """Send each member's outputs in turn (each record delivered at once, depth first)."""
-        if len(queue) > 10_000:
+        self._depth += 1
+        if self._depth > MAX_CHAIN:
+            self._depth -= 1
             raise RuntimeError('harness: records keep triggering records (a loop?)')
         links = self.links
-        for m, outputs in queue:
-            for record, fields in outputs.items():
-                writer = m.writers.get(record)
-                if writer is None:
-                    raise KeyError(f'{m.core.node} is not the writer of {record} (msg_schemas)')
-                if record in links:
-                    self._send(m.core.node, record, writer.pack(fields))
-                else:
-                    self._deliver(record, writer.pack(fields))
+        try:
+            for m, outputs in queue:
+                for record, fields in outputs.items():
+                    writer = m.writers.get(record)
+                    if writer is None:
+                        raise KeyError(f'{m.core.node} is not the writer of {record} '
+                                       '(msg_schemas)')
+                    if record in links:
+                        self._send(m.core.node, record, writer.pack(fields))
+                    else:
+                        self._deliver(record, writer.pack(fields))
+        finally:
+            self._depth -= 1
 
     def set_radio_stop(self, on: bool) -> None:
         """Set the hw/radio_stop input: to the world and every core that reads it."""

@@ -223,3 +223,36 @@ def test_shared_decoding_keeps_every_readers_accounting():
     odometry = [r for (_node, name), r in _readers(h).items() if name == 'wheel_odometry']
     assert len(odometry) == 3 and all(r.accepted for r in odometry)
     assert any(r.rejected for r in _readers(h).values())
+
+
+class _Echo:
+    """A stand-in core that answers each record it reads with the one it writes: a loop."""
+
+    period = 0.01
+
+    def __init__(self, node: str, reads: str, writes: str, start: bool) -> None:
+        self.node, self.reads, self.writes, self.start = node, reads, writes, start
+        self.answered = 0
+
+    def _record(self) -> dict:
+        return {self.writes: {f.name: f.default for f in codec()[self.writes].fields}}
+
+    def on_record(self, record: str, fields: dict, now: float) -> dict | None:
+        if record != self.reads:
+            return None
+        self.answered += 1
+        return self._record()
+
+    def tick(self, now: float) -> dict | None:
+        return self._record() if self.start else None
+
+
+def test_records_that_keep_triggering_records_stop_the_harness():
+    """Two cores answering each other for ever: a clear error, not a recursion overflow."""
+    h = truck('demo_1983', seed=1)
+    loop = Harness(h.world, [
+        _Echo('executive', 'navigation_status', 'navigation_command', start=True),
+        _Echo('navigation', 'navigation_command', 'navigation_status', start=False)])
+    with pytest.raises(RuntimeError, match='records keep triggering records'):
+        loop.run(0.1)
+    assert loop._depth == 0
