@@ -160,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
             executor.spin_once(timeout_sec=0.1)
         print(f'agv-demo: graph up in {time.monotonic() - wall0:.1f} s, every link carrying '
               f'records at {state["sim"]:.1f} s; sending the programme')
-        moving_wall, sim0 = time.monotonic(), state['sim']
+        moving_wall, sim0, cpu0 = time.monotonic(), state['sim'], launch.cpu_seconds()
         for text in tasks:
             task_pub.publish(String(data=text))
         limit = args.sim_limit
@@ -171,6 +171,7 @@ def run(args: argparse.Namespace) -> int:
             if state['sim'] - sim0 > limit:
                 raise RuntimeError(f'programme not finished after {limit:.0f} simulated s')
         sim_elapsed, wall_elapsed = state['sim'] - sim0, time.monotonic() - moving_wall
+        cpu = process_cpu(cpu0, launch.cpu_seconds(), sim_elapsed, wall_elapsed)
         # A second for the recorder to take what was sent last (the final report), or the bag
         # may lack it.
         settle = time.monotonic() + 1.0
@@ -179,6 +180,7 @@ def run(args: argparse.Namespace) -> int:
     except (RuntimeError, KeyboardInterrupt) as exc:
         print(f'agv-demo: {exc}', file=sys.stderr)
         code, sim_elapsed, wall_elapsed = 1, state['sim'], time.monotonic() - wall0
+        cpu = {}
     finally:
         executor.remove_node(node)
         node.destroy_node()
@@ -194,7 +196,7 @@ def run(args: argparse.Namespace) -> int:
                'real_time_factor': sim_elapsed / wall_elapsed if wall_elapsed else 0.0,
                'truck': args.truck, 'layout': layout,
                'bag': str(out / 'bag'), 'processes': len(launch.specs()),
-               'node_exits': launch.exits}
+               'node_exits': launch.exits, 'cpu': cpu}
     (out / 'demo.json').write_text(json.dumps(summary, indent=2))
     report = None
     if not args.no_report and (out / 'bag').exists():
@@ -208,6 +210,20 @@ def run(args: argparse.Namespace) -> int:
             report = make_report(out / 'bag', out / 'report')
     print_summary(summary, report, out)
     return code
+
+
+def process_cpu(before: dict[str, float], after: dict[str, float], sim: float,
+                wall: float) -> dict[str, dict[str, float]]:
+    """Each process's CPU over the programme: ms per simulated s and % of a core.
+
+    At time factor 0 the world runs as fast as the graph keeps up, so the process nearest 100 %
+    of a core (or the two cores shared out) is what holds the graph back.
+    """
+    if sim <= 0 or wall <= 0:
+        return {}
+    used = {name: after[name] - before[name] for name in after if name in before}
+    return {name: {'ms_per_sim_s': 1000.0 * spent / sim, 'percent_of_core': 100.0 * spent / wall}
+            for name, spent in sorted(used.items(), key=lambda kv: -kv[1])}
 
 
 def print_summary(summary: dict, report: dict | None, out: Path) -> None:
@@ -232,6 +248,10 @@ def print_summary(summary: dict, report: dict | None, out: Path) -> None:
         print(f'\nroad signs met: {len(report["signs"])}; stops: {len(report["stops"])}')
     if report and 'faults' in report:
         print(f'\nfaults: {"; ".join(report["faults"] or ["none"])}')
+    if summary.get('cpu'):
+        print('\n| process | CPU, ms per simulated s | % of a core |\n|---|---|---|')
+        for name, c in summary['cpu'].items():
+            print(f'| {name} | {c["ms_per_sim_s"]:.1f} | {c["percent_of_core"]:.1f} |')
     print(f'\nsimulated {summary["sim_seconds"]:.1f} s in {summary["wall_seconds"]:.1f} s wall '
           f'= real-time factor {summary["real_time_factor"]:.2f} '
           f'({summary["processes"]} processes)')

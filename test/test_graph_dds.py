@@ -75,6 +75,12 @@ def test_quick_demo_tasks_and_stops(quick):
     assert [t['result'] for t in summary['tasks']] == ['completed', 'completed']
     assert summary['processes'] == 9
     assert all(code == 0 for code in summary['node_exits'].values()), summary['node_exits']
+    # each process's CPU over the programme, the busiest first: every one of the nine worked
+    cpu = summary['cpu']
+    assert set(cpu) == set(summary['node_exits']) and len(cpu) == 9
+    spent = [c['ms_per_sim_s'] for c in cpu.values()]
+    assert all(ms > 0 for ms in spent) and spent == sorted(spent, reverse=True)
+    assert 'world' in list(cpu)[:3]  # the world steps the physics: among the busiest
     report = json.loads((quick / 'report' / 'report.json').read_text())
     assert [s['marker'] for s in report['stops']] == ['W0.1', 'W2.1']
     assert all(abs(s['error_mm']) <= STOP_TOLERANCE_MM for s in report['stops'])

@@ -227,6 +227,22 @@ class Launch:
         if not self.stopping:
             self.stop(timeout=2.0)
 
+    def cpu_seconds(self) -> dict[str, float]:
+        """Return each process's CPU time so far (user + system, all its threads), s.
+
+        The child wrapper execs the node, so a process's pid is its node's; one whose /proc
+        entry is gone (reaped, or not Linux) is left out.
+        """
+        out: dict[str, float] = {}
+        for label, proc in self.procs.items():
+            try:
+                stat = Path(f'/proc/{proc.pid}/stat').read_text()
+            except OSError:
+                continue
+            fields = stat.rsplit(')', 1)[1].split()
+            out[label] = (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+        return out
+
     def poll(self) -> list[str]:
         """Check the processes; return the names of those that died unexpectedly."""
         dead = []
