@@ -10,11 +10,12 @@ from a station is gone for the other.
 from __future__ import annotations
 
 import math
+import random
 
 import pytest
 
 from agv_nodes.fleet.lockstep import Fleet
-from agv_nodes.world.contact import footprint, overlap
+from agv_nodes.world.contact import ContactWatch, footprint, overlap
 from agv_nodes.world.layout import LayoutError
 from agv_nodes.world.settings import WorldParams
 
@@ -104,3 +105,23 @@ def test_footprints_overlap_as_the_bodies_do(b, touching):
     a = footprint(0.0, 0.0, 0.0, p)
     assert overlap(a, footprint(*b, p)) is touching
     assert overlap(footprint(*b, p), a) is touching
+
+
+def test_the_watch_finds_every_pair_the_edges_find():
+    """The circles about the footprints only skip pairs that cannot touch (nose to tail too)."""
+    p = WorldParams().electruk
+    rng = random.Random(7)
+    names = ['a', 'b', 'c', 'd']
+    watch, touched = ContactWatch(names), 0
+    for _ in range(2000):
+        poses = {n: (rng.uniform(-3, 3), rng.uniform(-3, 3), rng.uniform(-math.pi, math.pi), 0.0)
+                 for n in names}
+        poses['b'] = (1.8, 0.0, 0.0, 0.0)  # nose to tail with 'a' at the origin, exactly
+        poses['a'] = (0.0, 0.0, 0.0, 0.0)
+        shapes = {n: footprint(*poses[n][:3], p) for n in names}
+        want = {(x, y) for i, x in enumerate(names) for y in names[i + 1:]
+                if overlap(shapes[x], shapes[y])}
+        got = watch.contacts({n: (poses[n], p) for n in names})
+        assert got == want
+        touched += len(got)
+    assert touched > 2000  # every draw has a-b touching, and many others

@@ -37,6 +37,13 @@ def _separated(a: list[Point], b: list[Point]) -> bool:
     return False
 
 
+def _circle(corners: list[Point]) -> tuple[Point, float]:
+    """Return the corners' centroid and the distance to the farthest corner."""
+    cx = sum(x for x, _y in corners) / len(corners)
+    cy = sum(y for _x, y in corners) / len(corners)
+    return (cx, cy), max(math.hypot(x - cx, y - cy) for x, y in corners) * (1.0 + 1e-9) + 1e-9
+
+
 def overlap(a: list[Point], b: list[Point]) -> bool:
     """Return True when two convex outlines (anticlockwise corners) touch or overlap."""
     return not (_separated(a, b) or _separated(b, a))
@@ -66,10 +73,23 @@ class ContactWatch:
 
     def contacts(self, bodies: Mapping[str, tuple[tuple[float, ...], ElectrukParams]]
                  ) -> set[tuple[str, str]]:
-        """Return the pairs (in `names` order) whose footprints touch or overlap."""
+        """Return the pairs (in `names` order) whose footprints touch or overlap.
+
+        A pair whose circles about the footprints (centre, farthest corner) are apart cannot
+        touch; only the others are tested edge by edge, which a floor's trucks mostly are not.
+        """
         shapes = {name: footprint(*pose[:3], p) for name, (pose, p) in bodies.items()}
-        return {(a, b) for i, a in enumerate(self.names) for b in self.names[i + 1:]
-                if overlap(shapes[a], shapes[b])}
+        circles = {name: _circle(corners) for name, corners in shapes.items()}
+        out = set()
+        for i, a in enumerate(self.names):
+            (ax, ay), ar = circles[a]
+            for b in self.names[i + 1:]:
+                (bx, by), br = circles[b]
+                if math.hypot(ax - bx, ay - by) > ar + br:
+                    continue
+                if overlap(shapes[a], shapes[b]):
+                    out.add((a, b))
+        return out
 
     def check(self, bodies: Mapping[str, tuple[tuple[float, ...], ElectrukParams]],
               now: float) -> list[Collision]:

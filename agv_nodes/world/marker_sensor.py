@@ -86,6 +86,8 @@ class MarkerSensorModel:
         self._lit_noise: list[list[float]] = []  # per row: the lit conversions' noise, counts
         self._dark: list[list[int]] = []  # per row: the dark conversions
         self._quiet: tuple | None = None  # (gains, blacks, signals, lit) with no card in view
+        self._seen_key: tuple | None = None  # what _seen_last was looked at from
+        self._seen_last: list[tuple[int, tuple[float, float]]] = []
         gains, blacks = calibrate(params) if not params.gains or not params.blacks else ((), ())
         self.gains, self.blacks = params.gains or gains, params.blacks or blacks
         if len(self.gains) != 8 or len(self.blacks) != 8 or len(params.skew) != 8:
@@ -101,6 +103,19 @@ class MarkerSensorModel:
         return out
 
     def _seen(self, lens: tuple[float, float], heading: float, cards: list,
+              height: float) -> list[tuple[int, tuple[float, float]]]:
+        """_look(), kept while the lens, its height and the cards near it stay as they were.
+
+        A truck standing at a stop marker sees the same card sample after sample (a fleet's
+        parked trucks for minutes), and the optics depend on nothing else. The key holds the
+        cards themselves: the same objects compare at once, equal ones look alike.
+        """
+        key = (lens, heading, height, tuple(cards))
+        if key != self._seen_key:
+            self._seen_key, self._seen_last = key, self._look(lens, heading, cards, height)
+        return self._seen_last
+
+    def _look(self, lens: tuple[float, float], heading: float, cards: list,
               height: float) -> list[tuple[int, tuple[float, float]]]:
         """(detector, (illumination, white fraction)) of each detector a card is seen by.
 
@@ -349,8 +364,9 @@ def _belt_runs(params_key: tuple) -> tuple:
     steps: per range and detector the mean over peaks and troughs of the x4 running sum of the
     black part X = illum (1 - cover) and the white part Y = illum cover (a detector: A X + B Y).
     """
-    model = MarkerSensorModel.__new__(MarkerSensorModel)
+    model = MarkerSensorModel.__new__(MarkerSensorModel)  # the optics alone: no calibration
     model.p = SensorParams(**dict(params_key))
+    model._seen_key, model._seen_last = None, []
     runs = []
     for standoff in CALIBRATION_RANGES:
         belt = _Belt(standoff)
