@@ -20,6 +20,7 @@ from pathlib import Path
 import random
 from typing import Any, Protocol
 
+from agv_nodes.harness_timers import fire_timers
 from agv_nodes.records.codec import Codec
 from agv_nodes.records.codec import codec as installed_codec
 from agv_nodes.records.ports import RecordReader, RecordWriter
@@ -239,7 +240,7 @@ class Harness:
     def step(self) -> dict[str, Any]:
         """One world sample, then every node timer that has come due."""
         out = self.world.step()
-        now = self.now
+        now = self.world.time
         if self.world.bumper != self._bumper:  # hw/bumper in the graph (the world's output)
             self._bumper = self.world.bumper
             for m in self.members:
@@ -251,7 +252,11 @@ class Harness:
             for _t, record, raw, _w in due:
                 self._deliver(record, raw)
         for record, fields in out['records'].items():
-            self._send('world', record, self.world_writers[record].pack(fields))
+            raw = self.world_writers[record].pack(fields)
+            if record in self.links:
+                self._send('world', record, raw)
+            else:  # no link faults: straight to the readers
+                self._deliver(record, raw)
         self.events.extend(out['events'])
         if out['frames']:
             self.frames = out['frames']
@@ -261,14 +266,7 @@ class Harness:
                     for m in self.members:
                         if hasattr(m.core, 'on_frame'):
                             self._publish(m, m.core.on_frame(frame, now, camera=camera))
-        for m in self.members:
-            while m.core.period is not None and m.next_tick <= now + 1e-12:
-                m.next_tick += m.core.period
-                self._publish(m, m.core.tick(now))
-            every = getattr(m.core, 'supervision_period', None)
-            while every is not None and m.next_supervise <= now + 1e-12:
-                m.next_supervise += every
-                self._publish(m, m.core.supervise(now))
+        fire_timers(self.members, self._publish, now)
         return out
 
     def run(self, seconds: float, until: Callable[[], bool] | None = None) -> bool:

@@ -35,25 +35,27 @@ class FaultSupervision:
     def _supervise(self, now: float) -> None:
         # First: a writer whose records are being rejected also goes stale, and the rejections
         # are the better name for it.
-        self.rejects = [(t, sub) for t, sub in self.rejects if now - t <= 1.0]
-        if len(self.rejects) > self.p.reject_limit:
+        if self.rejects:
+            self.rejects = [(t, sub) for t, sub in self.rejects if now - t <= 1.0]
+        p = self.p
+        if len(self.rejects) > p.reject_limit:
             writers = sorted({sub for _t, sub in self.rejects})
             return self._fail(now, 'rejected_records', writers[0] if len(writers) == 1
                               else 'none', f'{len(self.rejects)} in 1 s')
         # Communications too: a silent sub-system is a fault to stop on (Baker 1983, 7.2: one
         # that failed made the others reset, which hid the fault), and without it no abort
         # reaches the truck. Its status comes on the same 50 ms grid as the others.
+        status_time, max_age, timeout = self.status_time, self.max_age, p.status_timeout
         for sub in self.subsystems:
-            t = self.status_time.get(sub)
+            t = status_time.get(sub)
             if t is None:
                 if now - self.task_start > 1.0:
                     return self._fail(now, 'stale_status', sub, 'never heard from')
                 continue
             age = now - t
-            self.max_age[sub] = max(self.max_age.get(sub, 0.0), age)
-            others = self.arrivals - self.arrivals_at.get(sub, 0)
-            if age > self.p.status_timeout and (others >= self.p.stale_confirm
-                                                or age > 2 * self.p.status_timeout):
+            max_age[sub] = max(max_age.get(sub, 0.0), age)
+            if age > timeout and (self.arrivals - self.arrivals_at.get(sub, 0) >= p.stale_confirm
+                                  or age > 2 * timeout):
                 return self._fail(now, 'stale_status', sub, f'{age:.2f} s old')
         nav = self.status.get('navigation') or {}
         if nav.get('sensor_lost'):

@@ -51,10 +51,10 @@ class Conveyors:
     def step(self, now: float, dt: float, at_rest: bool, lens_pose: LensPose) -> Marker | None:
         """Advance a transfer by `dt`; return the stop marker where a load has just moved."""
         cmd = self.command
-        aligned = self.aligned(at_rest, lens_pose)
-        if now - self.command_time > self.p.conveyor_timeout:
+        # The cheap tests first: the alignment (a pass over the markers) is pure.
+        if now - self.command_time > self.p.conveyor_timeout or not cmd.get('station_request'):
             return None
-        if aligned is None or not cmd.get('station_request'):
+        if (aligned := self.aligned(at_rest, lens_pose)) is None:
             return None
         marker, j = aligned
         action = cmd['first' if j == 0 else 'second']

@@ -177,14 +177,15 @@ class WorldCore:
         self.events = []
         if self.layout.kind == 'rig':
             return self._step_rig()
-        now = sample * self.dt  # self.time
+        dt, p, vehicle = self.dt, self.p, self.vehicle
+        now = sample * dt  # self.time
         self._apply_safety(now)
-        sub = self.dt / self.p.substeps
-        if isinstance(self.vehicle, Electruk):  # a sample's substeps in one call
-            self.vehicle.step(sub, self.p.substeps)
+        sub = dt / p.substeps
+        if isinstance(vehicle, Electruk):  # a sample's substeps in one call
+            vehicle.step(sub, p.substeps)
         else:
-            for _ in range(self.p.substeps):
-                self.vehicle.step(sub)
+            for _ in range(p.substeps):
+                vehicle.step(sub)
         records: dict[str, dict[str, Any]] = {}
         if self.marker_sensor:
             records['adc_snapshot'] = self._adc()
@@ -194,9 +195,8 @@ class WorldCore:
             records['wheel_odometry'] = self._odometry()
         if self.pal is not None and self._drive_every.due(sample):
             records['drive_status'] = self.pal.record()
-        at_rest = abs(self.vehicle.state.speed) <= 0.01
-        moved = self.conveyors.step(now, self.dt, at_rest, self.lens_pose)
-        if moved is not None:
+        at_rest = abs(vehicle.state.speed) <= 0.01
+        if (moved := self.conveyors.step(now, dt, at_rest, self.lens_pose)) is not None:
             self._event('load_moved', marker=moved)
         if self._conv_every.due(sample):
             records['conveyor_status'] = self.conveyors.status(at_rest, self.lens_pose)
