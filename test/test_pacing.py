@@ -52,3 +52,15 @@ def test_an_unknown_node_is_ignored_and_max_lag_zero_never_waits():
     p.start(0.0)
     p.progress('world', 0.0, 0.0)
     assert p.lagging(100.0) == []
+
+
+def test_a_node_not_heard_since_the_start_is_unheard_even_if_heard_before():
+    """start_patience applies to a node until its first progress after the world moves."""
+    p = pacer()
+    p.progress('navigation', 0.0, 0.0)  # heard before the start: its last word stands
+    p.start(0.0)
+    assert p.unheard(list(NODES)) == ['navigation', 'traction']
+    p.progress('traction', 0.05, 0.05)
+    assert p.unheard(p.lagging(1.0)) == ['navigation']
+    p.progress('navigation', 0.9, 1.0)
+    assert p.unheard(list(NODES)) == []

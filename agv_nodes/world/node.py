@@ -323,11 +323,19 @@ class WorldNode(Node):
                 for node in m.pacer.lagging(now)]
 
     def _catch_up(self, executor: Any) -> None:
-        """Let lagging nodes catch up before time moves on (at most lag_patience)."""
+        """Let lagging nodes catch up before time moves on (at most lag_patience).
+
+        start_patience instead while a lagging node has not been heard from since the world
+        started moving (agv_nodes/world/pacing.py).
+        """
         late = self._lagging()
         waited = time.monotonic()
         nudge = waited + 0.05
-        while late and running() and time.monotonic() - waited < self.s.lag_patience:
+        now = self.time
+        starting = any(m.pacer.unheard(m.pacer.lagging(now)) for m in self.members)
+        patience = max(self.s.start_patience, self.s.lag_patience) if starting \
+            else self.s.lag_patience
+        while late and running() and time.monotonic() - waited < patience:
             executor.spin_once(timeout_sec=0.002)
             late = self._lagging()
             if late and self.s.publish_clock and time.monotonic() > nudge:
@@ -339,7 +347,7 @@ class WorldNode(Node):
             for m in self.members:
                 m.pacer.give_up(m.pacer.lagging(self.time))
             self.get_logger().warn(f'carrying on without {", ".join(late)} (behind for '
-                                   f'{self.s.lag_patience:g} s)')
+                                   f'{patience:g} s)')
 
     def _report_pacing(self) -> None:
         """Log how far behind the world each node was heard at worst over the last minute."""

@@ -6,7 +6,11 @@ lock-step: `GraphPacer` keeps each node's latest word on the simulation channel
 (agv_nodes.sim_progress) and says which nodes lag by more than `max_lag` beyond the progress period
 and the /clock step. The world waits for them (real time only) at most `lag_patience` real seconds,
 then carries on: a node that died must not stop the world, the rest of the graph has to see the
-truck stop. A node given up is waited for again once heard from (docs/architecture.md).
+truck stop. A node given up is waited for again once heard from (docs/architecture.md). Until a
+node has been heard from since the world started moving, the world waits for it longer
+(`start_patience`): the first seconds of a crowded machine (a fleet's nineteen processes still
+settling their discovery) can hold every node back at once, and a world that carried on then
+would leave them all behind.
 """
 
 from dataclasses import dataclass, field
@@ -25,6 +29,7 @@ class GraphPacer:
     worst: dict[str, float] = field(default_factory=dict)  # node -> most s behind when heard
     _heard: dict[str, float | None] = field(default_factory=dict)
     _gave_up: set[str] = field(default_factory=set)
+    _unheard: set[str] = field(default_factory=set)  # not heard from since start()
 
     def __post_init__(self) -> None:
         self._heard = dict.fromkeys(self.nodes)
@@ -39,6 +44,7 @@ class GraphPacer:
         for node, heard in self._heard.items():
             if heard is None:
                 self._heard[node] = now
+        self._unheard = set(self.nodes)
 
     def progress(self, node: str, handled: float, now: float) -> None:
         """`node` has handled everything up to sim time `handled`; the world is at `now`."""
@@ -46,6 +52,7 @@ class GraphPacer:
             return
         self._heard[node] = handled
         self._gave_up.discard(node)
+        self._unheard.discard(node)
         self.worst[node] = max(self.worst.get(node, 0.0), now - handled)
 
     def behind(self, node: str, now: float) -> float:
@@ -58,6 +65,10 @@ class GraphPacer:
     def lagging(self, now: float) -> list[str]:
         """Nodes that have fallen behind the world."""
         return [node for node in self.nodes if self.max_lag and self.behind(node, now) > 0]
+
+    def unheard(self, nodes: list[str]) -> list[str]:
+        """Those of `nodes` not heard from since the world started moving."""
+        return [node for node in nodes if node in self._unheard]
 
     def give_up(self, nodes: list[str]) -> None:
         """Stop waiting for `nodes` until they are heard from again."""
