@@ -9,9 +9,13 @@ the dynamic CONCIC-II), the route-following core in camera mode and a stand-in e
 seeded in lock step, as in test/test_route_feed_forward.py. Laws: feedback (thesis), route
 following's defaults (the PI law, P 2.5 and I 0.07 per frame); feedback (ours), the steering
 settings of bench/concic2_best_bench.py (gain_theta 0.4, schedule_speed 0.31, integral_band
-0.01); feed_forward, camera_law feed_forward with its defaults, which steers by the feedback
-law until identification.ready_distance (3 m) of tape has been identified and hands back to
-it where the identified curve no longer fits (a curve's start). All read all 64 image rows.
+0.01); feed_forward (positional), camera_law feed_forward with feed_forward.form positional,
+which steers by the feedback law until identification.ready_distance (3 m) of tape has been
+identified and hands back to it where the identified conic no longer fits (a curve's start);
+feed_forward, camera_law feed_forward with its defaults (form chord: both casters held on the
+chord of the track points the window placed, agv_nodes/track_geometry/chord_law.py), which
+steers by the feedback law only until the window has placed track under the rear caster
+(about 1 m). All read all 64 image rows.
 
 Courses: one tape, 0.058 m wide, the camera window set down 0.3 m along it (the layout's start
 places the window; the axle is 0.34 m short of the tape). circle: 4 m straight, a
@@ -221,8 +225,10 @@ def settings() -> list[str]:
     ident, ff = p.identification, p.feed_forward
     return [f"Settings: route following's defaults but for the law (camera_speed the cruise; "
             f'set-off ramp {p.steering.set_off_acceleration} m/s^2). feed_forward: form '
-            f'{ff.form}, criterion {ff.criterion}, G1 {ff.gain_d}, G2 {ff.gain_theta}, G3 '
-            f'{ff.gain_i}, ramp_distance {ff.ramp_distance} m; identification: model '
+            f'{ff.form}, k_y {ff.chord_gain_y}, k_psi {ff.chord_gain_heading}, lead time '
+            f'{ff.chord_lead_time} s; the positional form: criterion {ff.criterion}, G1 '
+            f'{ff.gain_d}, G2 {ff.gain_theta}, G3 {ff.gain_i}, ramp_distance '
+            f'{ff.ramp_distance} m; identification: model '
             f'{ident.model}, memory {ident.memory} of {ident.window} m, ready after '
             f'{ident.ready_distance} m and {ident.ready_samples} samples within '
             f'{ident.ready_residual} m RMS, gap_distance {ident.gap_distance} m. World seed 2, '
@@ -255,9 +261,9 @@ def section(r: dict, quick: bool, took: float) -> list[str]:
             "completed feedback law's (named).", '',
             f'| course | model | speed (m/s) | {laws} | ff before each curve | ff share (%) '
             f'| ff peak under | ratio | goal <= {HALF:.2f} |',
-            '|---|---|---|---|---|---|---|---|---|---|---|',
+            '|' + '---|' * (8 + len(LAWS)),
             *casters, '', 'Window centre (mm), the same frames and spans; no goal.', '',
-            f'| course | model | speed (m/s) | {laws} |', '|---|---|---|---|---|---|',
+            f'| course | model | speed (m/s) | {laws} |', '|' + '---|' * (3 + len(LAWS)),
             *windows, '']
     if not quick:
         rows, steady_goals = steady_rows(r)
@@ -295,12 +301,14 @@ def notes(r: dict, quick: bool) -> list[str]:
     out = ['Notes:', '',
            f'- A law that holds the window on the tape leaves both caster contacts '
            f"{1000 * inside:.1f} mm inside an arc of R = {R} m: the feedback laws' casters run "
-           f'there on the arc and leave it from there. feed_forward steers by its feedback law '
-           f'until the identification is ready and again from where the identified curve no '
-           f'longer fits the samples (the 3 m identification window holds line and arc, or two '
-           f'arcs, and its residual exceeds ready_residual) until the window holds mostly the '
-           f"new piece. Distances below are the window's along the tape, past the last join "
-           f"of the tape's pieces (a curve's start or end, the s_bend's inflection)."]
+           f'there on the arc and leave it from there. feed_forward (positional) steers by its '
+           f'feedback law until the identification is ready and again from where the '
+           f'identified conic no longer fits the samples (the 3 m identification window holds '
+           f'line and arc, or two arcs, and its residual exceeds ready_residual) until the '
+           f'window holds mostly the new piece. feed_forward (chord) needs no fit of the '
+           f"curve's shape: the track points up to the window are the track ahead of both "
+           f"casters. Distances below are feed_forward's window's along the tape, past the last "
+           f"join of the tape's pieces (a curve's start or end, the s_bend's inflection)."]
     for course, (_segments, curves) in COURSES.items():
         ff = [d for d in r['drives'].values() if d.law == 'feed_forward' and d.course == course]
         if not ff:
@@ -326,12 +334,15 @@ def notes(r: dict, quick: bool) -> list[str]:
     if not quick:
         top = p.drive_safety.full_speed / (1.0 + span / (2.0 * R))
         tops = [v[0] for v in r['tops'].values() if not math.isnan(v[0])]
+        fb = min(max(r['tops'][law, m][0] for law in FEEDBACK) for m in r['models'])
         out.append(f'- The outer wheel on R = {R} m runs 1 + L / (2 R) = '
                    f'{1.0 + span / (2.0 * R):.3f} times the cruise, so it reaches '
                    f'drive_safety.full_speed ({p.drive_safety.full_speed} m/s, where each wheel '
                    f'demand is clipped) at a cruise of {top:.2f} m/s; beyond it a law can only '
                    f'turn harder by slowing the inner wheel. The top speeds lie at '
-                   f'{between(tops, 2)} m/s.')
+                   f"{between(tops, 2)} m/s. {FASTER:.1f} times the better feedback law's is "
+                   f'{FASTER * fb:.2f} m/s or more, faster than either wheel can turn: no law '
+                   f'meets that goal on this truck.')
     return [*out, '']
 
 

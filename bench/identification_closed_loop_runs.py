@@ -19,6 +19,7 @@ from concic2_thesis_bench import TapeWorld, circle_floor
 from agv_nodes.harness import CameraLegScript, Harness
 from agv_nodes.route_following.core import RouteCore
 from agv_nodes.route_following.settings import RouteParams
+from agv_nodes.track_geometry.settings import FeedForwardParams
 from agv_nodes.world.core import WorldCore
 from agv_nodes.world.layout import Layout, load_layout
 from agv_nodes.world.settings import Concic2Params, WorldParams
@@ -44,7 +45,9 @@ COURSES: dict[str, tuple[str, list[tuple[float, float]]]] = {
 LAWS: dict[str, dict] = {
     'feedback (thesis)': {},
     'feedback (ours)': {'steering': OURS},
-    'feed_forward': {'camera_law': 'feed_forward'},
+    'feed_forward (positional)': {'camera_law': 'feed_forward',
+                                  'feed_forward': FeedForwardParams(form='positional')},
+    'feed_forward': {'camera_law': 'feed_forward'},  # the default form, chord; the goals' law
 }
 FEEDBACK = ('feedback (thesis)', 'feedback (ours)')
 

@@ -116,7 +116,7 @@ def test_e8_ratio_line_is_the_last_line_main_prints(
     text = '\n'.join(quick[0])
     assert '### E8a' in text and 'E8b' not in text  # steady state and top speed: the full run's
     drives = quick[1]['e8']['results']['drives']
-    assert len(drives) == 3 and all(d.completed for d in drives.values())
+    assert len(drives) == 4 and all(d.completed for d in drives.values())  # one per law
     ff = drives['circle', 'feed_forward', 'kinematic', 0.6]
     assert ff.ff_before == [True]  # identified on the 4 m lead-in before the curve
     monkeypatch.setattr(bench, 'run', lambda *_args, **_kw: quick)

@@ -34,11 +34,13 @@ axle, so the loop backwards is the forward loop mirrored: the same gains and dam
 `camera_law` feed_forward (the parameter, or a leg's own choice in route_command, read when the
 leg begins: App. F.5 had identification-based guidance a key away) adds the identified track's
 law (track_guidance.py, Rajagopalan 1991, 5.4) going forwards: every leading frame feeds the
-identification, and once it has converged the feed-forward law steers instead of the law
-`cameras` chose; before that, in reverse, and after the fitter restarts on a new primitive of
-the route, that law steers. A hand-back carries the angle over: the PI law's integral is set to
-give the angle the feed-forward law last gave, so the caster does not jump. With the tape out
-of the leading window while following, the truck keeps to the identified track for
+identification, and the feed-forward law steers instead of the law `cameras` chose once it
+can: under feed_forward.form chord (the default) once the window has placed track under the
+rear caster, under the conic's forms once the identification has converged; before that, in
+reverse, and (the conic's forms) after the fitter restarts on a new primitive of the route,
+that law steers. A hand-back carries the angle over: the PI law's integral is set to give the
+angle the feed-forward law last gave, so the caster does not jump. With the tape out of the
+leading window while following, the truck keeps to the identified track for
 identification.gap_distance before the stop.
 
 Frames of one instant: the world renders both cameras in the same step and stamps them alike,

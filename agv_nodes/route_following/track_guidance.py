@@ -22,12 +22,17 @@ too slow, 7.6):
    junction would pile samples onto one point).
 3. Once the fitter's own test passes (TrackFitter.ready), P is carried one frame's travel on
    along the identified curve and the osculating circle taken there (5.4.4.1); the
-   FeedForwardSteering law (Eq. 5.89-5.91, its positional form by default) steers by the
+   FeedForwardSteering law (Eq. 5.89-5.91, its positional form) steers by the
    circle's radius and the side of its centre, on the offsets measured on plain tape and on
    those the window would read of the identified curve where a frame gave no sample. Until
    then the feedback law steers (camera_law.py), as it does in reverse. That law held the
    window on the tape, so on taking over the criterion's eps_dd comes in over
    feed_forward.ramp_distance.
+   Under feed_forward.form chord (the default) the chord law steers instead, from the
+   first frame the plain frames' points reach back past the rear caster (chord_law.py:
+   both casters on the chord of those points, no fit needed, so no hand-back where a curve
+   begins); the conic's law steers only where the chord law cannot (a road sign, whose
+   frames place no points), and the circle is still taken, for the picture.
 4. A leading window without the tape, while following: the truck keeps going along the
    identified curve (2.3.3; App. F.5: no stop in identification mode). The offsets the window
    would read are taken from the pose and the curve, up to identification.gap_distance of
@@ -46,8 +51,11 @@ from __future__ import annotations
 from collections import deque
 import math
 
+import numpy as np
+
 from agv_nodes.route_following.camera_guidance import Measurement, Validity
 from agv_nodes.route_following.settings import RouteParams
+from agv_nodes.track_geometry.chord_law import ChordSteering, TrackPolyline
 from agv_nodes.track_geometry.criteria import centre_side
 from agv_nodes.track_geometry.feed_forward import FeedForwardSteering, Geometry
 from agv_nodes.track_geometry.fitting import Conic
@@ -66,6 +74,7 @@ GATE_SAMPLES = 5
 MARCH_STEP = 0.02  # m: the extrapolation walks the curve in steps this long at most
 TRACK_POINTS = 200  # most points in the picture of the identified track
 KEPT = 5000  # most samples kept for that picture (memory all: the latest)
+PATH_KEPT = 2.0  # m of O's travel: the track points the chord law looks along
 
 
 def _gradient(conic: Conic, x: float, y: float) -> tuple[float, float, float]:
@@ -138,6 +147,10 @@ class TrackGuidance:
         self.pose = PoseIntegrator(s.wheel_span, ident.rule, ident.left_scale)
         self.fitter = TrackFitter(ident)
         self.law = FeedForwardSteering(params.feed_forward, self.geometry)
+        self.chord = ChordSteering(self.geometry, params.feed_forward) \
+            if params.feed_forward.form == 'chord' else None
+        # Every plain frame's P (s, x, y), heading gate or not: the chord law's track
+        self._path: deque[tuple[float, float, float]] = deque()
         self.circle: Circle | None = None  # osculating, where the window looks next
         self.measured: tuple[float, float] | None = None  # the last plain frame's offsets
         self.bridged = 0.0  # m driven with the tape out of the window (the latest gap)
@@ -163,6 +176,7 @@ class TrackGuidance:
         self.law.reset()
         self.circle, self.measured, self.bridged = None, None, 0.0
         self._samples.clear()
+        self._path.clear()
         self._seen_at = self._frame_at = self._took_over = None
         self._rejected = 0
 
@@ -205,12 +219,37 @@ class TrackGuidance:
                 self.fitter.add(px, py, theta_p, s)
                 self._samples.append((s, px, py))
             self.measured = (m.eps_d, m.eps_theta)
+            if not self._path or s - self._path[-1][0] >= SPACING:
+                self._path.append((s, px, py))
+                while s - self._path[0][0] > PATH_KEPT:
+                    self._path.popleft()
+        if self.chord is not None and (theta := self._steer_chord(dt)) is not None:
+            if plain and self.ready:  # the circle the identification gives, to be looked at
+                self.circle = self._circle_ahead(px, py) or self.circle
+            return theta
         if not self.ready:
             self._took_over = None  # the feedback law steers: the next take-over ramps again
             return None
         if plain:
             return self._steer(m.eps_d, m.eps_theta, px, py, dt)
         return self._steer_on_track(dt)
+
+    def _steer_chord(self, dt: float) -> float | None:
+        """Return the chord law's caster angle, or None: too little track placed yet.
+
+        Once it steers, the conic's law, should it take over (across a road sign, which gives
+        no track points), aims at its criterion in full: the casters are already on the tape.
+        """
+        if len(self._path) < 2:
+            return None
+        x, y, heading = self.pose.pose
+        speed = self._frame_travel / dt if dt > 0.0 else 0.0
+        track = TrackPolyline(np.array([(px, py) for _s, px, py in self._path]))
+        theta = self.chord.steer(track, x, y, heading, speed)
+        if theta is not None:
+            self.law.theta_s = theta  # a hand-back to the feedback law starts from it
+            self._took_over = self.pose.distance - self.law.p.ramp_distance
+        return theta
 
     def _takes(self, px: float, py: float, theta_p: float) -> bool:
         """Whether the sample's heading agrees with the identified track's (see GATE_HEADING)."""
@@ -261,14 +300,20 @@ class TrackGuidance:
         eps_theta = math.remainder(math.atan2(along[1], along[0]) - heading, 2.0 * math.pi)
         return self._steer(t, eps_theta, bx - t * s, by + t * c, dt, conic)
 
-    def _steer(self, eps_d: float, eps_theta: float, px: float, py: float,
-               dt: float, conic: Conic | None = None) -> float | None:
-        """Steer by the osculating circle one frame's travel on from P."""
+    def _circle_ahead(self, px: float, py: float, conic: Conic | None = None) -> Circle | None:
+        """Return the osculating circle one frame's travel on from P along the conic."""
         conic = self.fitter.implicit() if conic is None else conic
         ahead = None if conic is None else march(conic, px, py, self._frame_travel)
         if ahead is None or (along := tangent(conic, *ahead)) is None:
             return None
-        circle = osculating_implicit(conic, *ahead, heading=math.atan2(along[1], along[0]))
+        return osculating_implicit(conic, *ahead, heading=math.atan2(along[1], along[0]))
+
+    def _steer(self, eps_d: float, eps_theta: float, px: float, py: float,
+               dt: float, conic: Conic | None = None) -> float | None:
+        """Steer by the osculating circle one frame's travel on from P."""
+        circle = self._circle_ahead(px, py, conic)
+        if circle is None:
+            return None
         self.circle = circle
         x, y, heading = self.pose.pose
         side = 0 if circle.straight else centre_side(circle.h, circle.k, x, y, heading)

@@ -48,6 +48,10 @@ positional   theta_s = theta_ff + G1 e_d + G2 e_theta + G3 sum(e_d dT), where th
              at all, and the integral removes only what the model misses (a wrong L_a, unequal
              wheels). The form we expect to work better, and the default.
 
+chord        (chord_law.py, ours) steers by the track points themselves, not by this law: it
+             holds the body on the chord of the points that both caster contacts should touch.
+             The identified conic and this law's positional form steer only where it cannot.
+
 Gains: rad of caster angle per m of e_d (G1), per rad of e_theta (G2), per m s of the integral
 (G3) in the positional form; in the incremental form the same per sample. The positional
 feedback alone gives, per metre, y'' + ((G1 L_c + G2) / L_a) y' + (G1 / L_a) y = 0 at any
@@ -127,7 +131,10 @@ def feed_forward_angle(radius: float, side: int, params: FeedForwardParams | Non
 
 
 class FeedForwardSteering:
-    """The law of Eq. 5.89-5.91 in either form; one `update` per camera sample."""
+    """The law of Eq. 5.89-5.91, incremental or positional; one `update` per camera sample.
+
+    Under form chord it is the positional law, for what the chord law leaves to the conic.
+    """
 
     def __init__(self, params: FeedForwardParams | None = None,
                  geometry: Geometry | None = None) -> None:
