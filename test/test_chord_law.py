@@ -20,14 +20,14 @@ import random
 
 import numpy as np
 import pytest
+from test_feed_forward import DT, arc_step
 
 from agv_nodes.track_geometry.chord_law import ChordSteering, TrackPolyline
-from agv_nodes.track_geometry.feed_forward import Geometry, effective_wheelbase
+from agv_nodes.track_geometry.feed_forward import Geometry
 from agv_nodes.track_geometry.settings import FeedForwardParams
 
 R = 2.95  # m, the thesis's circle
 STRAIGHT = 4.0  # m of straight before the arc
-DT = 0.05  # s
 G = Geometry()  # the CONCIC-II's L_c, L_a, s and caster angle limit
 CENTRE = (STRAIGHT, R)  # the arc's centre: it turns left from (STRAIGHT, 0)
 
@@ -75,13 +75,7 @@ def drive(v: float, metres: float = 9.0, noise: float = 0.0, lag: int = 1,
         theta = law.steer(TrackPolyline(np.array(path)), x, y, h, v) if len(path) > 1 else None
         queue.append(0.0 if theta is None else theta)
         steer = queue.pop(0)
-        w = v * math.tan(steer) / effective_wheelbase(steer, G.caster_distance, G.caster_trail)
-        if w:
-            x += v / w * (math.sin(h + w * DT) - math.sin(h))
-            y -= v / w * (math.cos(h + w * DT) - math.cos(h))
-        else:
-            x, y = x + v * DT * math.cos(h), y + v * DT * math.sin(h)
-        h += w * DT
+        x, y, h = arc_step(x, y, h, v, steer, G.caster_distance, G.caster_trail)
         c, s = math.cos(h), math.sin(h)
         travelled.append((n + 1) * v * DT)
         errors.append(max(abs(offset(x + k * G.caster_distance * c,

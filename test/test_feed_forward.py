@@ -53,6 +53,16 @@ def camera_offsets(x: float, y: float, heading: float, ahead: float
     return t, math.remainder(math.atan2(qx, -qy) - heading, math.pi)
 
 
+def arc_step(x: float, y: float, h: float, v: float, steer: float, la: float,
+             trail: float) -> tuple[float, float, float]:
+    """One sample of the kinematic CONCIC-II: the caster angle's yaw rate, on an exact arc."""
+    w = v * math.tan(steer) / effective_wheelbase(steer, la, trail)
+    if w:
+        return (x + v / w * (math.sin(h + w * DT) - math.sin(h)),
+                y - v / w * (math.cos(h + w * DT) - math.cos(h)), h + w * DT)
+    return x + v * DT * math.cos(h), y + v * DT * math.sin(h), h
+
+
 @dataclass
 class Run:
     """One closed loop: per sample the offsets, caster angle and caster contacts' errors."""
@@ -96,13 +106,7 @@ def run(v: float, params: FeedForwardParams = P, *, side: int = 1, metres: float
         queue.append(law.update(eps_d, eps_theta, circle.radius,
                                 centre_side(circle.h, circle.k, x, y, h), DT))
         steer = queue.pop(0)
-        w = v * math.tan(steer) / effective_wheelbase(steer, la, trail)
-        if w:
-            x += v / w * (math.sin(h + w * DT) - math.sin(h))
-            y -= v / w * (math.cos(h + w * DT) - math.cos(h))
-        else:
-            x, y = x + v * DT * math.cos(h), y + v * DT * math.sin(h)
-        h += w * DT
+        x, y, h = arc_step(x, y, h, v, steer, la, trail)
         c, s = math.cos(h), math.sin(h)
         out.eps_d.append(eps_d)
         out.eps_theta.append(eps_theta)
