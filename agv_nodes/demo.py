@@ -286,13 +286,16 @@ def main(argv: list[str] | None = None) -> int:
                     'of your own on the printed broker until Ctrl-C')
     ap.add_argument('--mqtt-url', help='with --fleet: a broker of your own, mqtt://host[:port] '
                     '(default: AGV_MQTT_URL, else one embedded in the launcher)')
+    ap.add_argument('--layout', help='with --fleet: the floor (default demo_1983, room for '
+                    'three trucks; fleet_1983 parks eight)')
     ap.add_argument('--transfers', type=int, metavar='K',
                     help='with --fleet: transfers in the programme (default 8, --quick 2)')
     args = ap.parse_args(argv)
-    if args.fleet or args.external_master or args.mqtt_url or args.transfers is not None:
+    if args.fleet or args.external_master or args.mqtt_url or args.transfers is not None \
+            or args.layout:
         if not args.fleet:
-            ap.error('--external-master, --mqtt-url and --transfers are for a fleet: add '
-                     '--fleet N')
+            ap.error('--external-master, --mqtt-url, --transfers and --layout are for a fleet: '
+                     'add --fleet N')
         if args.transfers is not None and args.transfers < 1:
             ap.error(f'--transfers {args.transfers}: at least 1')
         if args.truck != 'electruk':

@@ -23,7 +23,6 @@ from agv_nodes.fleet.track_graph import TrackGraph, track_graph
 from agv_nodes.vda5050 import VERSION, common
 from agv_nodes.vda5050.order import Order
 from agv_nodes.vda5050.order_flow import OrderFlow
-from agv_nodes.vda5050.order_tasks import task_way
 from agv_nodes.vda5050.state import (
     ActionStatus,
     BatteryState,
@@ -32,6 +31,7 @@ from agv_nodes.vda5050.state import (
     SafetyState,
     State,
 )
+from agv_nodes.vda5050.task_way import task_way
 from agv_nodes.world.layout import layout_path, load_layout
 
 pytestmark = pytest.mark.timeout(120)

@@ -50,13 +50,10 @@ class Block:
 
 def default_blocks(graph: TrackGraph) -> list[Block]:
     """Return a block per location marker with the stop markers following it on its wire."""
-    blocks: dict[int, set[str]] = {}
-    names: dict[int, str] = {}
+    blocks: dict[str, set[str]] = {}
     for node in graph.nodes.values():
-        blocks.setdefault(node.location, set()).add(node.id)
-        if node.kind == 'location':
-            names[node.location] = node.id
-    return [Block(names.get(loc, f'loc{loc}'), frozenset(ids)) for loc, ids in blocks.items()]
+        blocks.setdefault(node.location_marker or f'L{node.location}', set()).add(node.id)
+    return [Block(name, frozenset(ids)) for name, ids in blocks.items()]
 
 
 class Reservations:

@@ -57,8 +57,8 @@ from agv_nodes.fleet.jobs import (
 from agv_nodes.fleet.track_graph import TrackGraph
 from agv_nodes.vda5050.common import Action, ActionParameter, BlockingType
 from agv_nodes.vda5050.order import InstantActions
-from agv_nodes.vda5050.order_tasks import task_way
 from agv_nodes.vda5050.state import ActionStatus, State
+from agv_nodes.vda5050.task_way import task_way
 
 __all__ = ['Dispatcher', 'TransportOrder']
 

@@ -2,10 +2,12 @@
 
 The whole fleet over DDS and MQTT, as a user would run it: `agv-launch --trucks N --vda5050`
 (one world simulating every truck, each truck's graph in its namespace /agvK with its VDA 5050
-bridge, an embedded MQTT broker, a recorder) and the dispatcher node as the trucks' master. The
-demo gives the dispatcher transport orders as text on `fleet/transport`: two loads going round,
-A between W0 and W2 and B between W1 and W3, the next transfer of a load sent when its last one
-is done (fleet/report). It watches each truck's world events for collisions and ends with a
+bridge, an embedded MQTT broker, a recorder) and the dispatcher node as the trucks' master, on
+demo_1983 (three trucks at most) or `--layout fleet_1983` (eight). The demo gives the
+dispatcher transport orders as text on `fleet/transport`: loads going round
+(agv_nodes.world.fleet_floor.programme_loads: on demo_1983 A between W0 and W2 and B between
+W1 and W3, on fleet_1983 one per truck), the next transfer of a load sent when its last one is
+done (fleet/report). It watches each truck's world events for collisions and ends with a
 table: the transfers, each truck's distance, the collisions (there must be none).
 
 With --external-master no dispatcher runs: the bridges wait for a VDA 5050 master of the user's
@@ -24,11 +26,11 @@ import time
 from typing import Any
 
 from agv_nodes.graph.model import GraphError
-from agv_nodes.graph.parameters import Options, fleet_names
+from agv_nodes.graph.parameters import Options, fleet_names, launch_layout
 from agv_nodes.graph.supervisor import Launch
+from agv_nodes.world.fleet_floor import programme_loads
 
-LAYOUT = 'demo_1983'
-LOADS = {'A': ('W0', 'W2'), 'B': ('W1', 'W3')}  # each load's two stations, where it is first
+LAYOUT = 'demo_1983'  # the default floor (agv-demo --layout)
 TRANSFERS, QUICK_TRANSFERS = 8, 2
 STATUS_QUERY = 'status'  # the dispatcher's answer proves both directions of fleet/transport
 STEP_KEYS = ('steps', 'step median ms', 'step p99 ms', 'step max ms')  # from its /diagnostics
@@ -67,9 +69,10 @@ class TruckView:
 class Programme:
     """The loads going round: which transfer to send next, and which are done."""
 
-    def __init__(self, transfers: int) -> None:
+    def __init__(self, transfers: int, loads: dict[str, tuple[str, str]]) -> None:
         self.total = transfers
-        self.where = dict.fromkeys(LOADS, 0)  # index of the station each load is at
+        self.loads = loads  # each load's two stations, where it is first
+        self.where = dict.fromkeys(loads, 0)  # index of the station each load is at
         self.pending: dict[str, str] = {}  # transfer id -> load
         self.sent = 0
         self.done: list[tuple[str, str, float]] = []  # (id, line, sim s)
@@ -80,7 +83,7 @@ class Programme:
         if self.sent >= self.total:
             return None
         self.sent += 1
-        here, there = LOADS[load][self.where[load]], LOADS[load][1 - self.where[load]]
+        here, there = self.loads[load][self.where[load]], self.loads[load][1 - self.where[load]]
         self.pending[f't{self.sent}'] = load
         return f't{self.sent}: {here} to {there}'
 
@@ -104,12 +107,14 @@ def run(args: argparse.Namespace) -> int:
     """Launch the fleet, drive the programme (or wait for an external master), report."""
     out = Path(args.out or f'runs/fleet-{time.strftime("%Y%m%d-%H%M%S")}')
     out.mkdir(parents=True, exist_ok=True)
+    layout = args.layout or LAYOUT
     try:
         launch = Launch(Options(time_factor=args.time_factor, bag=out / 'bag', quiet=True,
-                                log_dir=out / 'logs', domain_id=args.domain_id, layout=LAYOUT,
+                                log_dir=out / 'logs', domain_id=args.domain_id, layout=layout,
                                 trucks=args.fleet, vda5050=True, mqtt_url=args.mqtt_url,
                                 external_master=args.external_master))
-    except GraphError as exc:
+        loads = programme_loads(launch_layout(launch.graph, launch.o).stations, args.fleet)
+    except (GraphError, ValueError) as exc:
         print(f'agv-demo: {exc}', file=sys.stderr)
         return 2
     os.environ.update(ROS_DOMAIN_ID=str(launch.domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
@@ -121,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
     from agv_nodes.node_process import make_executor
 
     names = fleet_names(launch.o)
-    print(f'agv-demo: fleet of {args.fleet} on {LAYOUT}; {len(launch.units())} processes, '
+    print(f'agv-demo: fleet of {args.fleet} on {layout}; {len(launch.units())} processes, '
           f'ROS_DOMAIN_ID={launch.domain}, MQTT {launch.mqtt_url}, time_factor '
           f'{args.time_factor:g}; output in {out}', flush=True)
     rclpy.init()
@@ -133,7 +138,8 @@ def run(args: argparse.Namespace) -> int:
         view_node = rclpy.create_node('fleet_demo', namespace=f'/{name}')
         executor.add_node(view_node)
         views[name] = TruckView(view_node)
-    programme = Programme(args.transfers or (QUICK_TRANSFERS if args.quick else TRANSFERS))
+    programme = Programme(args.transfers or (QUICK_TRANSFERS if args.quick else TRANSFERS),
+                          loads)
     lines: list[str] = []
     transport = node.create_publisher(String, 'fleet/transport', qos.EVENTS)
 
@@ -186,7 +192,7 @@ def run(args: argparse.Namespace) -> int:
             executor.spin_once(timeout_sec=0.05)
         sim0, moving_wall = now(), time.monotonic()
         print(f'agv-demo: fleet up in {moving_wall - wall0:.1f} s; sending the programme')
-        for load in LOADS:
+        for load in loads:
             if text := programme.next_for(load):
                 send(text)
         while len(programme.done) + len(programme.failed) < programme.total:
@@ -216,7 +222,7 @@ def run(args: argparse.Namespace) -> int:
         launch.stop()
     collisions = sum(v.collisions for v in views.values())
     code = code or (1 if collisions else 0)
-    summary = {'trucks': args.fleet, 'layout': LAYOUT, 'transfers': programme.total,
+    summary = {'trucks': args.fleet, 'layout': layout, 'transfers': programme.total,
                'done': [{'id': i, 'line': line, 'sim_time': t} for i, line, t in
                         programme.done],
                'failed': programme.failed, 'collisions': collisions,

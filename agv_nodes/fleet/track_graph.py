@@ -39,6 +39,9 @@ class TrackNode:
     x: float  # the wire's point abreast of the card, m (world frame): where the sensor reads it
     y: float
     theta: float  # the wire's heading there, rad in (-pi, pi]
+    # The location marker it belongs to (its own id for a location): with identities repeated
+    # on a floor (house numbers, Baker 1983, 8.5), `location` alone does not say which.
+    location_marker: str = ''
 
     @property
     def stoppable(self) -> bool:
@@ -120,14 +123,28 @@ class TrackGraph:
         return total
 
 
-def _location_of(marker: Marker, markers: list[Marker]) -> int:
-    """Return the location identity a stop marker belongs to: the last one before it."""
+def _location_of(marker: Marker, markers: list[Marker]) -> Marker:
+    """Return the location marker a stop marker belongs to: the last one before it."""
     before = [m for m in markers if m.kind == 'location' and m.path == marker.path
               and m.at < marker.at]
     if not before:
         raise LayoutError(f'stop marker {marker.name} on {marker.path} at {marker.at} m has no '
                           'location marker before it on its wire')
-    return max(before, key=lambda m: m.at).identity
+    return max(before, key=lambda m: m.at)
+
+
+def _check_repeats(layout: Layout, passed: list[Marker]) -> None:
+    """Refuse a route that meets one identity at two location markers in a row.
+
+    The truck reports the last location it recognised (Baker 1983, fig 6.2); the second of two
+    in a row would change nothing it reports, so no one could tell that it had passed it.
+    """
+    locations = [m for m in passed if m.kind == 'location']
+    for a, b in pairwise(locations):
+        if a.identity == b.identity and a is not b:
+            raise LayoutError(f'{layout.file}: key markers: location markers {a.name} and '
+                              f'{b.name} (both identity {a.identity}) follow each other on the '
+                              'route: the truck could not report passing the second')
 
 
 def track_graph(layout: Layout, world: WorldParams | None = None) -> TrackGraph:
@@ -143,11 +160,13 @@ def track_graph(layout: Layout, world: WorldParams | None = None) -> TrackGraph:
     nodes = []
     for m in markers:
         x, y, heading = (float(v) for v in layout.paths[m.path].pose_at(m.at))
-        location = m.identity if m.kind == 'location' else _location_of(m, markers)
-        nodes.append(TrackNode(m.name, m.kind, location, m.identity if m.kind == 'stop' else -1,
+        location = m if m.kind == 'location' else _location_of(m, markers)
+        nodes.append(TrackNode(m.name, m.kind, location.identity,
+                               m.identity if m.kind == 'stop' else -1,
                                m.station, round(x, 4), round(y, 4),
                                round(math.atan2(math.sin(heading), math.cos(heading)), 6)
-                               + 0.0))  # + 0.0: no -0.0
+                               + 0.0,  # + 0.0: no -0.0
+                               location.name))
     srm = {int(loc): int(angle) for loc, angle in (e.split(':') for e in layout.srm_map)}
     edges: dict[tuple[str, str], TrackEdge] = {}
 
@@ -156,6 +175,7 @@ def track_graph(layout: Layout, world: WorldParams | None = None) -> TrackGraph:
 
     by_name = {m.name: m for m in markers}
     passes = route_passes(layout, world)
+    _check_repeats(layout, [by_name[name] for name, _ in passes if name in by_name])
     for (a, da), (b, db) in pairwise(passes):
         ma, mb = by_name[a], by_name[b]
         angle = srm.get(ma.identity, 0) if ma.kind == 'location' else 0
@@ -169,7 +189,7 @@ def track_graph(layout: Layout, world: WorldParams | None = None) -> TrackGraph:
             continue
         landing = next((e for e in edges.values() if e.start == loc.name and e.srm_angle), None)
         after = sorted((m for m in markers if m.path == loc.path and m.at > loc.at
-                        and m.kind == 'stop' and _location_of(m, markers) == loc_id),
+                        and m.kind == 'stop' and _location_of(m, markers) is loc),
                        key=lambda m: m.at)
         previous = loc
         for m in after:

@@ -103,8 +103,6 @@ class OrderFlow:
         self._base_end: tuple[str, int] | None = None  # the decision point (6.6.2)
         self._base_end_passed = True  # False: it is the start node, not reached yet
         self._marker: int | None = None  # the last location marker the truck reported
-        self._location_node = {n.location: n.id for n in graph.nodes.values()
-                               if n.kind == 'location'}
 
     # -- orders (6.6) ----------------------------------------------------------------------
     def on_order(self, order: Order) -> Outcome:
@@ -394,12 +392,16 @@ class OrderFlow:
         return True
 
     def _passed_marker(self, marker: int, stop: StopPoint) -> bool:
-        """Clear the nodes up to location `marker`, passed on the way to `stop`."""
-        node_id = self._location_node.get(marker)
+        """Clear the nodes up to location `marker`, passed on the way to `stop`.
+
+        The truck reports the identity only; the first node of it still ahead on the order's
+        way is the marker it passed, where a floor repeats identities (house numbers).
+        """
         for node in self._nodes:
             if node.sequence_id > stop.sequence_id:
                 break
-            if node.node_id == node_id:
+            track = self.graph.nodes.get(node.node_id)
+            if track is not None and track.kind == 'location' and track.location == marker:
                 self._traversed(node.node_id, node.sequence_id)
                 return True
         return False

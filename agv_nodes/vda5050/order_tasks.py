@@ -27,6 +27,7 @@ from agv_nodes.vda5050.state import (
     ErrorReference,
     NodeState,
 )
+from agv_nodes.vda5050.task_way import task_legs
 
 ORDER_ERROR = 'orderError'
 NO_ROUTE_ERROR = 'noRouteError'
@@ -274,34 +275,16 @@ class StopPoint:
     done: bool = False
 
 
-def task_way(graph: TrackGraph, anchor: str, anchor_passed: bool, stop: str) -> list[str] | None:
-    """Return the nodes a task drives through from `anchor` to stop marker `stop` (None: none).
-
-    A task drives along the route map to the NEXT location marker of its location and on to
-    its stop marker, so the way is the route to that location marker (a lap when the truck is
-    on it already, `anchor_passed`) and on. The route map's way is the graph's route that
-    leaves out branches to stations (TrackGraph.route).
-    """
-    location = graph.nodes[stop]
-    marker = next((n.id for n in graph.nodes.values()
-                   if n.kind == 'location' and n.location == location.location), None)
-    if marker is None:
-        return None
-    if anchor == marker and not anchor_passed:
-        return graph.route(marker, stop)
-    to_marker, on = graph.route(anchor, marker), graph.route(marker, stop)
-    return None if to_marker is None or on is None else to_marker + on[1:]
-
-
 def stop_points(order: Order, graph: TrackGraph, anchor_passed: bool
                 ) -> tuple[list[StopPoint], list[Error]]:
     """Return the stop points of the order's base after its first node, or noRouteErrors.
 
     A stop point is a released node with an action or the last released node; its way from the
-    previous one (from the first node for the first) must be the way its task drives
-    (task_way), else the order is a noRouteError naming the node. `anchor_passed` is False
-    only when the first node is one the truck has not passed yet. The order has passed
-    check_order.
+    previous one (from the first node for the first) must be the way its tasks drive
+    (task_legs), else the order is a noRouteError naming the node. Where that takes more than
+    one task, the via stops are stop points too (no action: the truck stops and goes on).
+    `anchor_passed` is False only when the first node is one the truck has not passed yet.
+    The order has passed check_order.
     """
     released = [node for node in order.nodes if node.released]
     points: list[StopPoint] = []
@@ -320,14 +303,18 @@ def stop_points(order: Order, graph: TrackGraph, anchor_passed: bool
                 'passes and cannot stop at: the base must end on a stop marker', refs))
             break
         ordered = [n.node_id for n in released[anchor:i + 1]]
-        way = task_way(graph, ordered[0], anchor_passed or anchor > 0, node.node_id)
-        if way != ordered:
-            drives = ' -> '.join(way) if way else 'no way'
+        legs = task_legs(graph, ordered[0], anchor_passed or anchor > 0, node.node_id)
+        if legs is None or legs[0] != ordered:
+            drives = ' -> '.join(legs[0]) if legs else 'no way'
             errors.append(make_error(
                 NO_ROUTE_ERROR, f'node {node.node_id}: the order goes {" -> ".join(ordered)}, '
                 f'but the task to it drives {drives}: a task reaches a stop marker by the '
                 'route map, past the next marker of its location', refs))
             break
+        for via in legs[1]:  # stops the truck makes on the way, where identities repeat
+            via_node = released[anchor + via]
+            points.append(StopPoint(via_node.node_id, via_node.sequence_id,
+                                    task_text(graph.nodes[via_node.node_id], None), None))
         points.append(StopPoint(node.node_id, node.sequence_id,
                                 task_text(track_node, _first(node)), _first(node)))
         anchor = i

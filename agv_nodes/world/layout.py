@@ -10,6 +10,7 @@ Paths and the road signs of tape floors are built by agv_nodes.world.tape_layout
 from dataclasses import dataclass, field
 import math
 from pathlib import Path
+import re
 from typing import Any
 
 from agv_nodes.markers import LOCATION_PATTERNS, STOP_STRIP, WHITE_CARD
@@ -46,12 +47,15 @@ class Marker:
     centre: tuple[float, float] = (0.0, 0.0)
     along: tuple[float, float] = (1.0, 0.0)
     normal: tuple[float, float] = (0.0, 1.0)
+    # A location marker's own name, where its identity is on the floor more than once: the
+    # house number of Baker 1983, 8.5 (see _check_locations).
+    label: str = ''
 
     @property
     def name(self) -> str:
-        """Short label for reports: L0..L3, <station>.<n> for stop markers, W."""
+        """Short label for reports: L0..L3 (or the layout's name), <station>.<n>, W."""
         if self.kind == 'location':
-            return f'L{self.identity}'
+            return self.label or f'L{self.identity}'
         if self.kind == 'stop':
             return f'{self.station or "S"}.{self.identity + 1}'
         return 'W'
@@ -103,6 +107,9 @@ class Layout:
     parking: tuple[str, ...] = ()
 
 
+_MARKER_KEYS = {'kind', 'identity', 'path', 'at', 'station', 'conveyor', 'standoff', 'height',
+                'yaw', 'name'}
+_NAME = re.compile(r'[A-Za-z][A-Za-z0-9_]{0,15}')
 _TOP_KEYS = {'layout', 'description', 'vehicle', 'kind', 'wires', 'tapes', 'markers',
              'stations', 'start', 'sensor', 'rig', 'route_limit', 'step', 'signs', 'srm_map',
              'camera_law', 'parking'}
@@ -163,6 +170,8 @@ def load_layout(file: Path | str) -> Layout:
         card['yaw'] = rig.get('angle', 0.0)
     markers = [_load_marker(m, i, file, paths, stations, card, sensor_lateral)
                for i, m in enumerate(doc.get('markers') or [])]
+    srm_map = _srm_map(doc.get('srm_map') or [], file)
+    _check_locations(markers, srm_map, file)
     signs = [add_sign(spec, i, file, paths, step) for i, spec in enumerate(doc.get('signs')
                                                                              or [])]
     start = doc.get('start') or {}
@@ -179,7 +188,7 @@ def load_layout(file: Path | str) -> Layout:
         sensor_lateral=sensor_lateral, kind=kind, rig=rig,
         route_limit=_num(doc.get('route_limit', 0.0), file, 'route_limit', 0.0, 1e4),
         description=' '.join(str(doc.get('description', '')).split()), signs=signs,
-        srm_map=_srm_map(doc.get('srm_map') or [], file), camera_law=camera_law,
+        srm_map=srm_map, camera_law=camera_law,
         parking=_parking(doc.get('parking') or [], file, markers))
     if kind == 'rig':
         _check_rig(layout, file)
@@ -192,6 +201,10 @@ def _load_marker(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
     key = f'markers[{i}]'
     if not isinstance(spec, dict):
         raise LayoutError(f'{file}: key {key}: {spec!r} must be a mapping')
+    for k in spec:
+        if k not in _MARKER_KEYS:
+            raise LayoutError(f'{file}: key {key}.{k}: unknown (known: '
+                              f'{", ".join(sorted(_MARKER_KEYS))})')
     kind = spec.get('kind')
     if kind not in ('location', 'stop', 'white'):
         raise LayoutError(f'{file}: key {key}.kind: {kind!r} not one of location, stop, white')
@@ -212,6 +225,10 @@ def _load_marker(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
         rows = STOP_STRIP
     else:
         rows = WHITE_CARD
+    label = spec.get('name', '')
+    if label and (kind != 'location' or not isinstance(label, str) or not _NAME.fullmatch(label)):
+        raise LayoutError(f'{file}: key {key}.name: {label!r}: only a location marker is named, '
+                          'a letter then up to 15 letters, digits or _')
     conveyor = str(spec.get('conveyor', 'first' if kind == 'stop' else ''))
     if kind == 'stop' and conveyor not in ('first', 'second'):
         raise LayoutError(f'{file}: key {key}.conveyor: {conveyor!r} not first or second')
@@ -223,7 +240,7 @@ def _load_marker(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
                            0.05),
                yaw=math.radians(_num(spec.get('yaw', card['yaw']), file, f'{key}.yaw', -45.0,
                                      45.0)),
-               station=station, conveyor=conveyor)
+               station=station, conveyor=conveyor, label=label)
     x, y, h = (float(v) for v in path.pose_at(at))
     reach = sensor_lateral + m.standoff
     m.centre = (x + math.sin(h) * reach, y - math.cos(h) * reach)
@@ -231,6 +248,32 @@ def _load_marker(spec: Any, i: int, file: Path, paths: dict[str, Path2D],
     m.normal = (-math.sin(h + m.yaw), math.cos(h + m.yaw))
     m.along = (math.cos(h + m.yaw), math.sin(h + m.yaw))
     return m
+
+
+def _check_locations(markers: list[Marker], srm_map: tuple[str, ...], file: Path) -> None:
+    """Refuse two location markers of one name, or two of a location the route map leaves at.
+
+    With four identities (Baker 1983, 4.4) a floor of more locations repeats them, each
+    marker named like a house number in a street (8.5); the truck still knows only the
+    identity, and its central computer tells the markers apart by the way the truck came.
+    The route map leaves the wire at every marker of its locations, so those stay unique.
+    """
+    seen: dict[str, int] = {}
+    for i, m in enumerate(markers):
+        if m.kind != 'location':
+            continue
+        if m.name in seen:
+            raise LayoutError(f'{file}: key markers[{i}].name: {m.name!r} is markers'
+                              f'[{seen[m.name]}] too: a location marker whose identity is on the '
+                              'floor more than once needs a name of its own')
+        seen[m.name] = i
+    for entry in srm_map:
+        location = int(entry.split(':')[0])
+        at = [i for i, m in enumerate(markers) if m.kind == 'location' and m.identity == location]
+        if len(at) > 1:
+            raise LayoutError(f'{file}: key srm_map: {entry!r}: location {location} is markers '
+                              f'{at}: the route map leaves the wire at every marker of its '
+                              'locations, so each of them has one marker')
 
 
 def _parking(entries: Any, file: Path, markers: list[Marker]) -> tuple[str, ...]:
