@@ -1,73 +1,141 @@
-"""Fleet benchmark: transfers per hour and the dispatcher's decision time, N trucks in lock step.
+"""Fleet benchmark: transfers per hour, decision time and where the time goes, N trucks in lock step.
 
-Each truck is a whole lock-step truck (world core and seven node cores) on demo_1983, driven by
-the dispatcher through its VDA 5050 bridge core (agv_nodes.fleet.bridged). Two loads go round:
-A between W0 and W2, B between W1 and W3; the next transfer of a load is submitted when its last
-one is done, so every transfer is possible whatever the order the trucks finish in. The
-trucks start at stop markers, W2.2, W0.1 and W1.1, told so by initPosition (the bridge sends
-the truck the task `at N first|second`, so the truck at W1.1 leaves by L1's SRM). demo_1983
-has room for three: four trucks (the fourth at W3.1) would hold all four of its blocks, and on
-the one-way loop none could enter the next (test_fleet_bridged.py shows the watchdog report
-that deadlock); W2.1 is 1.2 m from W2.2, closer than a truck's length.
+Each truck is a whole lock-step truck (world core and seven node cores), driven by the
+dispatcher through its VDA 5050 bridge core (agv_nodes.fleet.bridged). A row is a layout and a
+fleet size N:
 
-Run: .venv/bin/python bench/fleet_bench.py [--seconds 900] [--trucks 1 2 3]
-Prints a Markdown table (bench/results/fleet_bench.md).
+- demo_1983, N = 1-3: the trucks start at its `parking` stop markers W2.2, W0.1 and W1.1; two
+  loads go round, A between W0 and W2, B between W1 and W3. Four trucks would hold all four
+  blocks of its one-way loop and none could move (test_fleet_bridged.py).
+- fleet_1983 (config/layouts), N = 1, 2, 4, 8, and floors written by
+  agv_nodes.world.fleet_floor for larger N (fleet_1983_n16, fleet_1983_n32: the room lengthened
+  by extension_for(N), to a temporary directory): house-numbered locations, the trucks at the
+  first N `parking` places (every other A house, then B), one load per truck, load k between
+  Ak and Bk.
+
+The loads are fleet_floor.programme_loads's: the next transfer of a load is submitted when its
+last one is done, so every transfer is possible whatever order the trucks finish in. The
+dispatcher gets the trucks' places as `positions` (told by initPosition) and `parking`, as the
+launched fleet's dispatcher node does (agv_nodes.graph.parameters).
+
+The wall time is split, per simulated second: the trucks' harness steps, the contact check
+between them (the rest of Fleet.step), and the bridges with the dispatcher (the rest of
+BridgedFleet.step). A via stop is a `stop at` task a bridge sends for a node without action
+that does not end the base: where a task's way repeats a location identity, the truck stops.
+
+Run: .venv/bin/python bench/fleet_bench.py [--seconds 900] [--big-seconds 600]
+     [--rows demo_1983:1 fleet_1983:8 fleet_1983_n16:16 ...]
+Prints a Markdown table (bench/results/fleet_bench.md). Fails (SystemExit) on a failed transfer
+or a collision.
 """
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
+from pathlib import Path
 import statistics
+import tempfile
 import time
+from typing import Any
 
 from agv_nodes.fleet.bridged import BridgedFleet
 from agv_nodes.fleet.dispatcher import Dispatcher, TransportOrder
 from agv_nodes.fleet.lockstep import Fleet
 from agv_nodes.fleet.track_graph import track_graph
+from agv_nodes.world.fleet_floor import extension_for, fleet_floor_text, programme_loads
 from agv_nodes.world.layout import layout_path, load_layout
 
-POSITIONS = ('W2.2', 'W0.1', 'W1.1')  # where trucks 1, 2 and 3 are set down
-LOADS = {'A': ('W0', 'W2'), 'B': ('W1', 'W3')}  # each load's two stations, where it starts first
+ROWS = ('demo_1983:1', 'demo_1983:2', 'demo_1983:3', 'fleet_1983:1', 'fleet_1983:2',
+        'fleet_1983:4', 'fleet_1983:8', 'fleet_1983_n16:16', 'fleet_1983_n32:32')
+BIG = 16  # trucks from which a row runs --big-seconds
+DEMO_POSITIONS = ('W2.2', 'W0.1', 'W1.1')  # demo_1983's places, as the earlier tables had them
+DEMO_LOADS = {'A': ('W0', 'W2'), 'B': ('W1', 'W3')}
 
 
 class TimedDispatcher(Dispatcher):
-    """The dispatcher, its step timed."""
+    """The dispatcher, its step timed and its wait cycles collected."""
 
-    def __init__(self, *args: object, **kwargs: object) -> None:
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.decisions: list[float] = []
+        self.cycles: set[frozenset[str]] = set()  # every wait cycle of standing trucks seen
 
     def step(self, now: float) -> list:
         t0 = time.perf_counter()
         out = super().step(now)
         self.decisions.append(time.perf_counter() - t0)
+        self.cycles.update(frozenset(c) for c in self.deadlocks)
         return out
 
 
-def run(trucks: int, seconds: float) -> dict[str, float]:
-    """Run `trucks` trucks for `seconds` of simulated time; return the figures."""
-    lay = load_layout(layout_path('demo_1983'))
+def timed(fn: Callable[[], Any], spent: dict[str, float], key: str) -> Callable[[], Any]:
+    """Return `fn` that adds its wall seconds to spent[key]."""
+    def wrapper() -> Any:
+        t0 = time.perf_counter()
+        out = fn()
+        spent[key] += time.perf_counter() - t0
+        return out
+    return wrapper
+
+
+def count_via_stops(flow: Any, counter: list[int]) -> None:
+    """Count the via stops of every order or update `flow` (an OrderFlow) accepts."""
+    take = flow._take  # bench only: every accepted order's stop points pass here
+
+    def wrapper(order: Any, points: list, verdict: str) -> Any:
+        released = [n for n in order.nodes if n.released]
+        end = released[-1].sequence_id
+        counter[0] += sum(1 for p in points if p.action is None and p.sequence_id != end)
+        return take(order, points, verdict)
+    flow._take = wrapper
+
+
+def floor(name: str, trucks: int, tmp: Path) -> str:
+    """Return the layout to load: `name` from config/layouts, else a fleet floor written to tmp."""
+    if layout_path(name).exists():
+        return name
+    path = tmp / f'{name}.yaml'
+    path.write_text(fleet_floor_text(name, extension_for(trucks), trucks))
+    return str(path)
+
+
+def run(name: str, trucks: int, seconds: float, tmp: Path) -> dict[str, Any]:
+    """Run `trucks` trucks on layout `name` for `seconds` of simulated time; return the figures."""
+    layout = floor(name, trucks, tmp)
+    lay = load_layout(layout_path(layout))
+    if len(lay.parking) < trucks:
+        raise SystemExit(f'{name}: {len(lay.parking)} parking places for {trucks} trucks')
     at = {m.name: (m.path, m.at) for m in lay.markers}
     names = [f'agv{k + 1}' for k in range(trucks)]
-    positions = dict(zip(names, POSITIONS, strict=False))
-    fleet = Fleet('demo_1983', [at[positions[n]] for n in names])
-    d = TimedDispatcher(track_graph(lay), names, positions=positions)
-    where = {load: 0 for load in LOADS}  # index of the station the load is at
+    places = dict(zip(names, lay.parking[:trucks], strict=True))
+    loads = programme_loads(lay.stations, trucks)
+    if name == 'demo_1983' and (lay.parking[:3] != DEMO_POSITIONS or loads != DEMO_LOADS):
+        raise SystemExit(f'demo_1983 changed: parking {lay.parking}, loads {loads}')
+    fleet = Fleet(layout, [at[places[n]] for n in names])
+    d = TimedDispatcher(track_graph(lay), names, positions=places, parking=places)
+    where = {load: 0 for load in loads}  # index of the station the load is at
     pending: dict[str, str] = {}  # transfer id -> load
     serial = 0
 
     def submit(load: str) -> None:
         nonlocal serial
         serial += 1
-        here = LOADS[load][where[load]]
-        there = LOADS[load][1 - where[load]]
         pending[f't{serial}'] = load
-        d.submit(TransportOrder(f't{serial}', here, there))
+        d.submit(TransportOrder(f't{serial}', loads[load][where[load]],
+                                loads[load][1 - where[load]]))
 
-    for load in LOADS:
+    for load in loads:
         submit(load)
     bridged = BridgedFleet(fleet, d, graph=d.graph)
-    wall = time.perf_counter()
+    via = [0]
+    for bridge in bridged.bridges.values():
+        count_via_stops(bridge.flow, via)
+    spent = dict.fromkeys(('trucks', 'fleet', 'all'), 0.0)
+    for h in fleet.trucks.values():
+        h.step = timed(h.step, spent, 'trucks')
+    fleet.step = timed(fleet.step, spent, 'fleet')
+    bridged.step = timed(bridged.step, spent, 'all')
     done = 0
 
     def follow() -> bool:
@@ -79,34 +147,58 @@ def run(trucks: int, seconds: float) -> dict[str, float]:
             submit(load)
         return bool(d.failed or fleet.collisions)
 
+    wall = time.perf_counter()
     stopped = bridged.run(seconds, until=follow)
     wall = time.perf_counter() - wall
     if stopped:
-        raise SystemExit(f'{trucks} trucks: failed {d.failed}, collisions {fleet.collisions}')
+        raise SystemExit(f'{name}, {trucks} trucks at {fleet.now:.1f} s: failed {d.failed}, '
+                         f'collisions {fleet.collisions}')
     ms = sorted(1000 * s for s in d.decisions)
-    return {'trucks': trucks, 'transfers': done, 'per_hour': done * 3600 / seconds,
+    per_s = 1000 / seconds  # wall s -> wall ms per simulated s
+    return {'layout': name, 'trucks': trucks, 'blocks': len(d.reservations.blocks),
+            'seconds': seconds, 'transfers': done, 'per_hour': done * 3600 / seconds,
+            'via': via[0] / done if done else float('nan'),
             'median_ms': statistics.median(ms), 'p99_ms': ms[int(0.99 * (len(ms) - 1))],
-            'max_ms': ms[-1], 'factor': seconds / wall, 'collisions': len(fleet.collisions),
-            'deadlocks': len(d.deadlocks)}
+            'max_ms': ms[-1], 'factor': seconds / wall,
+            'trucks_ms': spent['trucks'] * per_s,
+            'contact_ms': (spent['fleet'] - spent['trucks']) * per_s,
+            'master_ms': (spent['all'] - spent['fleet']) * per_s,
+            'collisions': len(fleet.collisions), 'deadlocks': len(d.cycles)}
+
+
+def row(spec: str) -> tuple[str, int]:
+    """Parse a row `LAYOUT:N`."""
+    name, _, n = spec.rpartition(':')
+    if not name or not n.isdigit() or int(n) < 1:
+        raise argparse.ArgumentTypeError(f'{spec!r}: a row is LAYOUT:N, e.g. fleet_1983:8')
+    return name, int(n)
 
 
 def main() -> None:
     """Print the table."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument('--seconds', type=float, default=900.0, help='simulated s per fleet size')
-    ap.add_argument('--trucks', type=int, nargs='+', default=[1, 2, 3],
-                    choices=range(1, len(POSITIONS) + 1))
+    ap.add_argument('--seconds', type=float, default=900.0, help='simulated s per row')
+    ap.add_argument('--big-seconds', type=float, default=600.0,
+                    help=f'simulated s per row of {BIG} trucks or more')
+    ap.add_argument('--rows', type=row, nargs='+', default=[row(r) for r in ROWS],
+                    metavar='LAYOUT:N', help='layout (config/layouts, or a fleet floor '
+                    'written for N, e.g. fleet_1983_n16) and trucks; default: '
+                    + ' '.join(ROWS))
     args = ap.parse_args()
-    print(f'Fleet in lock step on demo_1983, {args.seconds:g} s simulated per row; loads A '
-          '(W0 <-> W2) and B (W1 <-> W3) going round; `bench/fleet_bench.py`.\n')
-    print('| trucks | transfers | per hour | decision median ms | p99 ms | max ms | '
-          'real-time factor | collisions |')
-    print('|---|---|---|---|---|---|---|---|')
-    for n in args.trucks:
-        r = run(n, args.seconds)
-        print(f'| {n} | {r["transfers"]} | {r["per_hour"]:.0f} | {r["median_ms"]:.2f} | '
-              f'{r["p99_ms"]:.2f} | {r["max_ms"]:.2f} | {r["factor"]:.1f} | '
-              f'{r["collisions"]} |', flush=True)
+    print(f'Fleet in lock step, {args.seconds:g} s simulated per row ({args.big_seconds:g} s '
+          f'from {BIG} trucks); `bench/fleet_bench.py`. Time split: wall ms per simulated s.\n')
+    print('| layout | trucks | blocks | sim s | transfers | per hour | per truck-hour | '
+          'via stops / transfer | decision median ms | p99 ms | max ms | real-time factor | '
+          'trucks ms/s | contact ms/s | bridges+dispatcher ms/s | collisions | deadlocks |')
+    print('|---|' * 1 + '---|' * 16)
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, n in args.rows:
+            r = run(name, n, args.big_seconds if n >= BIG else args.seconds, Path(tmp))
+            print(f'| {name} | {n} | {r["blocks"]} | {r["seconds"]:g} | {r["transfers"]} | '
+                  f'{r["per_hour"]:.0f} | {r["per_hour"] / n:.1f} | {r["via"]:.2f} | '
+                  f'{r["median_ms"]:.2f} | {r["p99_ms"]:.2f} | {r["max_ms"]:.2f} | '
+                  f'{r["factor"]:.2f} | {r["trucks_ms"]:.1f} | {r["contact_ms"]:.1f} | '
+                  f'{r["master_ms"]:.1f} | {r["collisions"]} | {r["deadlocks"]} |', flush=True)
 
 
 if __name__ == '__main__':

@@ -197,3 +197,35 @@ def test_a_fourth_truck_at_w3_1_fills_every_block_and_the_watchdog_reports_the_d
     for name, node in positions.items():
         assert run.states[name].last_node_id == node and not run.states[name].driving
         assert any(r.startswith("task 1 'at ") and 'completed' in r for r in fleet.reports(name))
+
+
+def test_the_dispatcher_runs_four_trucks_on_the_house_numbered_floor():
+    """fleet_1983 repeats identities 0 and 2 along its streets (Baker 1983, 8.5).
+
+    Four trucks parked a block apart each carry a load from Ak to Bk, half way round the loop:
+    every order spans houses of one identity, which the bridges drive by via stops.
+    """
+    from agv_nodes.fleet.dispatcher import Dispatcher, TransportOrder
+    from agv_nodes.fleet.track_graph import track_graph
+    from agv_nodes.world.fleet_floor import programme_loads
+    from agv_nodes.world.layout import layout_path, load_layout
+
+    lay = load_layout(layout_path('fleet_1983'))
+    at = {m.name: (m.path, m.at) for m in lay.markers}
+    positions = {f'agv{k + 1}': place for k, place in enumerate(lay.parking[:4])}
+    fleet = Fleet('fleet_1983', [at[p] for p in positions.values()], names=list(positions))
+    graph = track_graph(lay)
+    dispatcher = Dispatcher(graph, fleet.names, positions=positions, parking=positions)
+    for load, (source, destination) in programme_loads(lay.stations, 4).items():
+        dispatcher.submit(TransportOrder(load, source, destination))
+    run = BridgedFleet(fleet, dispatcher, graph=graph)
+    assert run.run(600.0, until=lambda: len(dispatcher.done) == 4
+                   or bool(dispatcher.failed or fleet.collisions)), run.summary()
+    assert sorted(dispatcher.done) == ['load1', 'load2', 'load3', 'load4']
+    assert (dispatcher.failed, fleet.collisions, dispatcher.deadlocks) == ([], [], [])
+    for load, (_, destination) in programme_loads(lay.stations, 4).items():
+        assert fleet.station_loads[destination] == 1, load
+    spans = [[graph.nodes[n.node_id].location for n in message.nodes
+              if n.released and graph.nodes[n.node_id].kind == 'location']
+             for _, _, topic, message in run.sent if topic == 'order']
+    assert any(len(ids) > len(set(ids)) for ids in spans)  # a base past a repeated identity

@@ -102,7 +102,6 @@ class OrderFlow:
         self._tasks: dict[int, Sent] = {}  # by the truck's task id
         self._base_end: tuple[str, int] | None = None  # the decision point (6.6.2)
         self._base_end_passed = True  # False: it is the start node, not reached yet
-        self._marker: int | None = None  # the last location marker the truck reported
 
     # -- orders (6.6) ----------------------------------------------------------------------
     def on_order(self, order: Order) -> Outcome:
@@ -335,9 +334,10 @@ class OrderFlow:
         The outcome is truthy when the state changed (publish_state), as a bool would be; its
         tasks (an abort after a failed task) must be sent.
         """
-        passage = last_marker is not None and last_marker != self._marker
-        if last_marker is not None:
-            self._marker = last_marker
+        # A passage is a location other than the one the truck was last known past: the report
+        # names the identity only, which a floor of house numbers repeats.
+        here = self.graph.nodes.get(self.last_node_id)
+        passage = last_marker is not None and (here is None or last_marker != here.location)
         target = self._tasks.get(task_id)
         out = Outcome('progress')
         if target is None or state not in TASK_STATES:
