@@ -17,7 +17,8 @@ from agv_nodes.vda5050 import VERSION, common
 from agv_nodes.vda5050.codec import parse, to_json
 from agv_nodes.vda5050.common import Action, ActionParameter, BlockingType
 from agv_nodes.vda5050.order import Edge, InstantActions, Node, Order
-from agv_nodes.vda5050.order_flow import CANNOT_PAUSE, OrderFlow, Outcome
+from agv_nodes.vda5050.order_flow import OrderFlow
+from agv_nodes.vda5050.order_tasks import CANNOT_PAUSE, Outcome
 from agv_nodes.vda5050.state import (
     ActionStatus,
     BatteryState,
