@@ -203,7 +203,7 @@ def test_the_dispatcher_runs_four_trucks_on_the_house_numbered_floor():
     """fleet_1983 repeats identities 0 and 2 along its streets (Baker 1983, 8.5).
 
     Four trucks parked a block apart each carry a load from Ak to Bk, half way round the loop:
-    every order spans houses of one identity, which the bridges drive by via stops.
+    every order spans houses of one identity, which the bridges drive by `pass` tasks.
     """
     from agv_nodes.fleet.dispatcher import Dispatcher, TransportOrder
     from agv_nodes.fleet.track_graph import track_graph

@@ -122,8 +122,8 @@ def parse_task(text: str, locations: tuple[int, ...] = (0, 1, 2, 3)) -> Task:
     """Parse one task of the task language (TaskError on anything else)."""
     t = _Tokens(text)
     verb = t.peek()
-    verbs = ('load', 'unload', 'wait', 'stop', 'srm', 'leave', 'at', 'tape', 'reckon', 'abort',
-             'status')
+    verbs = ('load', 'unload', 'wait', 'stop', 'srm', 'leave', 'at', 'pass', 'tape', 'reckon',
+             'abort', 'status')
     if verb not in verbs:
         what = 'empty task' if verb is None else f'unknown task {verb!r}'
         raise TaskError(text, t.column(), f'{what} (expected one of {", ".join(verbs)})')
@@ -157,6 +157,8 @@ def parse_task(text: str, locations: tuple[int, ...] = (0, 1, 2, 3)) -> Task:
         task = Task(text, 'at', location=location())
         if t.peek() in ('first', 'second'):
             task.marker = t.take()
+    elif verb == 'pass':  # pass N: on past the next marker of location N (modern)
+        task = Task(text, 'pass', location=location(), then='continue')
     elif verb in ('srm', 'leave'):
         if verb == 'leave':
             t.take('wire')

@@ -173,6 +173,8 @@ class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
         self.last_marker = marker
         self.distance_since_landmark = 0.0
         self._log(now, f'landmark L{marker}')
+        if self.step is not None and self.step.kind == 'pass' and marker == self.step.location:
+            self.phase = 'passed'
         if self.slow and self.route['mode'] == 'follow_wire':
             self.slow = False  # the landmark after an SRM: back to cruise
         angle = self._srm_pending if (self._srm_at == marker) else self.srm_map.get(marker)
@@ -202,7 +204,7 @@ class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
             return
         self._log(now, f'step {self.index + 1}/{len(self.steps)}: {step.name}')
         self.report = {'state': 'running', 'cause': 'none', 'subsystem': 'none'}
-        if step.kind in ('goto', 'srm', 'continue'):
+        if step.kind in ('goto', 'srm', 'continue', 'pass'):
             self.demand = self.p.cruise_demand
             departing, self.stopped_at, self.stop_marker = self.stopped_at, None, None
             if departing is not None and (departing in self.srm_map or (
@@ -221,6 +223,9 @@ class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
             elif step.kind == 'srm':
                 self.nav = (EXPLORE, 0)
                 self._srm_at, self._srm_pending = step.location, step.value
+                self.phase = 'wait_landmark'
+            elif step.kind == 'pass':  # cruise, every landmark reported, until it is passed
+                self.nav = (EXPLORE, 0)
                 self.phase = 'wait_landmark'
             else:
                 self.nav = (EXPLORE, 0)
@@ -316,6 +321,9 @@ class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
                 self.phase = 'srm'
             elif self.phase == 'srm' and route.get('manoeuvre') == self._srm_manoeuvre and \
                     route.get('state') == 'following':
+                self._advance(now)
+        elif step.kind == 'pass':
+            if self.phase == 'passed':
                 self._advance(now)
         elif step.kind == 'continue':
             if now - self.phase_time >= 0.5:

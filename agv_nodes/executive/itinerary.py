@@ -36,6 +36,8 @@ def itinerary(task: dict[str, Any]) -> list[Step]:
             steps.append(Step(op, n, value=conveyor, name=f'{op} on conveyor {conveyor + 1}'))
         elif op == 'wait':
             steps.append(Step('wait', n, value=task['dwell'], name=f'wait {task["dwell"]} s'))
+    elif op == 'pass':
+        steps.append(Step('pass', n, name=f'pass L{n} without stopping'))
     elif op == 'srm':
         steps.append(Step('srm', n, value=task['srm_angle'],
                           name=f'SRM at L{n}, {task["srm_angle"]} deg'))

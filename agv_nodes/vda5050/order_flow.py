@@ -22,8 +22,8 @@ The mapping:
   marker (agv_nodes.vda5050.task_way); the order's way to each stop point must be the way of
   its tasks, or the order is a noRouteError naming the stop point (W2.1 -> W2.2 directly,
   say: the task to W2.2 passes L2 first, a lap on). Where a floor repeats identities (house
-  numbers), a way past another marker of the stop's identity takes via stops: `stop` tasks
-  at the stop markers in between, which the master does not see.
+  numbers), each marker of the stop's identity on the way before its own is driven past by a
+  task `pass N` first; the master sees only its nodes pass.
 - Rejections (6.6.4, 6.10.6, references per 7.1): orderError (shape, ids, actions),
   noRouteError (start out of reach, stop point the task language cannot reach as ordered),
   orderUpdateError (lower orderUpdateId, a continuation not starting at the decision point,

@@ -264,12 +264,16 @@ def _check_actions(order: Order, graph: TrackGraph, update: bool, fail: Fail) ->
 
 @dataclass(eq=False)
 class StopPoint:
-    """A released node the truck stops at, and the task that takes it there."""
+    """A released node a task of the order ends at, and that task.
+
+    Mostly a stop; on a floor of repeated identities also a location marker a `pass N` task
+    drives past (task_legs).
+    """
 
     node_id: str
     sequence_id: int
     text: str
-    action: Action | None  # the node's action, None for a plain stop at the base's end
+    action: Action | None  # the node's action; None for a plain stop at the base's end, a pass
     task_id: int | None = None  # the truck's id, once it has queued the task
     reached: bool = False
     done: bool = False
@@ -282,7 +286,7 @@ def stop_points(order: Order, graph: TrackGraph, anchor_passed: bool
     A stop point is a released node with an action or the last released node; its way from the
     previous one (from the first node for the first) must be the way its tasks drive
     (task_legs), else the order is a noRouteError naming the node. Where that takes more than
-    one task, the via stops are stop points too (no action: the truck stops and goes on).
+    one task, the markers passed by `pass N` tasks are points too (the truck does not stop).
     `anchor_passed` is False only when the first node is one the truck has not passed yet.
     The order has passed check_order.
     """
@@ -311,10 +315,10 @@ def stop_points(order: Order, graph: TrackGraph, anchor_passed: bool
                 f'but the task to it drives {drives}: a task reaches a stop marker by the '
                 'route map, past the next marker of its location', refs))
             break
-        for via in legs[1]:  # stops the truck makes on the way, where identities repeat
-            via_node = released[anchor + via]
-            points.append(StopPoint(via_node.node_id, via_node.sequence_id,
-                                    task_text(graph.nodes[via_node.node_id], None), None))
+        for k in legs[1]:  # markers of the stop's identity passed first: a pass task each
+            passed = released[anchor + k]
+            points.append(StopPoint(passed.node_id, passed.sequence_id,
+                                    f'pass {graph.nodes[passed.node_id].location}', None))
         points.append(StopPoint(node.node_id, node.sequence_id,
                                 task_text(track_node, _first(node)), _first(node)))
         anchor = i

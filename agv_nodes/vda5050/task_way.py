@@ -3,10 +3,10 @@
 A task (docs/tasks.md) names a location identity and a stop marker; the truck drives along the
 route map to the NEXT location marker of that identity and on to the stop marker. So where a
 floor repeats identities (house numbers, Baker 1983, 8.5: agv_nodes.world.fleet_floor), one
-task cannot reach a stop marker past another marker of its identity. The truck still gets
-there by several tasks: each to a stop marker on the way, the last stop before the marker it
-would take for its own (a via stop: the truck stops and goes on, the thesis's truck had no
-other way). `task_legs` finds them; a master need not know: the bridge adds them.
+task cannot reach a stop marker past another marker of its identity. The truck gets there by
+several: `pass N` for each marker of that identity it must drive past (a modern task: on
+past the next marker of N without stopping), then the stop task. `task_legs` finds those
+markers; a master need not know: the bridge sends the passes.
 """
 
 from __future__ import annotations
@@ -63,30 +63,30 @@ def one_task_way(graph: TrackGraph, anchor: str, anchor_passed: bool, stop: str
 
 def task_legs(graph: TrackGraph, anchor: str, anchor_passed: bool, stop: str
               ) -> tuple[list[str], list[int]] | None:
-    """Return the way to `stop` by tasks and the way's indices of the via stops (None: none).
+    """Return the way to `stop` by tasks and the way's indices of the markers passed by task.
 
-    Each via stop is the furthest stop marker one task reaches before the stop's own location
-    marker, so the truck stops as seldom as the task language allows.
+    Those are the location markers of the stop's identity the way meets before the stop's own:
+    each is passed by a task `pass N` (the next marker of N, driven past without stopping),
+    and the last task, to the stop, then meets its own marker first.
     """
     drive = _drive(graph, anchor, anchor_passed, stop)
     if drive is None:
         return None
-    (way, marker_at), vias, at, passed = drive, [], 0, anchor_passed
-    while one_task_way(graph, way[at], passed, stop) != way[at:]:
-        via = next((j for j in range(marker_at - 1, at, -1)
-                    if graph.nodes[way[j]].stoppable
-                    and one_task_way(graph, way[at], passed, way[j]) == way[at:j + 1]), None)
-        if via is None:
-            return None
-        vias.append(via)
-        at, passed = via, True
-    return way, vias
+    way, marker_at = drive
+    identity = graph.nodes[way[marker_at]].location
+    passes = [k for k in range(1 if anchor_passed else 0, marker_at)
+              if graph.nodes[way[k]].kind == 'location'
+              and graph.nodes[way[k]].location == identity]
+    start = passes[-1] if passes else 0
+    if one_task_way(graph, way[start], anchor_passed or bool(passes), stop) != way[start:]:
+        return None
+    return way, passes
 
 
 def task_way(graph: TrackGraph, anchor: str, anchor_passed: bool, stop: str) -> list[str] | None:
     """Return the nodes the truck drives through from `anchor` to `stop` by its tasks (None: none).
 
-    One task's way (one_task_way), or on a floor of repeated identities that way by several
+    One task's way (one_task_way), or on a floor of repeated identities that way with passes
     (task_legs).
     """
     legs = task_legs(graph, anchor, anchor_passed, stop)

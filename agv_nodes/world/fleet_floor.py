@@ -10,7 +10,7 @@ lengthened legs (A's south leg eastwards, B's north leg westwards) stand house-n
 locations: A1, A2, ... and B1, B2, ..., their identities alternating 0 and 2, each with a
 workstation of the same name whose stop marker (A1.1) stands `STOP_AFTER` m after it. The
 truck still reads only the identity; the central computer tells A1 from A3 by the way the
-truck came (agv_nodes.fleet.track_graph, agv_nodes.vda5050.order_tasks.task_way).
+truck came (agv_nodes.fleet.track_graph, agv_nodes.vda5050.task_way).
 
 Stations: W1 and W3 are the room's branches after the SRM locations, where a truck stands off
 the loop's way (passing places); the A stations start with a load, the B stations are empty.
