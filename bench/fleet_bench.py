@@ -20,8 +20,8 @@ launched fleet's dispatcher node does (agv_nodes.graph.parameters).
 
 The wall time is split, per simulated second: the trucks' harness steps, the contact check
 between them (the rest of Fleet.step), and the bridges with the dispatcher (the rest of
-BridgedFleet.step). A via stop is a `stop at` task a bridge sends for a node without action
-that does not end the base: where a task's way repeats a location identity, the truck stops.
+BridgedFleet.step). A pass is a `pass N` task a bridge sends for a node without action that
+does not end the base: a house of the stop's identity the truck drives past (task_way).
 
 Run: .venv/bin/python bench/fleet_bench.py [--seconds 900] [--big-seconds 600]
      [--rows demo_1983:1 fleet_1983:8 fleet_1983_n16:16 ...]
@@ -79,8 +79,8 @@ def timed(fn: Callable[[], Any], spent: dict[str, float], key: str) -> Callable[
     return wrapper
 
 
-def count_via_stops(flow: Any, counter: list[int]) -> None:
-    """Count the via stops of every order or update `flow` (an OrderFlow) accepts."""
+def count_passes(flow: Any, counter: list[int]) -> None:
+    """Count the passes of every order or update `flow` (an OrderFlow) accepts."""
     take = flow._take  # bench only: every accepted order's stop points pass here
 
     def wrapper(order: Any, points: list, verdict: str) -> Any:
@@ -128,9 +128,9 @@ def run(name: str, trucks: int, seconds: float, tmp: Path) -> dict[str, Any]:
     for load in loads:
         submit(load)
     bridged = BridgedFleet(fleet, d, graph=d.graph)
-    via = [0]
+    passes = [0]
     for bridge in bridged.bridges.values():
-        count_via_stops(bridge.flow, via)
+        count_passes(bridge.flow, passes)
     spent = dict.fromkeys(('trucks', 'fleet', 'all'), 0.0)
     for h in fleet.trucks.values():
         h.step = timed(h.step, spent, 'trucks')
@@ -157,7 +157,7 @@ def run(name: str, trucks: int, seconds: float, tmp: Path) -> dict[str, Any]:
     per_s = 1000 / seconds  # wall s -> wall ms per simulated s
     return {'layout': name, 'trucks': trucks, 'blocks': len(d.reservations.blocks),
             'seconds': seconds, 'transfers': done, 'per_hour': done * 3600 / seconds,
-            'via': f'{via[0] / done:.2f}' if done else '-',
+            'passes': f'{passes[0] / done:.2f}' if done else '-',
             'median_ms': statistics.median(ms), 'p99_ms': ms[int(0.99 * (len(ms) - 1))],
             'max_ms': ms[-1], 'factor': seconds / wall,
             'trucks_ms': spent['trucks'] * per_s,
@@ -188,14 +188,14 @@ def main() -> None:
     print(f'Fleet in lock step, {args.seconds:g} s simulated per row ({args.big_seconds:g} s '
           f'from {BIG} trucks); `bench/fleet_bench.py`. Time split: wall ms per simulated s.\n')
     print('| layout | trucks | blocks | sim s | transfers | per hour | per truck-hour | '
-          'via stops / transfer | decision median ms | p99 ms | max ms | real-time factor | '
+          'passes / transfer | decision median ms | p99 ms | max ms | real-time factor | '
           'trucks ms/s | contact ms/s | bridges+dispatcher ms/s | collisions | deadlocks |')
     print('|' + '---|' * 17)
     with tempfile.TemporaryDirectory() as tmp:
         for name, n in args.rows:
             r = run(name, n, args.big_seconds if n >= BIG else args.seconds, Path(tmp))
             print(f'| {name} | {n} | {r["blocks"]} | {r["seconds"]:g} | {r["transfers"]} | '
-                  f'{r["per_hour"]:.0f} | {r["per_hour"] / n:.1f} | {r["via"]} | '
+                  f'{r["per_hour"]:.0f} | {r["per_hour"] / n:.1f} | {r["passes"]} | '
                   f'{r["median_ms"]:.2f} | {r["p99_ms"]:.2f} | {r["max_ms"]:.2f} | '
                   f'{r["factor"]:.2f} | {r["trucks_ms"]:.1f} | {r["contact_ms"]:.1f} | '
                   f'{r["master_ms"]:.1f} | {r["collisions"]} | {r["deadlocks"]} |', flush=True)

@@ -1,12 +1,14 @@
 """Fleet benchmark over DDS and MQTT: `agv-demo --fleet N` for each N, one table.
 
-Each row is one run of the fleet demonstration (agv_nodes.fleet.fleet_demo): N trucks on
-demo_1983, each truck's graph its own processes, one world process for the floor, the
-dispatcher as the VDA 5050 master of every truck's bridge over the embedded MQTT broker. The
-world runs as fast as the slowest node keeps up (time factor 0), so the real-time factor is
-what the 2-core machine gives N trucks, and transfers per hour are per simulated hour.
+Each row is one run of the fleet demonstration (agv_nodes.fleet.fleet_demo): N trucks on the
+layout (--layout: demo_1983, room for three, or fleet_1983, eight), each truck's graph its own
+processes, one world process for the floor, the dispatcher as the VDA 5050 master of every
+truck's bridge over the embedded MQTT broker. The world runs as fast as the slowest node
+keeps up (time factor 0), so the real-time factor is what the 2-core machine gives N trucks,
+and transfers per hour are per simulated hour.
 
-Run: .venv/bin/python bench/fleet_dds_bench.py [--trucks 1 2] [--transfers 4]
+Run: .venv/bin/python bench/fleet_dds_bench.py [--layout demo_1983] [--trucks 1 2]
+     [--transfers 4]
 Prints a Markdown table (bench/results/fleet_dds_bench.md).
 """
 
@@ -20,12 +22,12 @@ import sys
 import tempfile
 
 
-def run(trucks: int, transfers: int, out: Path) -> dict:
-    """Run the demo for `trucks` trucks; return its fleet.json."""
+def run(trucks: int, transfers: int, out: Path, layout: str = 'demo_1983') -> dict:
+    """Run the demo for `trucks` trucks on `layout`; return its fleet.json."""
     demo = Path(sys.executable).parent / 'agv-demo'
-    res = subprocess.run([str(demo), '--fleet', str(trucks), '--transfers', str(transfers),
-                          '--no-report', '--out', str(out)], capture_output=True, text=True,
-                         timeout=7200)
+    res = subprocess.run([str(demo), '--fleet', str(trucks), '--layout', layout,
+                          '--transfers', str(transfers), '--no-report', '--out', str(out)],
+                         capture_output=True, text=True, timeout=7200)
     if res.returncode != 0:
         raise SystemExit(f'{trucks} trucks: agv-demo failed\n{res.stdout[-3000:]}'
                          f'{res.stderr[-3000:]}')
@@ -35,19 +37,20 @@ def run(trucks: int, transfers: int, out: Path) -> dict:
 def main() -> None:
     """Print the table."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--layout', default='demo_1983', help='the floor, passed to agv-demo')
     ap.add_argument('--trucks', type=int, nargs='+', default=[1, 2])
     ap.add_argument('--transfers', type=int, default=4, help='transfers per run')
     args = ap.parse_args()
-    print(f'Fleet over DDS and MQTT on demo_1983, {args.transfers} transfers per row, time '
-          'factor 0 (as fast as the slowest node keeps up); '
-          f'`bench/fleet_dds_bench.py --trucks {" ".join(map(str, args.trucks))} '
-          f'--transfers {args.transfers}`.\n')
+    print(f'Fleet over DDS and MQTT on {args.layout}, {args.transfers} transfers per row, '
+          'time factor 0 (as fast as the slowest node keeps up); '
+          f'`bench/fleet_dds_bench.py --layout {args.layout} '
+          f'--trucks {" ".join(map(str, args.trucks))} --transfers {args.transfers}`.\n')
     print('| trucks | processes | transfers | simulated s | per simulated hour | real-time '
           'factor | wall s | dispatcher step median ms | p99 ms | max ms | collisions |\n'
           '|---|---|---|---|---|---|---|---|---|---|---|')
     with tempfile.TemporaryDirectory() as tmp:
         for n in args.trucks:
-            r = run(n, args.transfers, Path(tmp) / f'fleet{n}')
+            r = run(n, args.transfers, Path(tmp) / f'fleet{n}', args.layout)
             steps = r['dispatcher']
             done = len(r['done'])
             print(f'| {n} | {r["processes"]} | {done} | {r["sim_seconds"]:.0f} | '
