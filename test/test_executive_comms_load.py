@@ -268,6 +268,39 @@ def test_traction_still_tripped_after_arming_is_armed_again_during_the_grace():
     assert ex.mode == 'running'
 
 
+@pytest.mark.parametrize('cleared', [True, False])
+def test_a_lost_said_before_the_task_holds_the_truck_until_the_route_speaks_again(cleared):
+    # On the wall clock a starved pickup stream makes the route say LOST while the truck stands;
+    # it clears at rest. A task starting on that old LOST holds the truck at 00H and fails
+    # only if the route's next status still says LOST.
+    ex = ExecutiveCore(ExecutiveParams())
+    lost = status_records(0.0)
+    lost['route'] = {**lost['route'], 'state': 'lost'}
+    del lost['comms']  # its queue is empty until the task comes
+    for name, fields in lost.items():
+        ex.on_record(f'{name}_status', fields, 0.0)
+    ex.on_record('comms_status', parse_task('stop at 2 first').record() | {'task_id': 1}, 0.02)
+    assert ex.mode == 'running' and ex.fault is None
+    assert ex.tick(0.02)['traction_command']['demand'] == 0  # held at 00H, not driven
+    records = status_records(0.05)
+    if not cleared:
+        records['route'] = {**records['route'], 'state': 'lost'}
+    for name, fields in records.items():
+        ex.on_record(f'{name}_status', fields, 0.05)
+    out = ex.tick(0.05)
+    if cleared:
+        assert ex.mode == 'running' and ex.fault is None
+        demands = [out['traction_command']['demand']]
+        for k in range(2, 6):
+            for name, fields in status_records(k * 0.05).items():
+                ex.on_record(f'{name}_status', fields, k * 0.05)
+            demands.append(ex.tick(k * 0.05)['traction_command']['demand'])
+        assert demands[-1] == 55, demands  # driven once the route said following
+    else:
+        assert ex.fault == ('lost_wire', 'route')
+        assert out['traction_command']['demand'] == 0
+
+
 @pytest.mark.parametrize('writers, named', [(['route_status'], 'route'),
                                              (['route_status', 'traction_status'], 'none')])
 def test_reject_burst_is_a_fault_naming_the_writer(writers, named):

@@ -64,7 +64,7 @@ class FaultSupervision:
         fault = route.get('drive_fault', 'none')
         if fault != 'none':  # the CONCIC-II's safety supervisor (Rajagopalan 1991, 6.3.11)
             return self._fail(now, 'drive_fault', 'route', fault.replace('_', ' '), fault)
-        if route.get('state') == 'lost':
+        if route.get('state') == 'lost' and not self._lost_before_start(now):
             if self.camera:
                 return self._fail(now, 'lost_track', 'route', 'tape lost')
             return self._fail(now, 'lost_wire', 'route', 'guide wire lost')
@@ -84,6 +84,19 @@ class FaultSupervision:
             return self._fail(now, 'route_limit', 'navigation',
                               f'no stop marker within {self.positioning_distance:.1f} m')
         return None
+
+    def _lost_before_start(self, now: float) -> bool:
+        """Hold, not fail, on a LOST the route said before the task began (within trip_grace).
+
+        It may be a pickup stream that stalled while the truck stood (a starved process on the
+        wall clock), which the route clears at rest once the wire is back. The truck is held at
+        00H until the route's next status, which fails the task if the wire is still gone.
+        """
+        if self.status_time.get('route', now) >= self.task_start \
+                or now - self.task_start > self.p.trip_grace:
+            return False
+        self.arm_until = max(self.arm_until, now + 2 * self.p.period)
+        return True
 
     def _fail(self, now: float, cause: str, subsystem: str, detail: str,
               drive_fault: str = 'none') -> None:
