@@ -17,6 +17,7 @@ import sys
 import time
 from typing import Any
 
+from agv_nodes.discovery import use_localhost_discovery
 from agv_nodes.graph.model import GraphError
 from agv_nodes.graph.parameters import Options, wait_links
 from agv_nodes.graph.supervisor import Launch
@@ -92,7 +93,8 @@ def run(args: argparse.Namespace) -> int:
     except GraphError as exc:
         print(f'agv-demo: {exc}', file=sys.stderr)
         return 2
-    os.environ.update(ROS_DOMAIN_ID=str(launch.domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    os.environ['ROS_DOMAIN_ID'] = str(launch.domain)
+    use_localhost_discovery()
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import PoseStamped
     import rclpy  # after the domain is chosen: this process joins the graph

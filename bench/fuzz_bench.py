@@ -33,11 +33,12 @@ def main() -> int:
     ap.add_argument('--out', type=Path, default=REPO / 'bench' / 'results' / 'fuzz_bench.md')
     args = ap.parse_args()
 
+    from agv_nodes.discovery import use_localhost_discovery
     from agv_nodes.graph.supervisor import claim_domain
 
     domain, _lock = claim_domain()  # never domain 0; held while the bench runs
     os.environ['ROS_DOMAIN_ID'] = str(domain)
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    use_localhost_discovery()
 
     from fuzz_session import fuzzed_schemas, start_session
     from hypothesis import HealthCheck, given, settings

@@ -39,6 +39,7 @@ import sys
 import tempfile
 import time
 
+from agv_nodes.discovery import use_localhost_discovery
 from agv_nodes.records import codec
 from agv_nodes.records.carrier import uint8_array_data
 from agv_nodes.report import record_integrity
@@ -194,7 +195,8 @@ def live(time_factor: float, extra: dict[str, list[str]], tasks: int = 2,
     out = Path(tempfile.mkdtemp(prefix='agv_latency_bench_'))
     launch = Launch(Options(time_factor=time_factor, bag=out / 'bag', quiet=True, extra=extra,
                             realtime=realtime))
-    os.environ.update(ROS_DOMAIN_ID=str(launch.domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    os.environ['ROS_DOMAIN_ID'] = str(launch.domain)
+    use_localhost_discovery()
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from std_msgs.msg import String, UInt8MultiArray

@@ -19,6 +19,7 @@ import subprocess
 import sys
 import time
 
+from agv_nodes.discovery import use_localhost_discovery
 from agv_nodes.graph.supervisor import claim_domain
 
 VARIANTS = {
@@ -90,8 +91,8 @@ def main() -> int:
     ap.add_argument('--variants', default=','.join(VARIANTS))
     args = ap.parse_args()
     domain, _lock = claim_domain()
-    env = {**os.environ, 'ROS_DOMAIN_ID': str(domain),
-           'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
+    env = {**os.environ, 'ROS_DOMAIN_ID': str(domain)}
+    use_localhost_discovery(env)
     print(f'{args.message} at {args.rate:g} Hz, {args.seconds:g} s per variant, '
           f'ROS_DOMAIN_ID={domain}\n')
     print('| subscriber | CPU (% of one core) | per message (us) |\n|---|---|---|')

@@ -13,6 +13,7 @@ import subprocess
 import sys
 import time
 
+from agv_nodes.discovery import use_localhost_discovery
 from agv_nodes.world.core import WorldCore
 from agv_nodes.world.layout import layout_path, load_layout
 from agv_nodes.world.settings import WorldParams
@@ -47,8 +48,8 @@ def cpu_seconds(pid: int) -> float:
 
 def node_cpu(seconds: float) -> float:
     """% of one core used by the world node at time_factor 1 while a probe drives it."""
-    env = dict(os.environ, ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', '171'),
-               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    env = dict(os.environ, ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', '171'))
+    use_localhost_discovery(env)
     exe = str(Path(sys.executable).parent / 'world')
     world = subprocess.Popen([exe, '--ros-args', '-p', 'layout:=straight_track',
                               '-p', 'time_factor:=1.0', '-p', f'duration:={seconds + 2}',

@@ -17,6 +17,8 @@ import tempfile
 from hypothesis import HealthCheck, settings
 import pytest
 
+from agv_nodes.discovery import use_localhost_discovery
+
 REPO = Path(__file__).resolve().parent.parent
 _LOCK_DIR = Path(os.environ.get('AGV_DOMAIN_LOCK_DIR', '/tmp'))
 _held = []
@@ -41,7 +43,7 @@ if 'AGV_TEST_DOMAIN' in os.environ:
     os.environ['ROS_DOMAIN_ID'] = os.environ['AGV_TEST_DOMAIN']
 else:
     os.environ['ROS_DOMAIN_ID'] = str(_claim_domain())
-os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+use_localhost_discovery()  # before any participant of this process
 os.environ.setdefault('PYTHONUNBUFFERED', '1')
 assert os.environ['ROS_DOMAIN_ID'] != '0', 'tests must never use ROS domain 0'
 

@@ -43,7 +43,7 @@ def test_every_core_and_the_harness_import_without_rclpy():
     assert run.returncode == 0 and run.stdout.strip() == 'ok', run.stderr
 
 
-def test_the_rclpy_internals_work_on_the_installed_rclpy(monkeypatch):
+def test_the_rclpy_internals_work_on_the_installed_rclpy():
     """Each private attribute used (agv_nodes/rclpy_internals.py) is there and does its job."""
     import rclpy
     from std_msgs.msg import String
@@ -51,7 +51,6 @@ def test_the_rclpy_internals_work_on_the_installed_rclpy(monkeypatch):
     from agv_nodes import rclpy_internals as internals
 
     assert internals.check_version(), internals.rclpy_version()
-    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     context = rclpy.Context()
     rclpy.init(args=['--ros-args', '-p', 'given:=7', '-p', 'use_sim_time:=true'],
                context=context)

@@ -15,10 +15,9 @@ pytestmark = pytest.mark.timeout(60)
 
 
 @pytest.fixture
-def context(monkeypatch):
+def context():
     import rclpy
 
-    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     ctx = rclpy.Context()
     rclpy.init(context=ctx)  # the session's own domain (test/conftest.py)
     yield ctx

@@ -31,6 +31,7 @@ import threading
 import time
 from typing import TextIO
 
+from agv_nodes.discovery import use_localhost_discovery
 from agv_nodes.graph.model import GraphError, NodeSpec, load_graph
 from agv_nodes.graph.parameters import (
     Options,
@@ -109,9 +110,8 @@ class Launch:
         if not self.params.is_file():
             raise GraphError(f'parameter file {self.params} not found')
         self.domain, self._lock = claim_domain(options.domain_id)
-        self.env = dict(os.environ, ROS_DOMAIN_ID=str(self.domain),
-                        ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
-        self.env.pop('ROS_LOCALHOST_ONLY', None)
+        self.env = dict(os.environ, ROS_DOMAIN_ID=str(self.domain), PYTHONUNBUFFERED='1')
+        use_localhost_discovery(self.env)
         self.procs: dict[str, subprocess.Popen] = {}  # by label (units())
         self.exits: dict[str, int] = {}
         self.stopping = False
@@ -216,8 +216,9 @@ class Launch:
         """Start every node (recorder first, world last)."""
         if self.o.log_dir:
             self.o.log_dir.mkdir(parents=True, exist_ok=True)
+            # Line-buffered: a log is readable while its node runs, not only after it ends.
             self._logs = {label: open(  # noqa: SIM115
-                self.o.log_dir / f'{label.replace("/", "_")}.log', 'w')
+                self.o.log_dir / f'{label.replace("/", "_")}.log', 'w', buffering=1)
                 for label, _s, _n in self.units()}
         atexit.register(self._stop_at_exit)  # never leave a graph behind on the domain
         for label in self._units:
