@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -29,8 +30,10 @@ def run(trucks: int, transfers: int, out: Path, layout: str = 'demo_1983') -> di
                           '--transfers', str(transfers), '--no-report', '--out', str(out)],
                          capture_output=True, text=True, timeout=7200)
     if res.returncode != 0:
-        raise SystemExit(f'{trucks} trucks: agv-demo failed\n{res.stdout[-3000:]}'
-                         f'{res.stderr[-3000:]}')
+        keep = Path(tempfile.mkdtemp(prefix=f'fleet_dds_bench_{trucks}_'))
+        shutil.copytree(out, keep, dirs_exist_ok=True)  # the logs and bag, to find out why
+        raise SystemExit(f'{trucks} trucks: agv-demo failed (its logs and bag kept in {keep})'
+                         f'\n{res.stdout[-3000:]}{res.stderr[-3000:]}')
     return json.loads((out / 'fleet.json').read_text())
 
 

@@ -366,6 +366,7 @@ def test_a_truck_whose_task_failed_gets_no_work_until_its_errors_clear(graph):
     assert floor.dispatcher.assignments == {'t1': 'a'}  # 22 m to W3.1; b 37 m
     floor.run(lambda: floor.dispatcher.failed == ['t1'])
     assert floor.dispatcher.done == [] and floor.trucks['a'].node == 'W3.1'
+    assert 'load failed (load)' in floor.dispatcher.failures['t1']  # the truck's own words
     assert floor.dispatcher.granted('a') == {'L3'}  # it stands where it failed
     floor.run(lambda: floor.trucks['b'].idle())  # b made way for a's drop: it drives on
     assert floor.trucks['b'].node == 'W2.1'

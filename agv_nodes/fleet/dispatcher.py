@@ -49,6 +49,7 @@ from agv_nodes.fleet.jobs import (
     Job,
     TransportOrder,
     Truck,
+    failure_words,
     hard_action,
     header,
     order_message,
@@ -86,6 +87,7 @@ class Dispatcher:
         self.assignments: dict[str, str] = {}  # transport id -> truck
         self.done: list[str] = []
         self.failed: list[str] = []
+        self.failures: dict[str, str] = {}  # transport id -> why it failed, as the truck said
         self.deadlocks: list[list[str]] = []  # the wait cycles of the last step
         self.conflicts: list[tuple[str, str, str]] = []  # (block, truck, holder) found there
         self.trucks = list(trucks)  # their serial numbers
@@ -123,6 +125,7 @@ class Dispatcher:
                 job.over = job.failed = True
                 if job.transport is not None:
                     self.failed.append(job.transport.id)
+                    self.failures[job.transport.id] = failure_words(state, set(job.actions))
             elif not job.over and state.order_update_id == job.update_id \
                     and t.pos == len(job.path) - 1 and not state.node_states \
                     and all(s == ActionStatus.FINISHED for s in mine):

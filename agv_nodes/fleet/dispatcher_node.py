@@ -9,7 +9,7 @@ of a transport's way goes out as one line on `fleet/report`:
     t1: accepted: W0 to W2
     t1: queued: no idle truck can take it yet
     t1: assigned to agv1
-    t1: done (agv1)            or   t1: failed (agv1)
+    t1: done (agv1)            or   t1: failed (agv1): <the truck's words>
     rejected 'W9 to W2': unknown station 'W9' (stations: W0, W1, W2, W3)
 
 `status` is a query: the answer is one line, `status: 0 queued, 1 assigned, 3 done, ...`.

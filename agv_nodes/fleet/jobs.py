@@ -15,7 +15,7 @@ from agv_nodes.vda5050 import VERSION, common
 from agv_nodes.vda5050.common import Action, BlockingType
 from agv_nodes.vda5050.order import Edge, Node, Order
 from agv_nodes.vda5050.order_tasks import TASK_FAILED
-from agv_nodes.vda5050.state import State
+from agv_nodes.vda5050.state import ActionStatus, State
 
 ORDER = 'order'
 INSTANT_ACTIONS = 'instantActions'
@@ -89,6 +89,17 @@ def order_message(graph: TrackGraph, truck: Truck, job: Job, first: int,
 def hard_action(action_id: str, kind: str) -> Action:
     """Return a node action the truck does standing (pick, drop)."""
     return Action(action_id=action_id, action_type=kind, blocking_type=BlockingType.HARD)
+
+
+def failure_words(state: State, action_ids: set[str]) -> str:
+    """Return why a truck's order failed, in its own words (taskFailed, else a FAILED action)."""
+    for error in state.errors:
+        if error.error_type == TASK_FAILED:
+            return error.error_description or TASK_FAILED
+    for action in state.action_states:
+        if action.action_id in action_ids and action.action_status == ActionStatus.FAILED:
+            return action.result_description or f'action {action.action_id} FAILED'
+    return 'no reason given'
 
 
 def task_failed(state: State) -> bool:

@@ -157,7 +157,7 @@ class MqttMaster:
         """Return the report lines of what became of the transports since the last call.
 
         After `accepted` each transport is `queued` when it has to wait for a truck (said
-        once), then `assigned to <truck>`, then `done (<truck>)` or `failed (<truck>)`. An
+        once), then `assigned to <truck>`, then `done (<truck>)` or `failed (<truck>): <why>`. An
         assignment is said before its end even when the dispatcher did both in one step.
         """
         d = self.dispatcher
@@ -175,7 +175,8 @@ class MqttMaster:
                 lines.append(f'{tid}: assigned to {truck}')
             end = 'done' if tid in done else 'failed' if tid in failed else ''
             if end:
-                lines.append(f'{tid}: {end} ({truck})')
+                why = f': {d.failures[tid]}' if end == 'failed' and tid in d.failures else ''
+                lines.append(f'{tid}: {end} ({truck}){why}')
                 del self._told[tid]
             else:
                 self._told[tid] = 'assigned'
