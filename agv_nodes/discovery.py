@@ -18,6 +18,7 @@ process). Across hosts, give the processes `ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET
 
 from __future__ import annotations
 
+from collections.abc import MutableMapping
 import os
 
 from agv_nodes.package_share import share_dir
@@ -41,7 +42,7 @@ def localhost_environment() -> dict[str, str]:
             **dict.fromkeys(PROFILE_VARIABLES, profile)}
 
 
-def use_localhost_discovery(environ: os._Environ | dict[str, str] = os.environ) -> None:
+def use_localhost_discovery(environ: MutableMapping[str, str] = os.environ) -> None:
     """Set localhost discovery in `environ` (this process's: before its first participant)."""
     environ.update(localhost_environment())
     environ.pop('ROS_LOCALHOST_ONLY', None)  # the old switch would override the range
