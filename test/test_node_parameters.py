@@ -102,8 +102,14 @@ def test_the_harness_and_the_launched_graph_run_with_the_same_settings():
         for name, want in expected.items():
             client = AsyncParameterClient(node, name)
             assert client.wait_for_services(timeout_sec=60), name
-            future = client.get_parameters(list(want))
-            executor.spin_until_future_complete(future, timeout_sec=20)
+            # A service reply sent before the node's reply writer matched this client's reader
+            # is lost (the request side can match first): ask again rather than wait on it.
+            for _attempt in range(4):
+                future = client.get_parameters(list(want))
+                executor.spin_until_future_complete(future, timeout_sec=10)
+                if future.done():
+                    break
+            assert future.done(), f'{name}: no parameter reply to four requests'
             values = future.result().values
             assert len(values) == len(want), (name, len(values), len(want))
             got = {key: parameter_value_to_python(v) for key, v in zip(want, values,
