@@ -11,13 +11,11 @@ the signs_1991 tape, legs through every road sign with scripted turns and a reve
 import argparse
 from collections.abc import Callable, Iterable
 import json
-import os
 from pathlib import Path
 import sys
 import time
 from typing import Any
 
-from agv_nodes.discovery import use_localhost_discovery
 from agv_nodes.graph.model import GraphError
 from agv_nodes.graph.parameters import Options, wait_links
 from agv_nodes.graph.supervisor import Launch
@@ -93,8 +91,7 @@ def run(args: argparse.Namespace) -> int:
     except GraphError as exc:
         print(f'agv-demo: {exc}', file=sys.stderr)
         return 2
-    os.environ['ROS_DOMAIN_ID'] = str(launch.domain)
-    use_localhost_discovery()
+    launch.join()
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import PoseStamped
     import rclpy  # after the domain is chosen: this process joins the graph

@@ -16,14 +16,12 @@ Run: .venv/bin/python bench/camera_node_cpu_bench.py [--seconds 30] [--out FILE]
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 import sys
 import time
 
 from graph_bench import cpu_seconds
 
-from agv_nodes.discovery import use_localhost_discovery
 from agv_nodes.graph.parameters import Options
 from agv_nodes.graph.supervisor import Launch
 
@@ -60,8 +58,7 @@ def measure(cameras: str, seconds: float, time_factor: float, sim_time: bool = T
     launch = Launch(Options(time_factor=time_factor, layout='tape_1991', quiet=True,
                             use_sim_time=sim_time,
                             extra={'route_following': [f'cameras:={cameras}']}))
-    os.environ['ROS_DOMAIN_ID'] = str(launch.domain)
-    use_localhost_discovery()
+    launch.join()
     import rclpy
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import Image

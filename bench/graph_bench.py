@@ -30,7 +30,6 @@ import time
 
 from lockstep_fingerprint import first_difference
 
-from agv_nodes.discovery import use_localhost_discovery
 from agv_nodes.graph.parameters import Options
 from agv_nodes.graph.supervisor import Launch
 from agv_nodes.harness import DEMO_PROGRAMME, submit, truck
@@ -58,8 +57,7 @@ def live(seconds: float, time_factor: float, params: list[str] = (),
         extra.setdefault(node, []).append(arg)
     launch = Launch(Options(time_factor=time_factor, bag=out / 'bag', quiet=True, extra=extra,
                             use_sim_time=not wall_time))
-    os.environ['ROS_DOMAIN_ID'] = str(launch.domain)
-    use_localhost_discovery()
+    launch.join()
     import rclpy
     from std_msgs.msg import String
 

@@ -33,13 +33,11 @@ from __future__ import annotations
 import argparse
 import bisect
 import math
-import os
 from pathlib import Path
 import sys
 import tempfile
 import time
 
-from agv_nodes.discovery import use_localhost_discovery
 from agv_nodes.records import codec
 from agv_nodes.records.carrier import uint8_array_data
 from agv_nodes.report import record_integrity
@@ -195,8 +193,7 @@ def live(time_factor: float, extra: dict[str, list[str]], tasks: int = 2,
     out = Path(tempfile.mkdtemp(prefix='agv_latency_bench_'))
     launch = Launch(Options(time_factor=time_factor, bag=out / 'bag', quiet=True, extra=extra,
                             realtime=realtime))
-    os.environ['ROS_DOMAIN_ID'] = str(launch.domain)
-    use_localhost_discovery()
+    launch.join()
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from std_msgs.msg import String, UInt8MultiArray

@@ -57,7 +57,6 @@ import time
 import tracemalloc
 from typing import Any
 
-from agv_nodes.discovery import use_localhost_discovery
 from agv_nodes.harness import DEMO_PROGRAMME, Harness, submit, truck
 from agv_nodes.report import final_stops
 
@@ -524,8 +523,7 @@ def run_dds(seconds: float, spec: LoopSpec = FULL_LOOP, out: Path | None = None,
     out = Path(tempfile.mkdtemp(prefix='agv_soak_')) if out is None else Path(out)
     launch = Launch(Options(time_factor=0.0, bag=out / 'bag' if bag else None, quiet=True,
                             log_dir=out / 'logs', domain_id=domain_id))
-    os.environ['ROS_DOMAIN_ID'] = str(launch.domain)
-    use_localhost_discovery()
+    launch.join()
     watch = _Watch(launch.domain)
     progress(f'DDS: {len(launch.specs())} processes on ROS_DOMAIN_ID={launch.domain}; '
              f'logs in {out / "logs"}')

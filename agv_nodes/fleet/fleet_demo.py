@@ -19,13 +19,11 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 from pathlib import Path
 import sys
 import time
 from typing import Any
 
-from agv_nodes.discovery import use_localhost_discovery
 from agv_nodes.graph.model import GraphError
 from agv_nodes.graph.parameters import Options, fleet_names, launch_layout
 from agv_nodes.graph.supervisor import Launch
@@ -118,8 +116,7 @@ def run(args: argparse.Namespace) -> int:
     except (GraphError, ValueError) as exc:
         print(f'agv-demo: {exc}', file=sys.stderr)
         return 2
-    os.environ['ROS_DOMAIN_ID'] = str(launch.domain)
-    use_localhost_discovery()
+    launch.join()
     from diagnostic_msgs.msg import DiagnosticArray
     import rclpy  # after the domain is chosen: this process joins the graph
     from std_msgs.msg import String

@@ -160,6 +160,11 @@ class Launch:
         """Nodes to start, in order (of one truck: a fleet starts the truck nodes per truck)."""
         return [n for n in self.graph.nodes if launched(n, self.o)]
 
+    def join(self) -> None:
+        """Give this process the graph's domain and discovery (before its first participant)."""
+        os.environ['ROS_DOMAIN_ID'] = str(self.domain)
+        use_localhost_discovery()
+
     def units(self) -> list[tuple[str, NodeSpec, str]]:
         """Return the processes to start, in order: (label, node, namespace) (launch_units)."""
         return launch_units(self.graph, self.o)
