@@ -84,3 +84,11 @@ def test_installed_package_has_its_parameter_declarations(workspace):
     from agv_nodes.settings import parameters
     from agv_nodes.world.settings import WorldParams
     assert int(count) == len(parameters(WorldParams)) > 50
+
+
+def test_installed_package_has_the_worlds_compiled_kernels(workspace):
+    probe = ('cd / && python -c "from agv_nodes.world import kernels; '
+             'print(kernels.compiled.__file__)"')
+    res = in_workspace(workspace, probe.replace('python', PYTHON, 1))
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip().startswith(str(workspace / 'install'))

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from agv_nodes.markers import SNAPSHOT_FIELDS
+from agv_nodes.world import kernels
 from agv_nodes.world.camera import BinaryCamera
 from agv_nodes.world.concic2_dynamics import Concic2Dynamic
 from agv_nodes.world.conveyors import Conveyors
@@ -58,8 +59,9 @@ class WorldCore:
         self.sample = 0
         self.wires = [w for w in layout.paths.values() if w.width == 0.0]
         self.tapes = [t for t in layout.paths.values() if t.width > 0.0]
+        compiled = kernels.select(self.p.kernels)
         if layout.vehicle == 'electruk':
-            self.vehicle: Electruk | Concic2 = Electruk(self.p.electruk)
+            self.vehicle: Electruk | Concic2 = Electruk(self.p.electruk, compiled)
         elif self.p.concic2.model == 'dynamic':
             self.vehicle = Concic2Dynamic(self.p.concic2)
         else:
@@ -69,7 +71,8 @@ class WorldCore:
         # Only the Electruk carries Baker's marker sensor; the CONCIC-II reads its floor with
         # the cameras, so its world sends no ADC snapshots (340 a second nobody reads).
         self.marker_sensor = layout.vehicle == 'electruk'
-        self.pickup = GuideWirePickup(self.p.pickup, self.wires, self.rng) if self.wires else None
+        self.pickup = GuideWirePickup(self.p.pickup, self.wires, self.rng, compiled) \
+            if self.wires else None
         self.camera = BinaryCamera(self.p.camera, self.tapes, self.np_rng) if self.tapes else None
         self._wire_every = _Every(self.p.guide_wire_rate, self.p.sample_rate)
         self._odo_every = _Every(self.p.odometry_rate, self.p.sample_rate)

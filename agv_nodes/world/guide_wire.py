@@ -7,9 +7,11 @@ distance y, equal in both coils over the wire, falling off to nothing far from e
 """
 
 import math
+from types import ModuleType
 
 import numpy as np
 
+from agv_nodes.world import kernels
 from agv_nodes.world.layout import Path2D
 from agv_nodes.world.settings import PickupParams
 
@@ -20,9 +22,12 @@ SCALAR_SEGMENTS = 12  # up to this many candidates `coils` sums in scalar arithm
 class GuideWirePickup:
     """Computes the two coil amplitudes for a sensor pose."""
 
-    def __init__(self, params: PickupParams, wires: list[Path2D], rng) -> None:
+    def __init__(self, params: PickupParams, wires: list[Path2D], rng,
+                 compiled: ModuleType | None = kernels.compiled) -> None:
+        """`compiled`: the C kernels that sum the field (agv_nodes.world.kernels), or None."""
         self.p = params
         self.rng = rng
+        self._compiled = compiled
         starts, ends, currents = [], [], []
         for w in wires:
             for a, b in _merge_collinear(w.points):
@@ -54,6 +59,7 @@ class GuideWirePickup:
         # selection a call, where `field` indexes four arrays
         self._near_rows = np.zeros((6, 0))
         self._near_mid_x = self._near_mid_y = self._near_half = np.zeros(0)
+        self._near_table = np.zeros((8, 0))
         self._near_at = (math.inf, math.inf)
 
     def field(self, xy: np.ndarray, segments: np.ndarray | None = None) -> np.ndarray:
@@ -99,7 +105,12 @@ class GuideWirePickup:
         if math.hypot(x - self._near_at[0], y - self._near_at[1]) > NEAR_MOVE:
             self._refresh_near(x, y)
         points = ((x + half * lx, y + half * ly), (x - half * lx, y - half * ly))
-        if len(self._near) > SCALAR_SEGMENTS:
+        if self._compiled is not None:  # the same arithmetic in C (agv_nodes.world.kernels)
+            (p0x, p0y), (p1x, p1y) = points
+            lateral = self._compiled.wire_lateral(
+                self._near_table, x, y, lx, ly, p0x, p0y, p1x, p1y, self.p.coil_height,
+                self.p.reach, len(self._near) <= SCALAR_SEGMENTS)
+        elif len(self._near) > SCALAR_SEGMENTS:
             lateral = self._lateral_numpy(points, x, y, lx, ly)
         else:
             lateral = self._lateral_scalar(points, x, y, lx, ly)
@@ -124,6 +135,9 @@ class GuideWirePickup:
         self._near_mid_x = self._near_mid[:, 0].copy()
         self._near_mid_y = self._near_mid[:, 1].copy()
         self._near_half = 0.5 * self._near_length
+        # the C kernel's rows: a, u, length, current and the middles, one contiguous table
+        self._near_table = np.ascontiguousarray(np.vstack(
+            (self._near_rows, self._near_mid_x, self._near_mid_y)))
         self._near_at = (x, y)
 
     def _lateral_numpy(self, points, x: float, y: float, lx: float, ly: float) -> list[float]:

@@ -21,7 +21,9 @@ and followed with a first-order lag; "motor off" coasts down (5 mm from 0.16 m/s
 
 from dataclasses import dataclass
 import math
+from types import ModuleType
 
+from agv_nodes.world import kernels
 from agv_nodes.world.settings import Concic2Params, ElectrukParams
 
 G = 9.81
@@ -54,8 +56,11 @@ class Electruk:
 
     kind = 'electruk'
 
-    def __init__(self, params: ElectrukParams) -> None:
+    def __init__(self, params: ElectrukParams,
+                 compiled: ModuleType | None = kernels.compiled) -> None:
+        """`compiled`: the C kernels that step it (agv_nodes.world.kernels), or None: Python."""
         self.p = params
+        self._compiled = compiled
         self.state = VehicleState()
         self.steer = 0.0  # front wheel angle, rad
         self.current = 0.0  # armature current per motor, A
@@ -136,6 +141,14 @@ class Electruk:
             if demand > most:
                 demand = most
             rate = p.steer_rate * dt
+        if self._compiled is not None:  # the same arithmetic in C (agv_nodes.world.kernels)
+            (self.flux, self.current, self.steer, s.x, s.y, s.heading, s.distance, s.speed,
+             s.yaw_rate) = self._compiled.electruk_step(
+                n, dt, field_gain, decay, m_eff, coulomb, viscous_per_speed, target, driven,
+                v_arm, radius, gear, k_phi, resistance, limit, wheelbase, motors_k_phi,
+                steering, demand if steering else 0.0, rate if steering else 0.0, self.flux,
+                self.current, self.steer, s.x, s.y, s.heading, s.distance, s.speed, s.yaw_rate)
+            return
         copysign, tan, cos, sin = math.copysign, math.tan, math.cos, math.sin
         flux, current, steer = self.flux, self.current, self.steer
         tan_of, tan_steer = steer, tan(steer)  # tan of the steer angle, redone when it moves
