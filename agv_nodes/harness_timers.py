@@ -5,6 +5,7 @@ part every world sample passes through, so the clock tests come before any look-
 """
 
 from collections.abc import Callable, Iterable
+import math
 from typing import Any
 
 
@@ -23,6 +24,8 @@ def fire_timers(members: Iterable[Any], publish: Callable[[Any, dict | None], No
             publish(m, m.core.tick(now))
         if m.next_supervise <= due:
             every = getattr(m.core, 'supervision_period', None)
+            if every is None:  # no second timer: not looked for again (a restart resets it)
+                m.next_supervise = math.inf
             while every is not None and m.next_supervise <= due:
                 m.next_supervise += every
                 publish(m, m.core.supervise(now))

@@ -35,9 +35,21 @@ class _Every:
 
     def __init__(self, rate: float, sample_rate: float) -> None:
         self.ratio = rate / sample_rate
+        self._next = 0  # no sample before this one is due (asked every sample: one test)
+
+    def _fires(self, sample: int) -> bool:
+        return math.floor(sample * self.ratio) > math.floor((sample - 1) * self.ratio)
 
     def due(self, sample: int) -> bool:
-        return math.floor(sample * self.ratio) > math.floor((sample - 1) * self.ratio)
+        """Return True when a record is due at `sample` (samples asked in increasing order)."""
+        if sample < self._next:
+            return False
+        fires = self._fires(sample)
+        following = sample + 1
+        while not self._fires(following):
+            following += 1
+        self._next = following
+        return fires
 
 
 class WorldCore:
