@@ -33,10 +33,19 @@ class RecordWriter:
         self.integrity = integrity
         self.counter = 0
         self.last_raw: bytes | None = None
-        self.last_fields: dict[str, Any] | None = None
         self.sent = 0
         paths = schema.port_paths(integrity)
         self._seal = paths[0] if paths is not None else None
+
+    @property
+    def last_fields(self) -> dict[str, Any] | None:
+        """The fields of the last record sent, as its readers decode them (None: none yet).
+
+        Decoded when asked (a diagnostics page a second), not kept on every publish.
+        """
+        if self.last_raw is None:
+            return None
+        return self.schema.decode(self.last_raw, integrity=self.integrity)
 
     def pack(self, fields: Mapping[str, Any]) -> bytes:
         """16 bytes for `fields`; each call is one publish (the counter advances)."""
@@ -45,7 +54,6 @@ class RecordWriter:
             raw = self.schema.encode(fields, integrity=self.integrity, counter=self.counter)
         self.counter = (self.counter + 1) & 0xFF
         self.last_raw = raw
-        self.last_fields = dict(fields)
         self.sent += 1
         return raw
 
