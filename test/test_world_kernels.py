@@ -1,9 +1,9 @@
 """The world's C kernels give the bits of the Python code they stand in for.
 
 `agv_nodes/world/_kernels.c` (built by `pip install -e .`, as the README installs the package)
-steps the Electruk and sums the guide-wire field; `kernels: python` runs the Python code. Both
-are driven here from the same states and poses, and a whole truck's world in lock step is run
-both ways: every record it sends must be the same.
+steps the Electruk, sums the guide-wire field and runs the marker sensor's optics; `kernels:
+python` runs the Python code. Both are driven here from the same states and poses, and a whole
+truck's world in lock step is run both ways: every record it sends must be the same.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from agv_nodes.harness import DEMO_PROGRAMME, submit, truck
 from agv_nodes.world import kernels
 from agv_nodes.world.guide_wire import SCALAR_SEGMENTS, GuideWirePickup
 from agv_nodes.world.layout import layout_path, load_layout
+from agv_nodes.world.marker_sensor import MarkerSensorModel
 from agv_nodes.world.settings import WorldParams
 from agv_nodes.world.vehicles import Electruk
 
@@ -102,6 +103,32 @@ def test_the_pickup_reads_the_same_bits_in_c_and_in_python(name):
     assert paths['scalar'] > 100
     if name != 'straight_track':
         assert paths['pairwise'] > 100  # arcs of many short segments: numpy's pairwise sums
+
+
+@pytest.mark.parametrize('name', ['demo_1983', 'fleet_1983', 'sensor_rig'])
+def test_the_optics_see_the_same_bits_in_c_and_in_python(name):
+    """Lens poses about every card of the floor: near, far, turned, raised; each detector."""
+    lay = load_layout(layout_path(name))
+    cards = [m for m in lay.markers]
+    p = WorldParams().sensor
+    c = MarkerSensorModel(p, random.Random(1), kernels.compiled)
+    py = MarkerSensorModel(p, random.Random(1), None)
+    rng = random.Random(5)
+    seen = 0
+    for card in cards:
+        nx, ny = card.normal
+        for _ in range(300):
+            standoff = rng.uniform(0.15, 0.7)
+            along = rng.uniform(-0.4, 0.4)
+            lens = (card.centre[0] + nx * standoff - ny * along,
+                    card.centre[1] + ny * standoff + nx * along)
+            heading = math.atan2(-nx, ny) + rng.uniform(-0.5, 0.5)  # axis on the card
+            height = rng.choice((0.0, rng.uniform(-0.02, 0.03)))
+            near = rng.sample(cards, min(3, len(cards))) + [card]
+            want = py._look(lens, heading, near, height)
+            assert c._look(lens, heading, near, height) == want, (name, card, lens, heading)
+            seen += bool(want)
+    assert seen > 100  # poses where a detector sees a card
 
 
 def test_a_whole_truck_sends_the_same_records_with_either_kernels():

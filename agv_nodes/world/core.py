@@ -79,7 +79,7 @@ class WorldCore:
         else:
             self.vehicle = Concic2(self.p.concic2)
         self._place_vehicle()
-        self.sensor = MarkerSensorModel(self.p.sensor, self.rng)
+        self.sensor = MarkerSensorModel(self.p.sensor, self.rng, compiled)
         # Only the Electruk carries Baker's marker sensor; the CONCIC-II reads its floor with
         # the cameras, so its world sends no ADC snapshots (340 a second nobody reads).
         self.marker_sensor = layout.vehicle == 'electruk'

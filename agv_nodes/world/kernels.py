@@ -1,9 +1,11 @@
 """Which code runs the world's hottest loops: C (`_kernels.c`, built by setup.py) or Python.
 
-The Electruk's substeps and the guide-wire pickup's field are most of the world's arithmetic
-per sample. `_kernels.c` does the same arithmetic as the Python code in `vehicles.py` and
-`guide_wire.py`, in the same order, on the same C library functions: the two give the same
-bits (test/test_world_kernels.py), and the choice changes only speed. The world parameter
+The Electruk's substeps (`vehicles.py`, `Electruk.step`), the guide-wire pickup's field
+(`guide_wire.py`, `GuideWirePickup.coils`) and the marker sensor's optics (`marker_sensor.py`,
+`MarkerSensorModel._look`) are most of the world's arithmetic per sample. `_kernels.c` does the
+same arithmetic as that Python code, in the same order, with the same functions (the C
+library's, and Python's own `math.hypot`): the two give the same bits
+(test/test_world_kernels.py), and the choice changes only speed. The world parameter
 `kernels` chooses: `auto` (default) the C code where it is built, else Python; `c` insists on
 it; `python` never uses it. The extension is optional: a machine without a C compiler
 installs the package without it and runs the Python code.

@@ -13,10 +13,12 @@ furthest forward, so a card passing in forward travel crosses the image from C1 
 import functools
 import math
 import random
+from types import ModuleType
 
 import numpy as np
 
 from agv_nodes.markers import ELEMENT_HEIGHT, ELEMENT_WIDTH, LOCATION_PATTERNS, trough_and_peak
+from agv_nodes.world import kernels
 from agv_nodes.world.settings import SensorParams
 
 NOISE_PER_SNAPSHOT = 17  # standard normals a snapshot uses: 8 lit, 8 dark, 1 ambient
@@ -70,9 +72,14 @@ def axis_on_card(lens: tuple[float, float], heading: float,
 class MarkerSensorModel:
     """Produces (lit, dark) ADC snapshots for a lens pose among marker cards."""
 
-    def __init__(self, params: SensorParams, rng: random.Random) -> None:
+    def __init__(self, params: SensorParams, rng: random.Random,
+                 compiled: ModuleType | None = kernels.compiled) -> None:
+        """`compiled`: the C kernels that run the optics (agv_nodes.world.kernels), or None."""
         self.p = params
         self.rng = rng
+        self._compiled = compiled
+        self._packed: tuple[tuple, np.ndarray] | None = None  # cards in view, as the C reads them
+        self._optics: tuple[tuple, np.ndarray] | None = None  # the optics' figures, likewise
         # The conversions' noise comes in blocks of standard normals from a numpy generator
         # seeded from `rng` (17 random.gauss calls a snapshot were a tenth of the lock-step
         # harness's time), a row of 17 a snapshot, read in order. What of a conversion does not
@@ -128,6 +135,8 @@ class MarkerSensorModel:
         """
         p = self.p
         lx, ly = lens
+        if getattr(self, '_compiled', None) is not None:
+            return self._look_compiled(lens, heading, cards, height)
         seen: list[tuple[int, tuple[float, float]]] = []
         outer = rays = None
         for card in cards:
@@ -208,6 +217,32 @@ class MarkerSensorModel:
                     white_cover += weight * cover / w
                 seen.append((d, ((focus / t) ** 2 * cos_inc, white_cover)))
         return seen
+
+    def _look_compiled(self, lens: tuple[float, float], heading: float, cards: list,
+                       height: float) -> list[tuple[int, tuple[float, float]]]:
+        """_look() in C (agv_nodes.world.kernels): the cards within 0.6 m, packed once."""
+        lx, ly = lens
+        near = []
+        for card in cards:  # the test _look makes first, as it makes it
+            dx, dy = card.centre[0] - lx, card.centre[1] - ly
+            if dx * dx + dy * dy <= 0.36:
+                near.append(card)
+        near = tuple(near)
+        if not near:
+            return []
+        packed = self._packed
+        if packed is None or packed[0] != near:
+            packed = self._packed = (near, _pack_cards(near))
+        p = self.p
+        key = (p.focus, p.base_blur, p.defocus_blur, p.aperture_width, p.aperture_height,
+               p.flat_height, p.row_pitch, p.column_pitch, tuple(p.skew))
+        optics = self._optics
+        if optics is None or optics[0] != key:
+            offsets, first, last = _offsets(p.column_pitch, tuple(p.skew))
+            optics = self._optics = (key, np.array(
+                [*key[:6], p.row_pitch / 2.0, ELEMENT_HEIGHT, *offsets, first, last],
+                dtype=float))
+        return self._compiled.marker_look(packed[1], optics[1], lx, ly, heading, height)
 
     # -- electronics ----------------------------------------------------------------------
     def signals(self, optics: list[tuple[float, float]]) -> list[float]:
@@ -295,6 +330,21 @@ def _ray(axis: tuple[float, float], fx: float, fy: float, x_off: float) -> tuple
     rx, ry = axis[0] + fx * x_off, axis[1] + fy * x_off
     norm = math.hypot(rx, ry)
     return rx / norm, ry / norm
+
+
+def _pack_cards(cards: tuple) -> np.ndarray:
+    """Return the cards as the C optics reads them (agv_nodes/world/_kernels.c, marker_look)."""
+    out: list[float] = []
+    for card in cards:
+        half_card, runs = _card_runs(card.rows)
+        if len(runs) != 2:
+            raise ValueError(f'marker card with {len(runs)} rows: the sensor reads two')
+        out += [*card.centre, *card.normal, *card.along, card.height, half_card,
+                len(runs[0]), len(runs[1])]
+        for row in runs:
+            for a, b in row:
+                out += [a, b]
+    return np.array(out, dtype=float)
 
 
 @functools.cache
