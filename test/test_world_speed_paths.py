@@ -19,14 +19,8 @@ from agv_nodes.markers import ELEMENT_HEIGHT, ELEMENT_WIDTH
 from agv_nodes.world.core import WorldCore
 from agv_nodes.world.guide_wire import SCALAR_SEGMENTS
 from agv_nodes.world.layout import layout_path, load_layout
-from agv_nodes.world.marker_sensor import (
-    EDGE_ON,
-    NOISE_PER_SNAPSHOT,
-    MarkerSensorModel,
-    _box_blur_cover,
-    _cdf,
-    _white_runs,
-)
+from agv_nodes.world.marker_optics import EDGE_ON, box_blur_cover, cdf, white_runs
+from agv_nodes.world.marker_sensor import NOISE_PER_SNAPSHOT, MarkerSensorModel
 from agv_nodes.world.settings import ElectrukParams, SensorParams, WorldParams
 from agv_nodes.world.vehicles import Electruk
 
@@ -83,8 +77,8 @@ def _plain_detector(p: SensorParams, card, d: int, u: float, rng_: float, cos_in
         if weight <= 1e-6:
             continue
         cover = 0.0
-        for a, b in _white_runs(row):
-            cover += _box_blur_cover(a - half_card, b - half_card, lo, hi, sigma)
+        for a, b in white_runs(row):
+            cover += box_blur_cover(a - half_card, b - half_card, lo, hi, sigma)
         white_cover += weight * cover / w
     return (p.focus / rng_) ** 2 * cos_inc, white_cover
 
@@ -92,7 +86,7 @@ def _plain_detector(p: SensorParams, card, d: int, u: float, rng_: float, cos_in
 def _trapezoid_mass(z0: float, z1: float, height: float, flat: float) -> float:
     b = height / 2.0
     a = flat * b
-    return (_cdf(z1, a, b) - _cdf(z0, a, b)) / (a + b)
+    return (cdf(z1, a, b) - cdf(z0, a, b)) / (a + b)
 
 
 def _adc8(value: float) -> int:

@@ -17,8 +17,18 @@ from types import ModuleType
 
 import numpy as np
 
-from agv_nodes.markers import ELEMENT_HEIGHT, ELEMENT_WIDTH, LOCATION_PATTERNS, trough_and_peak
+from agv_nodes.markers import ELEMENT_HEIGHT, LOCATION_PATTERNS, trough_and_peak
 from agv_nodes.world import kernels
+from agv_nodes.world.marker_optics import (
+    EDGE_ON,
+    box_blur_cover,
+    card_runs,
+    cdf,
+    detector_offsets,
+    pack_cards,
+    psi,
+    ray,
+)
 from agv_nodes.world.settings import SensorParams
 
 NOISE_PER_SNAPSHOT = 17  # standard normals a snapshot uses: 8 lit, 8 dark, 1 ambient
@@ -31,23 +41,6 @@ CALIBRATION_RANGES = tuple(0.280 + 0.005 * k for k in range(9))
 # optical axis (Baker 1983, 7.1.4, fig 7.13: recognition against angle, about +-10 degrees).
 READ_STANDOFF = (CALIBRATION_RANGES[0], CALIBRATION_RANGES[-1])  # m along the optical axis
 READ_ANGLE = 10.0  # degrees either way
-EDGE_ON = -0.2  # cosine of incidence (negated) beyond which a card is seen edge-on or from behind
-SQRT2 = math.sqrt(2.0)
-INV_SQRT_2PI = 1.0 / math.sqrt(2.0 * math.pi)
-
-
-def _psi(z: float) -> float:
-    """Antiderivative of the standard normal CDF: z Phi(z) + phi(z)."""
-    # Beyond 8.5 sigma the tails are below a double's resolution of the result (Phi = 1 or 0
-    # exactly, phi < 1e-16): most runs of a card lie that far from a detector's patch, and
-    # the erf and exp are most of the optics' cost.
-    if z >= 8.5:
-        return z
-    if z <= -8.5:
-        return 0.0
-    return z * 0.5 * (1.0 + math.erf(z / SQRT2)) + INV_SQRT_2PI * math.exp(-0.5 * z * z)
-
-
 def lens_position(sensor_point: tuple[float, float], heading: float,
                   lateral: float) -> tuple[float, float]:
     """Return the lens position: `lateral` m right of the sensor point, square to the truck."""
@@ -148,14 +141,14 @@ class MarkerSensorModel:
                 focus, blur, defocus = p.focus, p.base_blur, p.defocus_blur
                 width, aperture, flat = p.aperture_width, p.aperture_height, p.flat_height
                 up = p.row_pitch / 2.0
-                offsets, first, last = _offsets(p.column_pitch, tuple(p.skew))
+                offsets, first, last = detector_offsets(p.column_pitch, tuple(p.skew))
                 fx, fy = math.cos(heading), math.sin(heading)  # forward
                 # optical axis (fy, -fx), right of the truck, times the focus
                 axis = (fy * focus, -fx * focus)
-                outer = _ray(axis, fx, fy, offsets[first]), _ray(axis, fx, fy, offsets[last])
+                outer = ray(axis, fx, fy, offsets[first]), ray(axis, fx, fy, offsets[last])
             nx, ny = card.normal
             ex, ey = card.along
-            half_card, runs = _card_runs(card.rows)
+            half_card, runs = card_runs(card.rows)
             # the outermost rays: where they meet the card's line, and the widest patch
             (r1x, r1y), (r2x, r2y) = outer
             den1, den2 = r1x * nx + r1y * ny, r2x * nx + r2y * ny
@@ -171,7 +164,7 @@ class MarkerSensorModel:
                     continue
             lift = card.height + height
             if rays is None:
-                rays = [_ray(axis, fx, fy, x_off) for x_off in offsets]
+                rays = [ray(axis, fx, fy, x_off) for x_off in offsets]
             for d in range(8):
                 rx, ry = rays[d]
                 denom = rx * nx + ry * ny
@@ -192,19 +185,19 @@ class MarkerSensorModel:
                 v = (up if d < 4 else -up) * scale - lift
                 b = aperture * scale / 2.0
                 a = flat * b
-                middle = _cdf(0.0 - v, a, b)
+                middle = cdf(0.0 - v, a, b)
                 white_cover = 0.0
                 for row_runs, weight in zip(runs, (
-                        (_cdf(ELEMENT_HEIGHT - v, a, b) - middle) / (a + b),
-                        (middle - _cdf(-ELEMENT_HEIGHT - v, a, b)) / (a + b)), strict=True):
+                        (cdf(ELEMENT_HEIGHT - v, a, b) - middle) / (a + b),
+                        (middle - cdf(-ELEMENT_HEIGHT - v, a, b)) / (a + b)), strict=True):
                     if weight <= 1e-6:
                         continue
                     cover = 0.0
                     for ra, rb in row_runs:
                         if sigma <= 0.0:
-                            cover += _box_blur_cover(ra, rb, lo, hi, sigma)
+                            cover += box_blur_cover(ra, rb, lo, hi, sigma)
                             continue
-                        # _box_blur_cover inline; _psi is 0 at and below -8.5, z at and above
+                        # box_blur_cover inline; psi is 0 at and below -8.5, z at and above
                         # 8.5: a run 8.5 sigma short of the patch adds nothing
                         z1 = (rb - lo) / sigma
                         if z1 <= -8.5:
@@ -213,7 +206,7 @@ class MarkerSensorModel:
                         if z4 >= 8.5:  # the smallest
                             cover += sigma * (z1 - z2 - z3 + z4)
                         else:
-                            cover += sigma * (_psi(z1) - _psi(z2) - _psi(z3) + _psi(z4))
+                            cover += sigma * (psi(z1) - psi(z2) - psi(z3) + psi(z4))
                     white_cover += weight * cover / w
                 seen.append((d, ((focus / t) ** 2 * cos_inc, white_cover)))
         return seen
@@ -232,13 +225,13 @@ class MarkerSensorModel:
             return []
         packed = self._packed
         if packed is None or packed[0] != near:
-            packed = self._packed = (near, _pack_cards(near))
+            packed = self._packed = (near, pack_cards(near))
         p = self.p
         key = (p.focus, p.base_blur, p.defocus_blur, p.aperture_width, p.aperture_height,
                p.flat_height, p.row_pitch, p.column_pitch, tuple(p.skew))
         optics = self._optics
         if optics is None or optics[0] != key:
-            offsets, first, last = _offsets(p.column_pitch, tuple(p.skew))
+            offsets, first, last = detector_offsets(p.column_pitch, tuple(p.skew))
             optics = self._optics = (key, np.array(
                 [*key[:6], p.row_pitch / 2.0, ELEMENT_HEIGHT, *offsets, first, last],
                 dtype=float))
@@ -316,80 +309,6 @@ def _adc8(value: np.ndarray) -> np.ndarray:
     """8-bit conversion of each value, as int(v + 0.5) within 0..255."""
     return np.where(value <= 0, 0, np.where(value >= 255, 255, np.floor(value + 0.5))) \
         .astype(np.int64)
-
-
-@functools.cache
-def _offsets(pitch: float, skew: tuple[float, ...]) -> tuple[tuple[float, ...], int, int]:
-    """Each detector's patch offset forward (m at the focus); the outermost two's detectors."""
-    offsets = tuple((1.5 - d % 4) * pitch + skew[d] for d in range(8))
-    return offsets, offsets.index(min(offsets)), offsets.index(max(offsets))
-
-
-def _ray(axis: tuple[float, float], fx: float, fy: float, x_off: float) -> tuple[float, float]:
-    """Return the unit ray through a detector's patch: axis*focus + forward*x_off."""
-    rx, ry = axis[0] + fx * x_off, axis[1] + fy * x_off
-    norm = math.hypot(rx, ry)
-    return rx / norm, ry / norm
-
-
-def _pack_cards(cards: tuple) -> np.ndarray:
-    """Return the cards as the C optics reads them (agv_nodes/world/_kernels.c, marker_look)."""
-    out: list[float] = []
-    for card in cards:
-        half_card, runs = _card_runs(card.rows)
-        if len(runs) != 2:
-            raise ValueError(f'marker card with {len(runs)} rows: the sensor reads two')
-        out += [*card.centre, *card.normal, *card.along, card.height, half_card,
-                len(runs[0]), len(runs[1])]
-        for row in runs:
-            for a, b in row:
-                out += [a, b]
-    return np.array(out, dtype=float)
-
-
-@functools.cache
-def _card_runs(rows: tuple[str, ...]) -> tuple[float, tuple[tuple[tuple[float, float], ...], ...]]:
-    """Half the card's length and each row's white runs, m from the card centre (downstream +)."""
-    half_card = len(rows[0]) * ELEMENT_WIDTH / 2.0
-    return half_card, tuple(tuple((a - half_card, b - half_card) for a, b in _white_runs(row))
-                            for row in rows)
-
-
-@functools.cache
-def _white_runs(row: str) -> tuple[tuple[float, float], ...]:
-    """White runs (start, end) of a card row, m from its upstream end (C1, j = 0, downstream)."""
-    n = len(row)
-    runs: list[tuple[float, float]] = []
-    for j, ch in enumerate(row):
-        if ch != 'W':
-            continue
-        a, b = (n - 1 - j) * ELEMENT_WIDTH, (n - j) * ELEMENT_WIDTH
-        if runs and abs(runs[-1][0] - b) < 1e-12:
-            runs[-1] = (a, runs[-1][1])
-        else:
-            runs.append((a, b))
-    return tuple(runs)
-
-
-def _box_blur_cover(a: float, b: float, lo: float, hi: float, sigma: float) -> float:
-    """Integral over [lo, hi] of the Gaussian-blurred indicator of [a, b] (m)."""
-    if sigma <= 0.0:
-        return max(0.0, min(b, hi) - max(a, lo))
-    s = sigma
-    return s * (_psi((b - lo) / s) - _psi((b - hi) / s) - _psi((a - lo) / s) + _psi((a - hi) / s))
-
-
-def _cdf(z: float, a: float, b: float) -> float:
-    """Mass of the trapezoid (flat top -a..a, feet -b..b; a + b in all) below z."""
-    if z <= -b:
-        return 0.0
-    if z < -a:
-        return (z + b) ** 2 / (2.0 * (b - a))
-    if z <= a:
-        return (b - a) / 2.0 + (z + a)
-    if z < b:
-        return (a + b) - (b - z) ** 2 / (2.0 * (b - a))
-    return a + b
 
 
 # -- calibration from Table 7.1 ---------------------------------------------------------------
