@@ -1,6 +1,9 @@
 """World benchmark: core steps per second per layout, and the world node's CPU at real time.
 
-Run: .venv/bin/python bench/world_bench.py [--node-seconds 10]
+The core is timed with its compiled kernels and with the Python code they stand in for (the
+world parameter `kernels`, agv_nodes/world/kernels.py), alternated, the best of `--rounds`.
+
+Run: .venv/bin/python bench/world_bench.py [--node-seconds 10] [--rounds 2]
 Prints a Markdown table (bench/results/world_bench.md).
 """
 
@@ -25,9 +28,9 @@ STEER = dict(mode='angle', enable=1, angle=0, left_speed=0, right_speed=0)
 WHEELS = dict(mode='wheel_speeds', enable=1, angle=0, left_speed=400, right_speed=420)
 
 
-def core_rate(name: str, seconds: float = 20.0) -> tuple[float, float]:
+def core_rate(name: str, seconds: float = 20.0, kernels: str = 'auto') -> tuple[float, float]:
     """Measure (steps per wall second, real-time factor) for the world core alone."""
-    world = WorldCore(load_layout(layout_path(name)), WorldParams(seed=1))
+    world = WorldCore(load_layout(layout_path(name)), WorldParams(seed=1, kernels=kernels))
     steps = int(seconds * world.p.sample_rate)
     t0 = time.perf_counter()
     for k in range(steps):
@@ -70,13 +73,20 @@ def node_cpu(seconds: float) -> float:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--node-seconds', type=float, default=10.0)
+    ap.add_argument('--rounds', type=int, default=2, help='alternated runs of each kernels')
     args = ap.parse_args()
-    print('| layout | vehicle | core steps/s | real-time factor (340 Hz) |')
-    print('|---|---|---|---|')
+    print('| layout | vehicle | core steps/s, C kernels | real-time factor (340 Hz) | '
+          'core steps/s, Python | speed-up |')
+    print('|---|---|---|---|---|---|')
     for name in ('straight_track', 'demo_1983', 'sensor_rig', 'tape_1991'):
-        rate, rtf = core_rate(name)
+        best = {'c': (0.0, 0.0), 'python': (0.0, 0.0)}
+        for _ in range(args.rounds):
+            for kernels in best:
+                best[kernels] = max(best[kernels], core_rate(name, kernels=kernels))
         vehicle = load_layout(layout_path(name)).vehicle
-        print(f'| {name} | {vehicle} | {rate:,.0f} | {rtf:.1f}x |')
+        (rate, rtf), (plain, _) = best['c'], best['python']
+        print(f'| {name} | {vehicle} | {rate:,.0f} | {rtf:.1f}x | {plain:,.0f} | '
+              f'{rate / plain:.2f}x |', flush=True)
     if args.node_seconds > 0:
         print()
         print('| world node at time_factor 1 (340 Hz, /clock every sample) | CPU % of one core |')
