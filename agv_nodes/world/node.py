@@ -52,6 +52,7 @@ from agv_nodes.ros_ports import (
     clock_time_ns,
 )
 from agv_nodes.settings import SettingError, convert, parameters
+from agv_nodes.world import kernels
 from agv_nodes.world.core import WorldCore
 from agv_nodes.world.floor import Control, Floor, Place, set_down
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
@@ -100,6 +101,10 @@ class WorldNode(Node):
         if place is not None:
             wp = replace(wp, seed=wp.seed + place.index)  # each truck's sensors their own noise
         start = set_down(self, s, place)
+        try:  # 'c' where the kernels were not built (no C compiler at install)
+            kernels.select(wp.kernels)
+        except ValueError as exc:
+            raise parameter_error(self, 'kernels', wp.kernels, str(exc)) from None
         self.core = WorldCore(self.layout, wp, start=start,
                               station_loads=place.station_loads if place is not None else None)
         self.core.wire_powered = s.wire_powered
