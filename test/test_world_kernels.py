@@ -8,6 +8,7 @@ truck's world in lock step is run both ways: every record it sends must be the s
 
 from __future__ import annotations
 
+import copy
 import math
 import random
 
@@ -136,7 +137,7 @@ def test_a_whole_truck_sends_the_same_records_with_either_kernels():
     sent = {}
     for choice in ('c', 'python'):
         h = truck('demo_1983', seed=3, overrides={'world': {'kernels': choice}})
-        assert (h.world.vehicle._compiled is None) == (choice == 'python')
+        assert (h.world.vehicle._step_kernel is None) == (choice == 'python')
         tape: list[tuple[str, bytes]] = []
         h.taps.append(lambda record, raw, now, tape=tape: tape.append((record, raw)))
         for text in DEMO_PROGRAMME:
@@ -145,3 +146,15 @@ def test_a_whole_truck_sends_the_same_records_with_either_kernels():
         sent[choice] = tape
     assert len(sent['c']) > 50_000
     assert sent['c'] == sent['python']
+
+
+def test_a_world_with_its_kernels_deep_copies_and_the_copy_runs_on_alike():
+    """Tests fork a truck's state with copy.deepcopy: the kernels travel with it."""
+    h = truck('demo_1983', seed=4)
+    submit(h, DEMO_PROGRAMME[0])
+    h.run(5.0)
+    twin = copy.deepcopy(h)
+    assert twin.world.vehicle._step_kernel is kernels.compiled.electruk_step
+    for harness in (h, twin):
+        harness.run(5.0)
+    assert vars(twin.world.vehicle.state) == vars(h.world.vehicle.state)

@@ -27,7 +27,8 @@ class GuideWirePickup:
         """`compiled`: the C kernels that sum the field (agv_nodes.world.kernels), or None."""
         self.p = params
         self.rng = rng
-        self._compiled = compiled
+        # the kernel itself, not its module: a world is deep-copied (forked test states)
+        self._lateral_kernel = compiled.wire_lateral if compiled is not None else None
         starts, ends, currents = [], [], []
         for w in wires:
             for a, b in _merge_collinear(w.points):
@@ -105,9 +106,9 @@ class GuideWirePickup:
         if math.hypot(x - self._near_at[0], y - self._near_at[1]) > NEAR_MOVE:
             self._refresh_near(x, y)
         points = ((x + half * lx, y + half * ly), (x - half * lx, y - half * ly))
-        if self._compiled is not None:  # the same arithmetic in C (agv_nodes.world.kernels)
+        if self._lateral_kernel is not None:  # the same arithmetic in C (world.kernels)
             (p0x, p0y), (p1x, p1y) = points
-            lateral = self._compiled.wire_lateral(
+            lateral = self._lateral_kernel(
                 self._near_table, x, y, lx, ly, p0x, p0y, p1x, p1y, self.p.coil_height,
                 self.p.reach, len(self._near) <= SCALAR_SEGMENTS)
         elif len(self._near) > SCALAR_SEGMENTS:

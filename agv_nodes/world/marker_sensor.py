@@ -70,7 +70,8 @@ class MarkerSensorModel:
         """`compiled`: the C kernels that run the optics (agv_nodes.world.kernels), or None."""
         self.p = params
         self.rng = rng
-        self._compiled = compiled
+        # the kernel itself, not its module: a world is deep-copied (forked test states)
+        self._look_kernel = compiled.marker_look if compiled is not None else None
         self._packed: tuple[tuple, np.ndarray] | None = None  # cards in view, as the C reads them
         self._optics: tuple[tuple, np.ndarray] | None = None  # the optics' figures, likewise
         # The conversions' noise comes in blocks of standard normals from a numpy generator
@@ -128,7 +129,7 @@ class MarkerSensorModel:
         """
         p = self.p
         lx, ly = lens
-        if getattr(self, '_compiled', None) is not None:
+        if getattr(self, '_look_kernel', None) is not None:
             return self._look_compiled(lens, heading, cards, height)
         seen: list[tuple[int, tuple[float, float]]] = []
         outer = rays = None
@@ -235,7 +236,7 @@ class MarkerSensorModel:
             optics = self._optics = (key, np.array(
                 [*key[:6], p.row_pitch / 2.0, ELEMENT_HEIGHT, *offsets, first, last],
                 dtype=float))
-        return self._compiled.marker_look(packed[1], optics[1], lx, ly, heading, height)
+        return self._look_kernel(packed[1], optics[1], lx, ly, heading, height)
 
     # -- electronics ----------------------------------------------------------------------
     def signals(self, optics: list[tuple[float, float]]) -> list[float]:

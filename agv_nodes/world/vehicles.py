@@ -60,7 +60,8 @@ class Electruk:
                  compiled: ModuleType | None = kernels.compiled) -> None:
         """`compiled`: the C kernels that step it (agv_nodes.world.kernels), or None: Python."""
         self.p = params
-        self._compiled = compiled
+        # the kernel itself, not its module: a world is deep-copied (forked test states)
+        self._step_kernel = compiled.electruk_step if compiled is not None else None
         self.state = VehicleState()
         self.steer = 0.0  # front wheel angle, rad
         self.current = 0.0  # armature current per motor, A
@@ -141,9 +142,9 @@ class Electruk:
             if demand > most:
                 demand = most
             rate = p.steer_rate * dt
-        if self._compiled is not None:  # the same arithmetic in C (agv_nodes.world.kernels)
+        if self._step_kernel is not None:  # the same arithmetic in C (world.kernels)
             (self.flux, self.current, self.steer, s.x, s.y, s.heading, s.distance, s.speed,
-             s.yaw_rate) = self._compiled.electruk_step(
+             s.yaw_rate) = self._step_kernel(
                 n, dt, field_gain, decay, m_eff, coulomb, viscous_per_speed, target, driven,
                 v_arm, radius, gear, k_phi, resistance, limit, wheelbase, motors_k_phi,
                 steering, demand if steering else 0.0, rate if steering else 0.0, self.flux,
