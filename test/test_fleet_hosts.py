@@ -111,6 +111,10 @@ def test_a_master_on_this_host_drives_a_truck_whose_graph_runs_on_another(truck_
                            for line in lines)
 
             spin_until(answered, 180, 'state from the truck on the other host')
+            # and its world moving, so the task meets a pickup that hears the wire (a task
+            # that arrives as the world starts can fail lost_wire: a start-up race of its own)
+            spin_until(lambda: 'moving at time_factor' in Path(log.name).read_text(), 120,
+                       "the truck's world moving")
             transport.publish(String(data='W0 to W2'))
             spin_until(lambda: 't1: done (agv1)' in lines, 240, 't1 done')
             assert not [line for line in lines if not line.startswith('status: ')
