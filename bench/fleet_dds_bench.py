@@ -50,12 +50,11 @@ def main() -> None:
                     help='simulated s per real s the world aims for (0: as fast as the '
                     'slowest node keeps up)')
     args = ap.parse_args()
-    pace = (f'time factor {args.time_factor:g}' if args.time_factor else
-            'time factor 0 (as fast as the slowest node keeps up)')
+    pace, flag = (f'time factor {args.time_factor:g}', f' --time-factor {args.time_factor:g}') \
+        if args.time_factor else ('time factor 0 (as fast as the slowest node keeps up)', '')
     print(f'Fleet over DDS and MQTT on {args.layout}, {args.transfers} transfers per row, '
           f'{pace}; `bench/fleet_dds_bench.py --layout {args.layout} '
-          f'--trucks {" ".join(map(str, args.trucks))} --transfers {args.transfers}'
-          + (f' --time-factor {args.time_factor:g}' if args.time_factor else '') + '`.\n')
+          f'--trucks {" ".join(map(str, args.trucks))} --transfers {args.transfers}{flag}`.\n')
     print('| trucks | processes | transfers | simulated s | per simulated hour | real-time '
           'factor | wall s | dispatcher step median ms | p99 ms | max ms | collisions |\n'
           '|---|---|---|---|---|---|---|---|---|---|---|')

@@ -129,7 +129,7 @@ class MarkerSensorModel:
         """
         p = self.p
         lx, ly = lens
-        if getattr(self, '_look_kernel', None) is not None:
+        if self._look_kernel is not None:
             return self._look_compiled(lens, heading, cards, height)
         seen: list[tuple[int, tuple[float, float]]] = []
         outer = rays = None
@@ -337,6 +337,7 @@ def _belt_runs(params_key: tuple) -> tuple:
     model = MarkerSensorModel.__new__(MarkerSensorModel)  # the optics alone: no calibration
     model.p = SensorParams(**dict(params_key))
     model._seen_key, model._seen_last = None, []
+    model._look_kernel = None  # the Python optics (the C gives the same bits)
     runs = []
     for standoff in CALIBRATION_RANGES:
         belt = _Belt(standoff)
