@@ -185,15 +185,17 @@ def test_a_fourth_truck_at_w3_1_fills_every_block_and_the_watchdog_reports_the_d
     stand still, told where they are, and the dispatcher's watchdog names the cycle.
     """
     from agv_nodes.fleet.dispatcher import TransportOrder
+    from agv_nodes.fleet.reroute import REROUTE_AFTER
 
     positions = {'agv1': 'W2.2', 'agv2': 'W0.1', 'agv3': 'W1.1', 'agv4': 'W3.1'}
     fleet, dispatcher, run, _seen = _dispatched(positions)
     dispatcher.submit(TransportOrder('t1', 'W0', 'W2'))
     assert run.run(20.0, until=lambda: bool(dispatcher.deadlocks)), run.summary()
-    run.run(5.0)
+    run.run(REROUTE_AFTER + 2.0)  # past the watchdog's patience
     (cycle,) = dispatcher.deadlocks
     assert sorted(cycle) == sorted(positions)
     assert fleet.collisions == [] and dispatcher.done == []
+    assert dispatcher.reroutes == []  # its patience is over, but a one-way loop has no other way
     for name, node in positions.items():
         assert run.states[name].last_node_id == node and not run.states[name].driving
         assert any(r.startswith("task 1 'at ") and 'completed' in r for r in fleet.reports(name))

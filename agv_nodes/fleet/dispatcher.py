@@ -55,6 +55,7 @@ from agv_nodes.fleet.jobs import (
     order_message,
     task_failed,
 )
+from agv_nodes.fleet.reroute import REROUTE_AFTER, Rerouting
 from agv_nodes.fleet.track_graph import TrackGraph
 from agv_nodes.vda5050.common import Action, ActionParameter, BlockingType
 from agv_nodes.vda5050.order import InstantActions
@@ -66,13 +67,14 @@ __all__ = ['Dispatcher', 'TransportOrder']
 TRAIL = 12  # nodes of a truck's way kept behind it: enough for its footprint
 
 
-class Dispatcher:
+class Dispatcher(Rerouting):
     """Assign transport orders to trucks and drive them by VDA 5050 (see the module docstring)."""
 
     def __init__(self, graph: TrackGraph, trucks: list[str], *, manufacturer: str = 'agv_nodes',
                  blocks: list[Block] | None = None, parking: dict[str, str] | None = None,
                  positions: dict[str, str] | None = None,
-                 truck_length: float = TRUCK_LENGTH) -> None:
+                 truck_length: float = TRUCK_LENGTH,
+                 reroute_after: float = REROUTE_AFTER) -> None:
         """Direct `trucks` on `graph`.
 
         `positions` is the stop marker each truck was set down at; the dispatcher tells each
@@ -83,6 +85,9 @@ class Dispatcher:
         self.reservations = Reservations(graph, blocks)
         self.parking = dict(parking or {})
         self.truck_length = truck_length
+        self.reroute_after = reroute_after
+        # (truck, order, blocks avoided, s waited): the watchdog's re-routings (fleet.reroute)
+        self.reroutes: list[tuple[str, str, list[str], float]] = []
         self.queue: deque[TransportOrder] = deque()
         self.assignments: dict[str, str] = {}  # transport id -> truck
         self.done: list[str] = []
@@ -94,7 +99,7 @@ class Dispatcher:
         self._trucks = {name: Truck(name) for name in trucks}
         self._positions = dict(positions or {})
         self._placing: set[str] = set()  # trucks sent their initPosition
-        self._ways: dict[tuple[str, bool, str], list[str] | None] = {}
+        self._ways: dict[tuple[str, bool, str, frozenset[str]], list[str] | None] = {}
         self._serial = 0
         self._asked = count(1)  # stateRequest ids
         for name, node in self._positions.items():  # there before it is heard from: held
@@ -170,6 +175,7 @@ class Dispatcher:
                 self._park_or_yield(t, out)
         stuck = {t.name for t in trucks if self._stalled(t) or self._idle(t)}
         self.deadlocks = [c for c in self.reservations.deadlocks() if stuck.issuperset(c)]
+        self._reroute(trucks, now)
         return out
 
     def state_requests(self) -> list[tuple[str, str, BaseModel]]:
@@ -207,10 +213,11 @@ class Dispatcher:
         return keep | set(self.reservations.blocks_of(job.path[t.pos:end + 1]))
 
     # -- planning ------------------------------------------------------------------------------
-    def _way(self, start: str, passed: bool, stop: str) -> list[str] | None:
-        key = (start, passed, stop)
+    def _way(self, start: str, passed: bool, stop: str, avoid: frozenset[str] = frozenset()
+             ) -> list[str] | None:
+        key = (start, passed, stop, avoid)
         if key not in self._ways:
-            self._ways[key] = task_way(self.graph, start, passed, stop)
+            self._ways[key] = task_way(self.graph, start, passed, stop, avoid)
         return self._ways[key]
 
     def _stop_of(self, station: str) -> str:
@@ -220,12 +227,13 @@ class Dispatcher:
             raise ValueError(f'no stop marker of station {station!r} in the track graph')
         return stops[0]
 
-    def _plan(self, start: str, passed: bool, stops: list[tuple[str, Action | None]]
+    def _plan(self, start: str, passed: bool, stops: list[tuple[str, Action | None]],
+              avoid: frozenset[str] = frozenset()
               ) -> tuple[list[str], dict[int, Action]] | None:
         """Return the way through `stops` from `start` and its actions by path index."""
         path, actions = [start], {}
         for node, action in stops:
-            way = self._way(path[-1], passed or len(path) > 1, node)
+            way = self._way(path[-1], passed or len(path) > 1, node, avoid)
             if way is None:
                 return None
             path.extend(way[1:])

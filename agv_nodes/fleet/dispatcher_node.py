@@ -26,10 +26,8 @@ rejected.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Collection, Sequence
 import sys
 import time
-from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.clock import Clock, ClockType
@@ -39,13 +37,13 @@ from std_msgs.msg import String
 from agv_nodes import qos
 from agv_nodes.fleet.dispatcher import Dispatcher
 from agv_nodes.fleet.mqtt_master import MqttMaster
+from agv_nodes.fleet.settings import DispatcherSettings, truck_map
 from agv_nodes.mqtt.client import MqttLink
 from agv_nodes.node_process import spin_main
 from agv_nodes.params import declare, parameter_error, refuse_unknown
 from agv_nodes.ros_ports import ERROR, OK, WARN, diagnostic_status
-from agv_nodes.settings import SettingError, settings_class
+from agv_nodes.settings import SettingError
 from agv_nodes.vda5050.link_parameters import broker_parameter, graph_parameter
-from agv_nodes.vda5050.topics import topic
 
 # A query, not a transport: answered with one line of counts and changing nothing, so a program
 # that starts with the node asks it until answered, which proves both directions of the topics
@@ -53,57 +51,6 @@ from agv_nodes.vda5050.topics import topic
 STATUS = 'status'
 STEPS_KEPT = 10_000  # dispatcher steps whose time /diagnostics summarises (~17 min at 0.1 s)
 RECONNECT_MAX = 10.0  # wall s: the longest wait between attempts to reach a lost broker
-
-
-def truck_map(name: str, entries: Sequence[str], trucks: Sequence[str],
-              stops: Collection[str] | None = None) -> dict[str, str]:
-    """Return the `truck:node` entries of parameter `name` as {truck: node}.
-
-    Each truck must be one of `trucks` and named once; with `stops` given, each node must be
-    one of them (the stop markers: where a truck can stand). SettingError names the entry.
-    """
-    out: dict[str, str] = {}
-    for entry in entries:
-        truck, sep, node = entry.partition(':')
-        if not sep or not truck or not node or ' ' in entry:
-            raise SettingError(name, entry, "not truck:stop-marker, e.g. 'agv1:W0.1'")
-        if truck not in trucks:
-            raise SettingError(name, entry, f'{truck!r} is not one of trucks {list(trucks)}')
-        if truck in out:
-            raise SettingError(name, entry, f'{truck!r} given twice')
-        if stops is not None and node not in stops:
-            raise SettingError(name, entry, f'{node!r} is no stop marker of the layout '
-                               f'(stop markers: {", ".join(sorted(stops))})')
-        out[truck] = node
-    return out
-
-
-@settings_class
-class DispatcherSettings:
-    """The fleet's central computer as a VDA 5050 master (its parameters.yaml section)."""
-
-    def problems(self) -> list[tuple[str, Any, str]]:
-        """Make the checks that span fields: trucks, and the entries naming them."""
-        trucks: tuple[str, ...] = self.trucks  # type: ignore[attr-defined]
-        manufacturer: str = self.manufacturer  # type: ignore[attr-defined]
-        if not trucks:
-            return [('trucks', [], 'needs at least one serial number')]
-        # both are topic levels (VDA 5050 6.3): not empty, no '/', '+', '#' or '$'
-        for name, value, levels in (('manufacturer', manufacturer, (manufacturer, 'x')),
-                                    *(('trucks', list(trucks), ('x', t)) for t in trucks)):
-            try:
-                topic(*levels, 'state')
-            except ValueError as exc:
-                return [(name, value, str(exc))]
-        for truck in trucks:
-            if trucks.count(truck) > 1:
-                return [('trucks', list(trucks), f'{truck!r} given twice')]
-        for name in ('positions', 'parking'):
-            try:
-                truck_map(name, getattr(self, name), trucks)
-            except SettingError as exc:
-                return [(exc.name, exc.value, exc.reason)]
-        return []
 
 
 class DispatcherNode(Node):
@@ -123,7 +70,8 @@ class DispatcherNode(Node):
             raise parameter_error(self, exc.name, exc.value, exc.reason) from None
         self.settings = s
         dispatcher = Dispatcher(graph, list(s.trucks), manufacturer=s.manufacturer,
-                                parking=parking, positions=positions)
+                                parking=parking, positions=positions,
+                                reroute_after=s.reroute_after)
         self.link = MqttLink(url, f'{s.manufacturer}_dispatcher', reconnect_min_s=1.0,
                              reconnect_max_s=RECONNECT_MAX)
         self.master = MqttMaster(dispatcher, self.link)

@@ -57,6 +57,7 @@ class Truck:
     trail: list[str] = field(default_factory=list)  # the way it came, ending at its last node
     broken: bool = False
     offline: bool = False  # off the broker: no messages reach it (set_online)
+    blocked_since: float | None = None  # since when it waits on trucks that cannot move
     headers: dict[str, int] = field(default_factory=lambda: {ORDER: 0, INSTANT_ACTIONS: 0})
 
 
@@ -81,7 +82,7 @@ def order_message(graph: TrackGraph, truck: Truck, job: Job, first: int,
             assert edge is not None, f'{a}-{b} is no edge: a planning error'
             edges.append(Edge(edge_id=edge.id, sequence_id=2 * i + 1,
                               released=i + 1 <= job.base_end, start_node_id=a,
-                              end_node_id=b, actions=[]))
+                              end_node_id=b, direction=graph.direction(edge), actions=[]))
     return Order(**header(truck, ORDER, manufacturer), order_id=job.order_id,
                  order_update_id=job.update_id, nodes=nodes, edges=edges)
 

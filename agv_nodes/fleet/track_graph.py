@@ -13,17 +13,24 @@ such a location is a branch: the truck that stops there leaves it by the same SR
 executive starts it on departure), so its edge to the landing is estimated as the location's
 SRM edge less the wire between them (not driven: the SRM from the station lands a little
 differently; on demo_1983 the estimate is within a few cm).
+
+A junction (the layout's `junctions`) is a location marker where a task may leave the wire by
+an SRM (`srm at N angle A`) and a truck not told to stays on it: both ways are edges, the SRM's
+marked `chosen`. The graph learns a junction's edge and the way it opens the same way, from a
+drive that takes that junction's SRM (layout_check.junction_passes). The route map's own way
+(`route(..., junctions=False)`) leaves chosen edges out: it is where a truck goes untold.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 import heapq
 from itertools import pairwise
 import math
 
 from agv_nodes.world.layout import Layout, LayoutError, Marker
-from agv_nodes.world.layout_check import route_passes
+from agv_nodes.world.layout_check import junction_passes, route_passes
 from agv_nodes.world.settings import WorldParams
 
 
@@ -58,6 +65,7 @@ class TrackEdge:
     end: str
     length: float  # m
     srm_angle: int = 0  # degrees of the SRM the edge takes off its wire (0: along the wire)
+    chosen: bool = False  # a junction's SRM: taken only when a task says so (srm at N)
 
 
 class TrackGraph:
@@ -73,21 +81,40 @@ class TrackGraph:
                 raise ValueError(f'edge {e.id}: {e.start} or {e.end} is not a node')
             self._out[e.start].append(e)
 
+    @property
+    def has_junctions(self) -> bool:
+        """Return True when a task can choose a way here (a junction's SRM edge)."""
+        return any(e.chosen for e in self.edges.values())
+
     def edge(self, start: str, end: str) -> TrackEdge | None:
         """Return the edge from `start` to `end`, or None when there is none."""
         return next((e for e in self._out.get(start, ()) if e.end == end), None)
+
+    def direction(self, edge: TrackEdge) -> str | None:
+        """Return the way an edge out of a junction takes (VDA 5050 edge.direction), or None.
+
+        'left' or 'right' for the junction's SRM (by the sign of its angle), 'straight' for the
+        edge along the wire; None for an edge that leaves no junction.
+        """
+        if edge.chosen:
+            return 'left' if edge.srm_angle > 0 else 'right'
+        if any(e.chosen for e in self._out.get(edge.start, ())):
+            return 'straight'
+        return None
 
     def successors(self, node: str) -> list[TrackEdge]:
         """Return the edges leaving `node`."""
         return list(self._out.get(node, ()))
 
-    def route(self, start: str, end: str, *, via_stops: bool = False) -> list[str] | None:
+    def route(self, start: str, end: str, *, via_stops: bool = False, junctions: bool = True,
+              avoid: frozenset[str] = frozenset()) -> list[str] | None:
         """Return the shortest node sequence from `start` to `end` (None: unreachable).
 
         A route from a node to itself is one lap when the graph has one (a loop), as a truck at
         a station sent back to it drives round. Branches to stop markers are left out of the
         way unless they are `end`, or `via_stops` (their stop markers are passed, not stopped
-        at, by a truck going on; a branch after an SRM location is a longer way).
+        at, by a truck going on; a branch after an SRM location is a longer way). Without
+        `junctions`, the route map's way: no junction's SRM. No node of `avoid` is entered.
         """
         if start not in self.nodes or end not in self.nodes:
             return None
@@ -105,12 +132,15 @@ class TrackGraph:
             for e in self._out[here]:
                 if e.end != end and not via_stops and self._is_branch(e):
                     continue
+                if (e.chosen and not junctions) or e.end in avoid:
+                    continue
                 heapq.heappush(queue, (dist + e.length, [*path, e.end]))
         return None
 
     def _is_branch(self, e: TrackEdge) -> bool:
         """Return True for the edge into a station that an SRM location's route map skips."""
-        return any(o.srm_angle for o in self._out[e.start] if o is not e) and not e.srm_angle
+        return not e.srm_angle and any(o.srm_angle and not o.chosen for o in self._out[e.start]
+                                       if o is not e)
 
     def length(self, nodes: list[str]) -> float:
         """Return the length in m of the way through `nodes` (each pair must be an edge)."""
@@ -147,6 +177,26 @@ def _check_repeats(layout: Layout, passed: list[Marker]) -> None:
                               'route: the truck could not report passing the second')
 
 
+def _add_junctions(layout: Layout, world: WorldParams | None, by_name: dict[str, Marker],
+                   srm: dict[int, int], add: Callable[..., None]) -> None:
+    """Add each junction's SRM edge and the edges of the way it opens (module docstring)."""
+    chosen = {name: int(angle) for name, _, angle in
+              (e.partition(':') for e in layout.junctions)}
+    for junction, passes in junction_passes(layout, world).items():
+        at = next((i for i, (name, _) in enumerate(passes) if name == junction), None)
+        if at is None or at + 1 >= len(passes):
+            raise LayoutError(f'{layout.file}: key junctions: {junction}: a truck leaving the '
+                              'wire there by its SRM passes no card after it')
+        for (a, da), (b, db) in pairwise(passes[at:]):
+            ma, mb = by_name[a], by_name[b]
+            if a == junction:
+                add(a, b, db - da, chosen[a], chosen=True)
+                continue
+            angle = srm.get(ma.identity, 0) if ma.kind == 'location' else 0
+            along = not angle and ma.path == mb.path and mb.at > ma.at
+            add(a, b, mb.at - ma.at if along else db - da, angle)
+
+
 def track_graph(layout: Layout, world: WorldParams | None = None) -> TrackGraph:
     """Return the track graph of a wire layout (see the module docstring).
 
@@ -170,8 +220,8 @@ def track_graph(layout: Layout, world: WorldParams | None = None) -> TrackGraph:
     srm = {int(loc): int(angle) for loc, angle in (e.split(':') for e in layout.srm_map)}
     edges: dict[tuple[str, str], TrackEdge] = {}
 
-    def add(a: str, b: str, length: float, angle: int = 0) -> None:
-        edges.setdefault((a, b), TrackEdge(f'{a}-{b}', a, b, round(length, 3), angle))
+    def add(a: str, b: str, length: float, angle: int = 0, chosen: bool = False) -> None:
+        edges.setdefault((a, b), TrackEdge(f'{a}-{b}', a, b, round(length, 3), angle, chosen))
 
     by_name = {m.name: m for m in markers}
     passes = route_passes(layout, world)
@@ -197,6 +247,7 @@ def track_graph(layout: Layout, world: WorldParams | None = None) -> TrackGraph:
             if landing is not None:
                 add(m.name, landing.end, landing.length - (m.at - loc.at), angle)
             previous = m
+    _add_junctions(layout, world, by_name, srm, add)
     if not edges:
         raise LayoutError(f'{layout.file}: the route map passes no two markers: no track graph')
     return TrackGraph(nodes, list(edges.values()), passes[0][0])

@@ -27,7 +27,7 @@ from agv_nodes.vda5050.state import (
     ErrorReference,
     NodeState,
 )
-from agv_nodes.vda5050.task_way import task_legs
+from agv_nodes.vda5050.task_way import task_way, way_tasks
 
 ORDER_ERROR = 'orderError'
 NO_ROUTE_ERROR = 'noRouteError'
@@ -219,6 +219,11 @@ def _check_graph(order: Order, graph: TrackGraph, fail: Fail) -> None:
         elif (known.start, known.end) != (a, b):
             fail(f'edge {edge.edge_id} of the track graph runs {known.start} -> {known.end}, '
                  f'not {a} -> {b}', *refs)
+        elif edge.direction is not None and graph.direction(known) not in (None,
+                                                                           edge.direction):
+            fail(f'edge {edge.edge_id}: direction {edge.direction!r}, but at junction {a} '
+                 f'that edge goes {graph.direction(known)!r}', *refs,
+                 ('direction', edge.direction))
 
 
 def _check_actions(order: Order, graph: TrackGraph, update: bool, fail: Fail) -> None:
@@ -267,7 +272,8 @@ class StopPoint:
     """A released node a task of the order ends at, and that task.
 
     Mostly a stop; on a floor of repeated identities also a location marker a `pass N` task
-    drives past (task_legs).
+    drives past, and at a junction the location marker a `srm at N angle A` task leaves the
+    wire at (way_tasks).
     """
 
     node_id: str
@@ -285,8 +291,9 @@ def stop_points(order: Order, graph: TrackGraph, anchor_passed: bool
 
     A stop point is a released node with an action or the last released node; its way from the
     previous one (from the first node for the first) must be the way its tasks drive
-    (task_legs), else the order is a noRouteError naming the node. Where that takes more than
-    one task, the markers passed by `pass N` tasks are points too (the truck does not stop).
+    (way_tasks), else the order is a noRouteError naming the node. Where that takes more than
+    one task, the markers passed by `pass N` tasks and the junctions left by `srm at N` are
+    points too (the truck does not stop).
     `anchor_passed` is False only when the first node is one the truck has not passed yet.
     The order has passed check_order.
     """
@@ -307,18 +314,20 @@ def stop_points(order: Order, graph: TrackGraph, anchor_passed: bool
                 'passes and cannot stop at: the base must end on a stop marker', refs))
             break
         ordered = [n.node_id for n in released[anchor:i + 1]]
-        legs = task_legs(graph, ordered[0], anchor_passed or anchor > 0, node.node_id)
-        if legs is None or legs[0] != ordered:
-            drives = ' -> '.join(legs[0]) if legs else 'no way'
+        passed = anchor_passed or anchor > 0
+        tasks = way_tasks(graph, ordered, passed)
+        if tasks is None:
+            way = task_way(graph, ordered[0], passed, node.node_id)
+            drives = ' -> '.join(way) if way else 'no way'
             errors.append(make_error(
                 NO_ROUTE_ERROR, f'node {node.node_id}: the order goes {" -> ".join(ordered)}, '
-                f'but the task to it drives {drives}: a task reaches a stop marker by the '
-                'route map, past the next marker of its location', refs))
+                f'but the tasks to it drive {drives}: a task reaches a stop marker by the '
+                "route map, past the next marker of its location, or by a junction's SRM",
+                refs))
             break
-        for k in legs[1]:  # markers of the stop's identity passed first: a pass task each
-            passed = released[anchor + k]
-            points.append(StopPoint(passed.node_id, passed.sequence_id,
-                                    f'pass {graph.nodes[passed.node_id].location}', None))
+        for k, text in tasks:  # markers passed, junctions left by SRM: a task each
+            on = released[anchor + k]
+            points.append(StopPoint(on.node_id, on.sequence_id, text, None))
         points.append(StopPoint(node.node_id, node.sequence_id,
                                 task_text(track_node, _first(node)), _first(node)))
         anchor = i

@@ -7,9 +7,16 @@ task cannot reach a stop marker past another marker of its identity. The truck g
 several: `pass N` for each marker of that identity it must drive past (a modern task: on
 past the next marker of N without stopping), then the stop task. `task_legs` finds those
 markers; a master need not know: the bridge sends the passes.
+
+Where the floor has junctions (agv_nodes.fleet.track_graph), a way may take a junction's SRM:
+the truck gets there by `srm at N angle A` (again after a `pass N` for each marker of N before
+the junction), lands on the other wire and goes on from the first card it meets there.
+`way_tasks` finds those tasks for a way; `task_way` plans the shortest way the tasks can drive.
 """
 
 from __future__ import annotations
+
+from itertools import pairwise
 
 from agv_nodes.fleet.track_graph import TrackGraph
 
@@ -28,9 +35,10 @@ def _drive(graph: TrackGraph, anchor: str, anchor_passed: bool, stop: str
     if marker is None:
         return None
     if anchor == marker and not anchor_passed:
-        on = graph.route(marker, stop)
+        on = graph.route(marker, stop, junctions=False)
         return None if on is None else (on, 0)
-    to_marker, on = graph.route(anchor, marker), graph.route(marker, stop)
+    to_marker = graph.route(anchor, marker, junctions=False)
+    on = graph.route(marker, stop, junctions=False)
     if to_marker is None or on is None:
         return None
     return to_marker + on[1:], len(to_marker) - 1
@@ -83,11 +91,63 @@ def task_legs(graph: TrackGraph, anchor: str, anchor_passed: bool, stop: str
     return way, passes
 
 
-def task_way(graph: TrackGraph, anchor: str, anchor_passed: bool, stop: str) -> list[str] | None:
+def way_tasks(graph: TrackGraph, way: list[str], anchor_passed: bool
+              ) -> list[tuple[int, str]] | None:
+    """Return the tasks before the last that drive `way`, each with the index it ends at.
+
+    `way` runs from where the truck is (way[0], passed or not) to a stop marker; the tasks are
+    `pass N` and, at each junction whose SRM the way takes, `srm at N angle A`; the stop's own
+    task (which carries its action) is the caller's. None: no tasks drive that way (a part of
+    it is not the route map's way, or it starts with a junction's SRM from a stop marker of
+    the junction's own location, which the truck would take there and then, as it leaves).
+    """
+    tasks: list[tuple[int, str]] = []
+    start, passed = 0, anchor_passed
+    for k, (a, b) in enumerate(pairwise(way)):
+        edge = graph.edge(a, b)
+        if edge is None:
+            return None
+        if not edge.chosen:
+            continue
+        junction = graph.nodes[a]
+        first = graph.nodes[way[start]]
+        to_junction = [a] if start == k and not passed else graph.route(way[start], a,
+                                                                         junctions=False)
+        if to_junction != way[start:k + 1]:
+            return None
+        passes = [(i, f'pass {junction.location}') for i in range(start + int(passed), k)
+                  if graph.nodes[way[i]].kind == 'location'
+                  and graph.nodes[way[i]].location == junction.location]
+        if not tasks and not passes and first.stoppable \
+                and first.location == junction.location:
+            # From a stop of the junction's location `srm at N` leaves at once (as from a
+            # station after the route map's SRM): a pass of the next marker comes first.
+            on = next((i for i in range(start + 1, k) if graph.nodes[way[i]].kind == 'location'),
+                      None)
+            if on is None:
+                return None
+            passes = [(on, f'pass {graph.nodes[way[on]].location}')]
+        tasks += passes
+        tasks.append((k, f'srm at {junction.location} angle {edge.srm_angle}'))
+        start, passed = k + 1, False  # on the new wire, before the first card it meets
+    legs = task_legs(graph, way[start], passed, way[-1])
+    if legs is None or legs[0] != way[start:]:
+        return None
+    return tasks + [(start + i, f'pass {graph.nodes[way[start + i]].location}')
+                    for i in legs[1]]
+
+
+def task_way(graph: TrackGraph, anchor: str, anchor_passed: bool, stop: str,
+             avoid: frozenset[str] = frozenset()) -> list[str] | None:
     """Return the nodes the truck drives through from `anchor` to `stop` by its tasks (None: none).
 
-    One task's way (one_task_way), or on a floor of repeated identities that way with passes
-    (task_legs).
+    On a floor with junctions the shortest way its tasks can drive (way_tasks), else (or when
+    there is none) the route map's: one task's way (one_task_way), or on a floor of repeated
+    identities that way with passes (task_legs). No node of `avoid` is on the way.
     """
+    if graph.has_junctions:
+        way = graph.route(anchor, stop, avoid=avoid)
+        if way is not None and way_tasks(graph, way, anchor_passed) is not None:
+            return way
     legs = task_legs(graph, anchor, anchor_passed, stop)
-    return None if legs is None else legs[0]
+    return None if legs is None or avoid & set(legs[0]) else legs[0]

@@ -105,6 +105,10 @@ class Layout:
     # A fleet's places, one per truck in order: truck k is set down at the k-th stop marker
     # (agv-launch --trucks) and the dispatcher parks it there when it has no work.
     parking: tuple[str, ...] = ()
+    # Junctions: 'NAME:angle' entries, location markers (by name) where a task may leave the
+    # wire by an SRM at that angle (deg, + = left) and so take another way (`srm at N angle
+    # A`); unlike the route map's, a truck not told to stays on its wire.
+    junctions: tuple[str, ...] = ()
 
 
 _MARKER_KEYS = {'kind', 'identity', 'path', 'at', 'station', 'conveyor', 'standoff', 'height',
@@ -112,7 +116,7 @@ _MARKER_KEYS = {'kind', 'identity', 'path', 'at', 'station', 'conveyor', 'stando
 _NAME = re.compile(r'[A-Za-z][A-Za-z0-9_]{0,15}')
 _TOP_KEYS = {'layout', 'description', 'vehicle', 'kind', 'wires', 'tapes', 'markers',
              'stations', 'start', 'sensor', 'rig', 'route_limit', 'step', 'signs', 'srm_map',
-             'camera_law', 'parking'}
+             'camera_law', 'parking', 'junctions'}
 
 
 def load_layout(file: Path | str) -> Layout:
@@ -189,7 +193,8 @@ def load_layout(file: Path | str) -> Layout:
         route_limit=_num(doc.get('route_limit', 0.0), file, 'route_limit', 0.0, 1e4),
         description=' '.join(str(doc.get('description', '')).split()), signs=signs,
         srm_map=srm_map, camera_law=camera_law,
-        parking=_parking(doc.get('parking') or [], file, markers))
+        parking=_parking(doc.get('parking') or [], file, markers),
+        junctions=_junctions(doc.get('junctions') or [], file, markers, srm_map))
     if kind == 'rig':
         _check_rig(layout, file)
     return layout
@@ -285,6 +290,26 @@ def _parking(entries: Any, file: Path, markers: list[Marker]) -> tuple[str, ...]
             raise LayoutError(f'{file}: key parking: {entry!r} is not a stop marker of the '
                               f'layout ({", ".join(stops)}), or is named twice')
     return tuple(entries)
+
+
+def _junctions(entries: Any, file: Path, markers: list[Marker], srm_map: tuple[str, ...]
+               ) -> tuple[str, ...]:
+    """Return the layout's junctions: 'NAME:angle', a location marker off the route map."""
+    locations = {m.name: m for m in markers if m.kind == 'location'}
+    mapped = {int(e.split(':')[0]) for e in srm_map}
+    if not isinstance(entries, list):
+        raise LayoutError(f"{file}: key junctions: {entries!r} must be a list of 'NAME:angle'")
+    for entry in entries:
+        name, _, angle = str(entry).partition(':')
+        try:
+            ok = -45 <= int(angle) <= 45 and int(angle) != 0
+        except ValueError:
+            ok = False
+        if not ok or name not in locations or locations[name].identity in mapped:
+            raise LayoutError(f"{file}: key junctions: {entry!r} is not 'NAME:angle' (a "
+                              'location marker off the route map, angle -45..45 degrees, '
+                              'not 0)')
+    return tuple(str(e) for e in entries)
 
 
 def _srm_map(entries: Any, file: Path) -> tuple[str, ...]:

@@ -160,6 +160,9 @@ def check_errors(layout: Layout, world: WorldParams | None = None) -> list[str]:
     return cached('layout_check', inputs, lambda: check_layout(layout, world).errors())
 
 
+JUNCTION_DRIVE = 40.0  # m driven from each junction: past its landing and the way it opens
+
+
 def route_passes(layout: Layout, world: WorldParams | None = None) -> list[tuple[str, float]]:
     """Return the cards a truck passes driving the route map from the start, twice round.
 
@@ -185,6 +188,39 @@ def route_passes(layout: Layout, world: WorldParams | None = None) -> list[tuple
                    world.pickup, world.sample_rate, world.substeps, world.guide_wire_rate,
                    world.odometry_rate))
     return [tuple(p) for p in cached('route_passes', inputs, drive)]
+
+
+def junction_passes(layout: Layout, world: WorldParams | None = None
+                    ) -> dict[str, list[tuple[str, float]]]:
+    """Return, per junction of the layout, the cards a truck passes leaving the wire there.
+
+    Each drive starts 3 m before the junction's location marker and takes its SRM (the task's
+    choice, `srm at N angle A`) and no other junction's, the route map elsewhere, for
+    `JUNCTION_DRIVE` m or until the wire ends: how the track graph learns where a junction's
+    SRM lands and what lies on the way it opens. Passes as route_passes gives them, cached
+    the same way.
+    """
+    world = world or WorldParams()
+    if layout.kind != 'wire' or layout.vehicle != 'electruk' or not layout.junctions:
+        return {}
+    by_name = {m.name: m for m in layout.markers}
+
+    def drive() -> dict[str, list[tuple[str, float]]]:
+        out = {}
+        for entry in layout.junctions:
+            name, _, angle = entry.partition(':')
+            m = by_name[name]
+            run = _Drive(layout, [Passage(p) for p in layout.markers], f'leaving {name}')
+            run.truck(world, RouteParams(), (m.path, max(m.at - 3.0, 0.0), 0.0, 0.0),
+                      JUNCTION_DRIVE, route_map=True, junctions={name: int(angle)})
+            out[name] = run.log
+        return out
+
+    inputs = repr((str(layout.file), layout.file.read_text(), layout.markers, world.electruk,
+                   world.pickup, world.sample_rate, world.substeps, world.guide_wire_rate,
+                   world.odometry_rate))
+    return {k: [tuple(p) for p in v] for k, v in cached('junction_passes', inputs,
+                                                        drive).items()}
 
 
 def enforce(layout: Layout, world: WorldParams | None = None, mode: str = 'error') -> list[str]:
@@ -245,12 +281,16 @@ class _Drive:
             s += float(self.layout.rig.get('speed', 1.0)) * dt
 
     def truck(self, world: WorldParams, route_params: RouteParams,
-              start: tuple[str, float, float, float], distance: float, route_map: bool) -> None:
+              start: tuple[str, float, float, float], distance: float, route_map: bool,
+              junctions: dict[str, int] | None = None) -> None:
         """Drive the Electruk `distance` m from `start` (path, at, lateral, heading).
 
         Speed held (cruise; SRM speed from an SRM to the next landmark), steered by the
-        route-following core from the pickup's coils, as the harness wires them.
+        route-following core from the pickup's coils, as the harness wires them. `junctions`:
+        location markers (by name) where the truck also leaves its wire, at the angle given,
+        as a task `srm at N` has it do at a junction.
         """
+        junctions = junctions or {}
         lay = self.layout
         truck = Electruk(world.electruk)
         pid, at, lateral, heading = start
@@ -292,11 +332,12 @@ class _Drive:
                 if m.kind != 'location':
                     continue
                 speed = CRUISE
-                if m.identity in srm_map:
+                angle = junctions.get(m.name, srm_map.get(m.identity))
+                if angle is not None:
                     manoeuvre += 1
                     speed = SRM_SPEED
                     core.on_record('route_command', {'mode': 'srm', 'junction': 'straight',
-                                                     'srm_angle': srm_map[m.identity],
+                                                     'srm_angle': angle,
                                                      'manoeuvre': manoeuvre}, now)
             if wire_every.due(sample):
                 left, right = pickup.coils(*truck.sensor_point, st.heading)

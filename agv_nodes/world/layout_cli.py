@@ -80,6 +80,8 @@ def _graph(layout: Layout, as_json: bool) -> int:
     print(f'{"edge":10} {"length m":>8}  how')
     for e in graph.edges.values():
         how = f'SRM {e.srm_angle:+d} deg off the wire' if e.srm_angle else 'along the wire'
+        if e.chosen:
+            how += ' (a junction: where a task says, srm at N)'
         print(f'{e.id:10} {e.length:8.3f}  {how}')
     return 0
 

@@ -1,0 +1,83 @@
+"""The dispatcher on the two-loop floor (loops_1983), trucks in lock step through their bridges.
+
+The floor's crossover makes a second, shorter loop (agv_nodes.world.loops_floor): the
+dispatcher plans each way on both loops and takes the shorter, and its watchdog re-routes a
+truck stuck behind one that cannot move round the other loop (agv_nodes.fleet.reroute).
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from agv_nodes.fleet.bridged import BridgedFleet
+from agv_nodes.fleet.dispatcher import Dispatcher, TransportOrder
+from agv_nodes.fleet.lockstep import Fleet
+from agv_nodes.fleet.reroute import REROUTE_AFTER
+from agv_nodes.fleet.track_graph import track_graph
+from agv_nodes.world.fleet_floor import programme_loads
+from agv_nodes.world.layout import layout_path, load_layout
+
+pytestmark = pytest.mark.timeout(600)
+
+LAYOUT = 'loops_1983'
+
+
+def dispatched(positions: dict[str, str]) -> tuple[Fleet, Dispatcher, BridgedFleet]:
+    """Return trucks set down at `positions`, their dispatcher (parking them there), the run."""
+    lay = load_layout(layout_path(LAYOUT))
+    at = {m.name: (m.path, m.at) for m in lay.markers}
+    fleet = Fleet(LAYOUT, [at[p] for p in positions.values()], names=list(positions))
+    graph = track_graph(lay)
+    dispatcher = Dispatcher(graph, fleet.names, positions=positions, parking=positions)
+    return fleet, dispatcher, BridgedFleet(fleet, dispatcher, graph=graph)
+
+
+def released_edges(run: BridgedFleet) -> list[tuple[str, str | None]]:
+    """Return every released edge of every order sent, with its direction."""
+    return [(e.edge_id, e.direction) for _, _, topic, message in run.sent if topic == 'order'
+            for e in message.edges if e.released]
+
+
+def test_four_trucks_carry_their_loads_on_both_loops_without_a_collision():
+    lay = load_layout(layout_path(LAYOUT))
+    positions = {f'agv{k + 1}': place for k, place in enumerate(lay.parking[:4])}
+    fleet, dispatcher, run = dispatched(positions)
+    loads = programme_loads(lay.stations, 4)
+    for load, (source, destination) in loads.items():
+        dispatcher.submit(TransportOrder(load, source, destination))
+    assert run.run(900.0, until=lambda: len(dispatcher.done) == 4
+                   or bool(dispatcher.failed or fleet.collisions)), run.summary()
+    assert (dispatcher.failed, fleet.collisions, dispatcher.deadlocks) == ([], [], [])
+    assert sorted(dispatcher.done) == sorted(loads)
+    for load, (_, destination) in loads.items():
+        assert fleet.station_loads[destination] == 1, load
+    edges = released_edges(run)
+    # the small loop's junctions were taken, told by direction; the big loop's way too
+    assert ('JA-C1', 'left') in edges and ('CX-B1', 'right') in edges
+    assert ('JA-A4', 'straight') in edges or ('L1-B1', None) in edges
+
+
+def test_a_truck_behind_one_off_the_broker_is_re_routed_round_the_other_loop():
+    """agv2 stands at C1.1, off the broker: the crossover is closed, and nobody can open it.
+
+    agv1 carries a load from A2 to B2. The shorter way crosses at JA; agv1 waits at A3.1, its
+    decision point, for C1, which agv2 holds. After the watchdog's patience the dispatcher
+    plans the rest anew round the big loop and releases it by an order update.
+    """
+    fleet, dispatcher, run = dispatched({'agv1': 'A1.1', 'agv2': 'C1.1'})
+    dispatcher.set_online('agv2', False)
+    dispatcher.submit(TransportOrder('t1', 'A2', 'B2'))
+    assert run.run(300.0, until=lambda: bool(dispatcher.done or dispatcher.failed
+                                             or fleet.collisions)), run.summary()
+    assert (dispatcher.done, dispatcher.failed, fleet.collisions) == (['t1'], [], [])
+    [(truck, order_id, avoided, waited)] = dispatcher.reroutes
+    assert (truck, order_id, avoided) == ('agv1', 't1', ['C1'])
+    assert REROUTE_AFTER <= waited < REROUTE_AFTER + 0.2
+    sent = [m for _, name, topic, m in run.sent if topic == 'order' and name == 'agv1']
+    first = [(n.node_id, n.released) for n in sent[0].nodes]
+    assert first[4:7] == [('A3.1', True), ('JA', False), ('C1', False)]  # its horizon: across
+    assert (sent[1].order_update_id, [n.node_id for n in sent[1].nodes if n.released]) == (
+        1, ['A3.1', 'JA', 'A4', 'A4.1', 'A5', 'A5.1', 'L1', 'B1', 'B1.1', 'B2', 'B2.1'])
+    assert ('JA-A4', 'straight') in released_edges(run)
+    assert fleet.station_loads['B2'] == 1
+    assert not any('queued' in r for r in fleet.reports('agv2'))  # sent nothing while away
