@@ -374,7 +374,7 @@ class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
 
     def _commands(self, now: float) -> dict[str, dict[str, Any]]:
         """Every command record as things stand (the pigeon-holes)."""
-        demand = self.demand if now >= self.arm_until else 0
+        demand = 0 if self.held(now) else self.demand
         if demand and (self.slow or self.route['mode'] == 'srm'):
             demand = min(demand, self.p.srm_demand)
         priority = 0

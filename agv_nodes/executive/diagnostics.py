@@ -96,21 +96,25 @@ class HealthMonitor:
             'traction': [('tripped', 'trip relay open: ' + str(fields.get('trip_cause'))),
                          ('radio_stop', 'radio stop'),
                          ('bumper', 'bumper pressed by another truck')],
-            'route': [('state', 'guide wire lost')],
+            'route': [('state', 'guide-wire pickup not yet heard' if fields.get('state') ==
+                       'unheard' else 'guide wire lost')],
             'navigation': [('sensor_lost', 'marker sensor lost'),
                            ('input_fault', 'rejected a record')],
             'load': [('state', 'transfer failed: ' + str(fields.get('cause')))],
         }.get(name, [])
         for key, text in flags:
             value = fields.get(key)
-            bad = value == 'lost' if (name, key) == ('route', 'state') else \
+            bad = value in ('lost', 'unheard') if (name, key) == ('route', 'state') else \
                 value == 'failed' if (name, key) == ('load', 'state') else bool(value)
             if bad:
                 # traction's start-up trip is its power-on state until the executive arms it
                 # (00H then non-zero), a warning as in traction's own row, not a fault
                 startup = (name, key) == ('traction', 'tripped') and \
                     fields.get('trip_cause') == 'startup'
-                level = max(level, WARN if key == 'input_fault' or startup else ERROR)
+                # a pickup not yet heard holds the truck (the executive fails the task if it
+                # stays silent), a warning like the start-up trip
+                unheard = (name, key) == ('route', 'state') and value == 'unheard'
+                level = max(level, WARN if key == 'input_fault' or startup or unheard else ERROR)
                 reasons.append(text)
         if recent := self._recent_rejects.get(name, 0):
             level = max(level, WARN)

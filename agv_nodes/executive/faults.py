@@ -68,6 +68,9 @@ class FaultSupervision:
             if self.camera:
                 return self._fail(now, 'lost_track', 'route', 'tape lost')
             return self._fail(now, 'lost_wire', 'route', 'guide wire lost')
+        if route.get('state') == 'unheard' and now - self.task_start > self.p.trip_grace:
+            return self._fail(now, 'lost_wire', 'route',
+                              f'guide-wire pickup not heard within {self.p.trip_grace:g} s')
         if route.get('state') == 'no_branch' and self.camera:
             return self._fail(now, 'no_branch', 'route', 'the junction lacks the branch chosen')
         traction = self.status.get('traction') or {}
@@ -97,6 +100,17 @@ class FaultSupervision:
             return False
         self.arm_until = max(self.arm_until, now + 2 * self.p.period)
         return True
+
+    def held(self, now: float) -> bool:
+        """Return True while traction's demand must be 00H whatever the task asks.
+
+        While arming traction (00H then a demand), and while route following has not yet heard
+        its guide-wire pickup: a task that arrives as the world starts to move meets a route
+        whose pickup stream has not reached it yet. Such a route says unheard, not lost; the
+        truck stands until it is heard, and _supervise fails the task if it stays silent for
+        trip_grace after the task began.
+        """
+        return now < self.arm_until or (self.status.get('route') or {}).get('state') == 'unheard'
 
     def _fail(self, now: float, cause: str, subsystem: str, detail: str,
               drive_fault: str = 'none') -> None:

@@ -4,8 +4,11 @@ Guide wire (Baker 1983, 3.5.3, 6.2.1, 7.2): the coil amplitudes give the wire's 
 the sensor point (`wire_offset`), and a PI law with a derivative term for damping steers the
 Ackermann front wheels. A signal below `lost_level` for `lost_samples` samples, or no pickup sample
 for that long, reports LOST at once (the executive stops the truck) until the truck is at rest with
-the wire present again. An SRM (mode srm, a new `manoeuvre`) leaves the wire at the programmed
-steering angle until the signal drops and a wire is found again, then follows it (7.2 task 7).
+the wire present again. A pickup that has not yet delivered a sample since the core started is
+UNHEARD, not lost (modern: a graph whose world is only starting to move), and not steered by; the
+executive holds the truck until it is heard, or fails the task. An SRM (mode srm, a new
+`manoeuvre`) leaves the wire at the programmed steering angle until the signal drops and a wire is
+found again, then follows it (7.2 task 7).
 
 Camera (Rajagopalan 1991, mode camera, the differential-drive CONCIC-II): legs along floor tape,
 forwards or backwards, steered by the leading camera or both (or, with camera_law feed_forward,
@@ -60,7 +63,7 @@ class RouteCore(SubsystemCore):
         self.mode = self._state = 'idle'
         self.manoeuvre = 0
         self.srm_angle = self.lateral = self.signal = self.steer = 0.0
-        self._integral = self._srm_start = self._mode_since = 0.0
+        self._integral = self._srm_start = 0.0
         self._prev_lateral: float | None = None
         self._weak = 0
         self._strong = 0  # consecutive samples with the wire present
@@ -81,8 +84,14 @@ class RouteCore(SubsystemCore):
 
     @property
     def state(self) -> str:
-        """Return the state: camera mode's own in camera mode."""
-        return self.cam.state if self.mode == 'camera' else self._state
+        """Return the state: camera mode's own in camera mode; unheard before the first sample."""
+        if self.mode == 'camera':
+            return self.cam.state
+        if self._wire_time is None and self.mode in ('follow_wire', 'srm'):
+            # No pickup sample since start-up: the stream may not have reached this node yet
+            # (the world only starting to move), so not lost, but nothing to steer by either.
+            return 'unheard'
+        return self._state
 
     @state.setter
     def state(self, value: str) -> None:
@@ -135,7 +144,7 @@ class RouteCore(SubsystemCore):
         self.manoeuvre = fields['manoeuvre']
         if new_srm:
             self.mode, self.state, self._srm_phase = 'srm', 'srm_running', 'leaving'
-            self._mode_since = self._srm_start = now
+            self._srm_start = now
             self.srm_angle = math.radians(fields['srm_angle'])
             # The heading error the manoeuvre starts from: the estimate kept while following.
             self.heading_error = self._following_heading
@@ -143,7 +152,7 @@ class RouteCore(SubsystemCore):
         if mode != 'srm' and mode != self.mode:
             if self.mode == 'camera':
                 self.cam.leave()
-            self.mode, self._mode_since, self._integral, self._prev_lateral = mode, now, 0.0, None
+            self.mode, self._integral, self._prev_lateral = mode, 0.0, None
             self.state = {'idle': 'idle', 'follow_wire': 'following', 'camera': 'following'}[mode]
             return self._outputs(now, force_status=True)
         return self._outputs(now, force_status=True) if began else None
@@ -249,8 +258,9 @@ class RouteCore(SubsystemCore):
     def tick(self, now: float) -> dict | None:
         """Steering command every period; status on change and as a heartbeat."""
         w = self.p.wire
-        last = self._wire_time if self._wire_time is not None else self._mode_since
-        if self.mode in ('follow_wire', 'srm') and now - last > w.lost_samples * 0.01 + 0.05:
+        last = self._wire_time  # None: never heard, which the state says (unheard), not lost
+        if self.mode in ('follow_wire', 'srm') and last is not None \
+                and now - last > w.lost_samples * 0.01 + 0.05:
             self.state, self.steer = 'lost', 0.0  # the pickup itself has gone quiet
         if self.state == 'wire_found' and self.mode == 'follow_wire':
             self.state = 'following'
@@ -279,7 +289,7 @@ class RouteCore(SubsystemCore):
             return {'mode': 'wheel_speeds', 'enable': int(self.motor_on and self.mode == 'camera'),
                     'angle': 0, 'left_speed': int(round(left * 1000)),
                     'right_speed': int(round(right * 1000))}
-        active = self.mode in ('follow_wire', 'srm') and self.state != 'lost'
+        active = self.mode in ('follow_wire', 'srm') and self.state not in ('lost', 'unheard')
         angle = int(round(max(-1.0, min(1.0, self.steer)) * 1000))
         return {'mode': 'angle', 'enable': 1, 'angle': angle if active else 0,
                 'left_speed': 0, 'right_speed': 0}
