@@ -12,6 +12,9 @@ fleet size N:
   by extension_for(N), to a temporary directory): house-numbered locations, the trucks at the
   first N `parking` places (every other A house, then B), one load per truck, load k between
   Ak and Bk.
+- loops_1983 (config/layouts), N = 1, 2, 4, 5: the two-loop floor
+  (agv_nodes.world.loops_floor), the trucks at its `parking` places, one load per truck, load k
+  between Ak and Bk.
 
 The loads are fleet_floor.programme_loads's: the next transfer of a load is submitted when its
 last one is done, so every transfer is possible whatever order the trucks finish in. The
@@ -21,7 +24,9 @@ launched fleet's dispatcher node does (agv_nodes.graph.parameters).
 The wall time is split, per simulated second: the trucks' harness steps, the contact check
 between them (the rest of Fleet.step), and the bridges with the dispatcher (the rest of
 BridgedFleet.step). A pass is a `pass N` task a bridge sends for a node without action that
-does not end the base: a house of the stop's identity the truck drives past (task_way).
+does not end the base: a house of the stop's identity the truck drives past (task_way); a
+junction SRM is a `srm at N` task it sends where the way takes a junction (loops_1983), and a
+re-routing is the watchdog's (agv_nodes.fleet.reroute).
 
 Run: .venv/bin/python bench/fleet_bench.py [--seconds 900] [--big-seconds 600]
      [--rows demo_1983:1 fleet_1983:8 fleet_1983_n16:16 ...]
@@ -80,13 +85,12 @@ def timed(fn: Callable[[], Any], spent: dict[str, float], key: str) -> Callable[
 
 
 def count_passes(flow: Any, counter: list[int]) -> None:
-    """Count the passes of every order or update `flow` (an OrderFlow) accepts."""
+    """Count the passes (counter[0]) and junction SRMs (counter[1]) of the orders `flow` takes."""
     take = flow._take  # bench only: every accepted order's stop points pass here
 
     def wrapper(order: Any, points: list, verdict: str) -> Any:
-        released = [n for n in order.nodes if n.released]
-        end = released[-1].sequence_id
-        counter[0] += sum(1 for p in points if p.action is None and p.sequence_id != end)
+        counter[0] += sum(1 for p in points if p.text.startswith('pass '))
+        counter[1] += sum(1 for p in points if p.text.startswith('srm '))
         return take(order, points, verdict)
     flow._take = wrapper
 
@@ -128,7 +132,7 @@ def run(name: str, trucks: int, seconds: float, tmp: Path) -> dict[str, Any]:
     for load in loads:
         submit(load)
     bridged = BridgedFleet(fleet, d, graph=d.graph)
-    passes = [0]
+    passes = [0, 0]
     for bridge in bridged.bridges.values():
         count_passes(bridge.flow, passes)
     spent = dict.fromkeys(('trucks', 'fleet', 'all'), 0.0)
@@ -163,7 +167,8 @@ def run(name: str, trucks: int, seconds: float, tmp: Path) -> dict[str, Any]:
             'trucks_ms': spent['trucks'] * per_s,
             'contact_ms': (spent['fleet'] - spent['trucks']) * per_s,
             'master_ms': (spent['all'] - spent['fleet']) * per_s,
-            'collisions': len(fleet.collisions), 'deadlocks': len(d.cycles)}
+            'collisions': len(fleet.collisions), 'deadlocks': len(d.cycles),
+            'srms': f'{passes[1] / done:.2f}' if done else '-', 'reroutes': len(d.reroutes)}
 
 
 def row(spec: str) -> tuple[str, int]:
@@ -189,8 +194,9 @@ def main() -> None:
           f'from {BIG} trucks); `bench/fleet_bench.py`. Time split: wall ms per simulated s.\n')
     print('| layout | trucks | blocks | sim s | transfers | per hour | per truck-hour | '
           'passes / transfer | decision median ms | p99 ms | max ms | real-time factor | '
-          'trucks ms/s | contact ms/s | bridges+dispatcher ms/s | collisions | deadlocks |')
-    print('|' + '---|' * 17)
+          'trucks ms/s | contact ms/s | bridges+dispatcher ms/s | collisions | deadlocks | '
+          'junction SRMs / transfer | re-routings |')
+    print('|' + '---|' * 19)
     with tempfile.TemporaryDirectory() as tmp:
         for name, n in args.rows:
             r = run(name, n, args.big_seconds if n >= BIG else args.seconds, Path(tmp))
@@ -198,7 +204,8 @@ def main() -> None:
                   f'{r["per_hour"]:.0f} | {r["per_hour"] / n:.1f} | {r["passes"]} | '
                   f'{r["median_ms"]:.2f} | {r["p99_ms"]:.2f} | {r["max_ms"]:.2f} | '
                   f'{r["factor"]:.2f} | {r["trucks_ms"]:.1f} | {r["contact_ms"]:.1f} | '
-                  f'{r["master_ms"]:.1f} | {r["collisions"]} | {r["deadlocks"]} |', flush=True)
+                  f'{r["master_ms"]:.1f} | {r["collisions"]} | {r["deadlocks"]} | '
+                  f'{r["srms"]} | {r["reroutes"]} |', flush=True)
 
 
 if __name__ == '__main__':

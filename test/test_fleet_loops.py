@@ -2,7 +2,8 @@
 
 The floor's crossover makes a second, shorter loop (agv_nodes.world.loops_floor): the
 dispatcher plans each way on both loops and takes the shorter, and its watchdog re-routes a
-truck stuck behind one that cannot move round the other loop (agv_nodes.fleet.reroute).
+truck stuck behind trucks that cannot move (off the broker, or deadlocked with it) round the
+other loop (agv_nodes.fleet.reroute).
 """
 
 from __future__ import annotations
@@ -81,3 +82,36 @@ def test_a_truck_behind_one_off_the_broker_is_re_routed_round_the_other_loop():
     assert ('JA-A4', 'straight') in released_edges(run)
     assert fleet.station_loads['B2'] == 1
     assert not any('queued' in r for r in fleet.reports('agv2'))  # sent nothing while away
+
+
+def test_ten_trucks_deadlocked_on_the_small_loop_are_freed_by_re_routing_one():
+    """Ten trucks stand at the ten stop markers round the small loop; one gets a load to move.
+
+    agv1 at A3.1 is to fetch a load from A1 (the shorter way across, through C1). Each truck
+    in front of the next is asked to make way, and none can: every block of the small loop is
+    held, a cycle of ten the watchdog reports. After its patience the dispatcher re-routes
+    agv1, the one with work, round the big loop, whose blocks are free: the cycle is gone.
+    The others are off the broker until agv1 has its job, so that it is the one given it.
+    """
+    places = ['A3.1', 'A1.1', 'A2.1', 'C1.1', 'B1.1', 'B2.1', 'B3.1', 'B4.1', 'B5.1', 'W3.1']
+    fleet, dispatcher, run = dispatched({f'agv{k + 1}': p for k, p in enumerate(places)})
+    for name in fleet.names[1:]:
+        dispatcher.set_online(name, False)
+    dispatcher.submit(TransportOrder('t1', 'A1', 'A5'))
+    assert run.run(3.0, until=lambda: 't1' in dispatcher.assignments)
+    assert dispatcher.assignments == {'t1': 'agv1'}
+    for name in fleet.names[1:]:
+        dispatcher.set_online(name, True)
+    cycles: list[list[str]] = []
+
+    def moved() -> bool:
+        cycles.extend(c for c in dispatcher.deadlocks if c not in cycles)
+        return run.states['agv1'].last_node_id in ('A4', 'A4.1') or bool(fleet.collisions)
+
+    assert run.run(60.0, until=moved), run.summary()
+    assert [sorted(c) for c in cycles] == [sorted(fleet.names)]  # the one cycle, all ten
+    [(truck, order_id, avoided, waited)] = dispatcher.reroutes
+    assert (truck, order_id, avoided) == ('agv1', 't1', ['C1'])
+    assert REROUTE_AFTER <= waited < REROUTE_AFTER + 0.2
+    run.run(5.0)
+    assert dispatcher.deadlocks == [] and fleet.collisions == [] and dispatcher.failed == []

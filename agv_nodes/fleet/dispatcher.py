@@ -391,6 +391,7 @@ class Dispatcher(Rerouting):
             out.append((t.name, ORDER, order_message(self.graph, t, job, 0, self.manufacturer)))
             return
         if in_the_way and corridors:
-            self.reservations.wait(t.name, (corridors[0][2] or [])[:1])
+            # the best corridor, all of it: its first block may be one only passed (a junction)
+            self.reservations.wait(t.name, corridors[0][2] or [])
 
 

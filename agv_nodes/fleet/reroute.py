@@ -67,8 +67,7 @@ class Rerouting:
     def _waits_on_immovable(self, t: Truck, cannot_move: set[str]) -> set[str]:
         """Return the blocks a stalled truck waits for when only immovable trucks hold them."""
         job = t.job
-        if job is None or job.over or not job.sent or t.broken or t.offline \
-                or not self._stalled(t):
+        if job is None or job.over or t.broken or t.offline or not self._stalled(t):
             return set()
         waited = self.reservations.waiting(t.name)
         holders = {self.reservations.holder(b) for b in waited} - {None, t.name}

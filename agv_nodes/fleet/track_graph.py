@@ -80,11 +80,8 @@ class TrackGraph:
             if e.start not in self.nodes or e.end not in self.nodes:
                 raise ValueError(f'edge {e.id}: {e.start} or {e.end} is not a node')
             self._out[e.start].append(e)
-
-    @property
-    def has_junctions(self) -> bool:
-        """Return True when a task can choose a way here (a junction's SRM edge)."""
-        return any(e.chosen for e in self.edges.values())
+        # True when a task can choose a way here (a junction's SRM edge)
+        self.has_junctions = any(e.chosen for e in edges)
 
     def edge(self, start: str, end: str) -> TrackEdge | None:
         """Return the edge from `start` to `end`, or None when there is none."""

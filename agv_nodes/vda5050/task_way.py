@@ -98,8 +98,7 @@ def way_tasks(graph: TrackGraph, way: list[str], anchor_passed: bool
     `way` runs from where the truck is (way[0], passed or not) to a stop marker; the tasks are
     `pass N` and, at each junction whose SRM the way takes, `srm at N angle A`; the stop's own
     task (which carries its action) is the caller's. None: no tasks drive that way (a part of
-    it is not the route map's way, or it starts with a junction's SRM from a stop marker of
-    the junction's own location, which the truck would take there and then, as it leaves).
+    it is not the route map's way between two junctions).
     """
     tasks: list[tuple[int, str]] = []
     start, passed = 0, anchor_passed
