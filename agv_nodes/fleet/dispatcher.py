@@ -27,8 +27,10 @@ truck waits for the holder of its next block; that one waits for the holder of i
 block, or makes way when idle; with fewer trucks than blocks the chain ends at a truck whose
 next block is free, and it moves: the fleet never comes to a standstill. The wait-for graph's
 cycles of standing trucks are kept in `deadlocks` as a watchdog for layouts or fleets where
-this does not hold (as many trucks as blocks): for a truck at its decision point, re-routing
-by an update is the remedy, and on a one-way loop there is no other way to route it.
+this does not hold (as many trucks as blocks). Its last resort is agv_nodes.fleet.reroute: a
+truck at its decision point that waits only on trucks that cannot move (deadlocked, broken,
+off the broker) is re-routed by an update where the floor has another way (a second loop);
+on a one-way loop there is none, and the deadlock stands, reported.
 
 A truck whose task failed (error `taskFailed`, or FAILED actions of its order) fails its
 transport (`failed`) and keeps the blocks where it may stand; it gets no work until its state
