@@ -138,6 +138,7 @@ class RecordSubscription(RecordReader):
         self.writer = writer or writer_name(node, schema)
         self.check = WriterCheck(self.writer, self._graph_writers)
         self._current: bytes | None = None  # the genuine writer's GID: the hot path's test
+        self._destroyed = False
         self._tagged = writer_tagged_subscription(node, UInt8MultiArray, schema.topic,
                                                   qos.reader_qos(schema), self._on_sample)
         if self._tagged is None:
@@ -147,6 +148,21 @@ class RecordSubscription(RecordReader):
             self._sub = node.create_subscription(
                 UInt8MultiArray, schema.topic, self._on_msg_info if sent_stamps else self._on_msg,
                 qos.reader_qos(schema), raw=True)
+
+    def destroy(self) -> None:
+        """Free the subscription now, before its node is destroyed.
+
+        The writer-tagged subscription is no subscription of the node's, so destroy_node does
+        not free it; left to the garbage collector it is finalised whenever a collection comes,
+        and Fast DDS can wait for ever there (delete_datareader against its event thread).
+        """
+        if self._destroyed:
+            return
+        self._destroyed = True
+        if self._tagged is not None:
+            self._tagged.destroy()
+        else:
+            self._node.destroy_subscription(self._sub)
 
     def publisher_count(self) -> int:
         """Writers this reader has matched (its own side of the link)."""

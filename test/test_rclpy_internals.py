@@ -14,6 +14,13 @@ import pytest
 pytestmark = pytest.mark.timeout(60)
 
 
+# Record readers and nodes a test made through _a_record_from_an_intruder: destroyed before
+# their context shuts down. Left to the garbage collector, a reader's writer-tagged
+# subscription (no subscription of its node's, so destroy_node leaves it) was finalised in a
+# later test, where Fast DDS's delete_datareader waited for ever on its event thread.
+MADE: list = []
+
+
 @pytest.fixture
 def context():
     import rclpy
@@ -21,6 +28,12 @@ def context():
     ctx = rclpy.Context()
     rclpy.init(context=ctx)  # the session's own domain (test/conftest.py)
     yield ctx
+    while MADE:  # readers first, then their nodes
+        made = MADE.pop(0)
+        if hasattr(made, 'schema'):
+            made.destroy()
+        else:
+            made.destroy_node()
     rclpy.try_shutdown(context=ctx)
 
 
@@ -78,12 +91,15 @@ def _a_record_from_an_intruder(context, reader: str, second_reader: bool = False
     from agv_nodes.ros_ports import RecordPublisher, RecordSubscription
 
     node = rclpy.create_node(reader, context=context)
+    intruder = rclpy.create_node('intruder', context=context)
+    MADE.extend((node, intruder))
     schema = codec()['traction_command']
     got: list[dict] = []
     sub = RecordSubscription(node, schema, callback=got.append)
+    MADE.insert(0, sub)
     if second_reader:
-        RecordSubscription(node, codec()['traction_status'])
-    pub = RecordPublisher(rclpy.create_node('intruder', context=context), schema)
+        MADE.insert(0, RecordSubscription(node, codec()['traction_status']))
+    pub = RecordPublisher(intruder, schema)
     executor = rclpy.executors.SingleThreadedExecutor(context=context)
     executor.add_node(node)
     deadline = time.monotonic() + 10
