@@ -33,7 +33,7 @@ REROUTE_AFTER: float = DispatcherSettings().reroute_after
 class Rerouting:
     """Re-routing of trucks stuck behind trucks that cannot move (see the module docstring)."""
 
-    reroute_after: float = REROUTE_AFTER
+    reroute_after: float  # s; the Dispatcher's argument (default REROUTE_AFTER)
 
     def _reroute(self, trucks: list[Truck], now: float) -> None:
         """Re-route the first truck, by name, that has waited long enough on immovable ones."""

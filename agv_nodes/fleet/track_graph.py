@@ -184,14 +184,26 @@ def _add_junctions(layout: Layout, world: WorldParams | None, by_name: dict[str,
         if at is None or at + 1 >= len(passes):
             raise LayoutError(f'{layout.file}: key junctions: {junction}: a truck leaving the '
                               'wire there by its SRM passes no card after it')
-        for (a, da), (b, db) in pairwise(passes[at:]):
-            ma, mb = by_name[a], by_name[b]
-            if a == junction:
-                add(a, b, db - da, chosen[a], chosen=True)
-                continue
-            angle = srm.get(ma.identity, 0) if ma.kind == 'location' else 0
-            along = not angle and ma.path == mb.path and mb.at > ma.at
-            add(a, b, mb.at - ma.at if along else db - da, angle)
+        _add_driven(add, passes[at:], by_name, srm, {junction: chosen[junction]})
+
+
+def _add_driven(add: Callable[..., None], passes: list[tuple[str, float]],
+                by_name: dict[str, Marker], srm: dict[int, int],
+                junctions: dict[str, int] | None = None) -> None:
+    """Add the edge between each two cards a drive passed one after the other.
+
+    Along a wire the wire's own length: the drive's sensor point weaves about it. Off a wire by
+    an SRM, the route map's or a junction's the drive took (`junctions`, chosen edges), the
+    length driven.
+    """
+    for (a, da), (b, db) in pairwise(passes):
+        ma, mb = by_name[a], by_name[b]
+        if junctions and a in junctions:
+            add(a, b, db - da, junctions[a], chosen=True)
+            continue
+        angle = srm.get(ma.identity, 0) if ma.kind == 'location' else 0
+        along = not angle and ma.path == mb.path and mb.at > ma.at
+        add(a, b, mb.at - ma.at if along else db - da, angle)
 
 
 def track_graph(layout: Layout, world: WorldParams | None = None) -> TrackGraph:
@@ -223,12 +235,7 @@ def track_graph(layout: Layout, world: WorldParams | None = None) -> TrackGraph:
     by_name = {m.name: m for m in markers}
     passes = route_passes(layout, world)
     _check_repeats(layout, [by_name[name] for name, _ in passes if name in by_name])
-    for (a, da), (b, db) in pairwise(passes):
-        ma, mb = by_name[a], by_name[b]
-        angle = srm.get(ma.identity, 0) if ma.kind == 'location' else 0
-        # along a wire the wire's own length: the drive's sensor point weaves about it
-        along = not angle and ma.path == mb.path and mb.at > ma.at
-        add(a, b, mb.at - ma.at if along else db - da, angle)
+    _add_driven(add, passes, by_name, srm)
     # Along each wire: the stop markers the route map's SRMs skip, and the SRM off their station.
     for loc_id, angle in srm.items():
         loc = next((m for m in markers if m.kind == 'location' and m.identity == loc_id), None)

@@ -43,14 +43,61 @@ def houses(straight: float, first: float) -> list[float]:
     return [round(first + k * PITCH, 3) for k in range(max(count, 0))]
 
 
+def room_wires(extension: float, arc: float, width: float) -> list[str]:
+    """Return the room's wires A and B, lengthened by `extension` m, ends of radius `arc`.
+
+    A's south leg runs east along y = 0 and turns left to run back west 1 m outside B (its
+    spur, after L1); B's north leg runs west along y = `width` and turns left to run back east
+    1 m outside A (after L3): the demonstration room's plan (Baker 1983, fig 7.14).
+    """
+    return [
+        'wires:',
+        '  - id: A',
+        '    start: [-3.0, 0.0, 0.0]',
+        '    segments:',
+        f'      - straight: {13.0 + extension:g}',
+        f'      - {{arc: {arc:g}, angle: 180}}',
+        '      - straight: 4.0',
+        '  - id: B',
+        f'    start: [{7.0 + extension:g}, {width:.1f}, 180.0]',
+        '    segments:',
+        f'      - straight: {11.0 + extension:g}',
+        f'      - {{arc: {arc:g}, angle: 180}}',
+        '      - straight: 5.0']
+
+
+def house_stations(names: list[tuple[str, str, float]]) -> list[str]:
+    """Return the stations of the houses (name, wire, at): A's with a load, B's empty."""
+    return [f'  - {{id: {house}, has_load: {"true" if wire == "A" else "false"}, capacity: 1}}'
+            for house, wire, _ in names]
+
+
+def house_markers(house: str, wire: str, at: float, identity: int) -> list[str]:
+    """Return a house's location marker and, STOP_AFTER m on, its workstation's stop marker."""
+    return [f'  - {{kind: location, identity: {identity}, name: {house}, path: {wire}, '
+            f'at: {at:g}}}',
+            f'  - {{kind: stop, station: {house}, path: {wire}, at: {at + STOP_AFTER:g}}}']
+
+
+def route_map_markers(extension: float, arc: float) -> list[str]:
+    """Return L1 and W1, L3 and W3 (1.5 m into each spur), the start and the route map."""
+    half = math.pi * arc  # an end's half circle
+    l1 = round(13.0 + extension + half + 1.5, 3)
+    l3 = round(11.0 + extension + half + 1.5, 3)
+    return [f'  - {{kind: location, identity: 1, path: A, at: {l1:g}}}',
+            f'  - {{kind: stop, station: W1, path: A, at: {l1 + STOP_AFTER:g}}}',
+            f'  - {{kind: location, identity: 3, path: B, at: {l3:g}}}',
+            f'  - {{kind: stop, station: W3, path: B, at: {l3 + STOP_AFTER:g}}}',
+            'start: {path: A, at: 1.0}',
+            '# The route map: the route leaves wire A at L1 and wire B at L3, 15 degrees left.',
+            "srm_map: ['1:15', '3:15']"]
+
+
 def fleet_floor_text(name: str = 'fleet_1983', extension: float = EXTENSION,
                      trucks: int = FLEET_TRUCKS) -> str:
     """Return the layout file of the lengthened room, parking `trucks` (see the module doc)."""
-    a_straight, b_straight = 13.0 + extension, 11.0 + extension
-    half = math.pi * ARC  # an end's half circle
-    l1 = round(a_straight + half + 1.5, 3)
-    l3 = round(b_straight + half + 1.5, 3)
-    a_houses, b_houses = houses(a_straight, A_FIRST), houses(b_straight, B_FIRST)
+    a_houses = houses(13.0 + extension, A_FIRST)
+    b_houses = houses(11.0 + extension, B_FIRST)
     lines = [
         f'# The fleet floor: demo_1983 lengthened by {extension:g} m, house-numbered locations',
         '# (Baker 1983, 8.5). Written by agv_nodes.world.fleet_floor; see its docstring.',
@@ -60,41 +107,18 @@ def fleet_floor_text(name: str = 'fleet_1983', extension: float = EXTENSION,
         'vehicle: electruk',
         'kind: wire',
         'sensor: {standoff: 0.300, lateral: 0.45}',
-        'wires:',
-        '  - id: A',
-        '    start: [-3.0, 0.0, 0.0]',
-        '    segments:',
-        f'      - straight: {a_straight:g}',
-        f'      - {{arc: {ARC:g}, angle: 180}}',
-        '      - straight: 4.0',
-        '  - id: B',
-        f'    start: [{7.0 + extension:g}, 4.0, 180.0]',
-        '    segments:',
-        f'      - straight: {b_straight:g}',
-        f'      - {{arc: {ARC:g}, angle: 180}}',
-        '      - straight: 5.0',
+        *room_wires(extension, ARC, 4.0),
         'stations:',
         '  - {id: W1, has_load: false, capacity: 1}',
         '  - {id: W3, has_load: false, capacity: 1}']
     names = [(f'A{k + 1}', 'A', at) for k, at in enumerate(a_houses)] + \
         [(f'B{k + 1}', 'B', at) for k, at in enumerate(b_houses)]
-    lines += [f'  - {{id: {house}, has_load: {"true" if wire == "A" else "false"}, capacity: 1}}'
-              for house, wire, _ in names]
+    lines += house_stations(names)
     lines.append('markers:')
     for k, (house, wire, at) in enumerate(names):
         index = k if wire == 'A' else k - len(a_houses)
-        identity = 0 if index % 2 == 0 else 2
-        lines.append(f'  - {{kind: location, identity: {identity}, name: {house}, path: {wire}, '
-                     f'at: {at:g}}}')
-        lines.append(f'  - {{kind: stop, station: {house}, path: {wire}, '
-                     f'at: {at + STOP_AFTER:g}}}')
-    lines += [f'  - {{kind: location, identity: 1, path: A, at: {l1:g}}}',
-              f'  - {{kind: stop, station: W1, path: A, at: {l1 + STOP_AFTER:g}}}',
-              f'  - {{kind: location, identity: 3, path: B, at: {l3:g}}}',
-              f'  - {{kind: stop, station: W3, path: B, at: {l3 + STOP_AFTER:g}}}',
-              'start: {path: A, at: 1.0}',
-              '# The route map: the route leaves wire A at L1 and wire B at L3, 15 degrees left.',
-              "srm_map: ['1:15', '3:15']",
+        lines += house_markers(house, wire, at, 0 if index % 2 == 0 else 2)
+    lines += [*route_map_markers(extension, ARC),
               '# A truck per place (agv-launch --trucks N): every other house, a block between.']
     parking = [f'{house}.1' for house, _, _ in names][::2][:trucks]
     if len(parking) < trucks:

@@ -154,13 +154,18 @@ def check_errors(layout: Layout, world: WorldParams | None = None) -> list[str]:
     it kept (a world's `remove_markers`) and the vehicle settings the drives use.
     """
     world = world or WorldParams()
-    inputs = repr((str(layout.file), layout.file.read_text(), layout.markers, world.electruk,
-                   world.pickup, world.sample_rate, world.substeps, world.guide_wire_rate,
-                   world.odometry_rate))
+    inputs = _drive_inputs(layout, world)
     return cached('layout_check', inputs, lambda: check_layout(layout, world).errors())
 
 
 JUNCTION_DRIVE = 40.0  # m driven from each junction: past its landing and the way it opens
+
+
+def _drive_inputs(layout: Layout, world: WorldParams) -> str:
+    """Return what a drive's result depends on besides the code: the cache's key."""
+    return repr((str(layout.file), layout.file.read_text(), layout.markers, world.electruk,
+                 world.pickup, world.sample_rate, world.substeps, world.guide_wire_rate,
+                 world.odometry_rate))
 
 
 def route_passes(layout: Layout, world: WorldParams | None = None) -> list[tuple[str, float]]:
@@ -184,9 +189,7 @@ def route_passes(layout: Layout, world: WorldParams | None = None) -> list[tuple
                   total * LAPS, route_map=True)
         return run.log
 
-    inputs = repr((str(layout.file), layout.file.read_text(), layout.markers, world.electruk,
-                   world.pickup, world.sample_rate, world.substeps, world.guide_wire_rate,
-                   world.odometry_rate))
+    inputs = _drive_inputs(layout, world)
     return [tuple(p) for p in cached('route_passes', inputs, drive)]
 
 
@@ -216,9 +219,7 @@ def junction_passes(layout: Layout, world: WorldParams | None = None
             out[name] = run.log
         return out
 
-    inputs = repr((str(layout.file), layout.file.read_text(), layout.markers, world.electruk,
-                   world.pickup, world.sample_rate, world.substeps, world.guide_wire_rate,
-                   world.odometry_rate))
+    inputs = _drive_inputs(layout, world)
     return {k: [tuple(p) for p in v] for k, v in cached('junction_passes', inputs,
                                                         drive).items()}
 

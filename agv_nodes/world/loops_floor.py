@@ -24,7 +24,17 @@ from __future__ import annotations
 
 import math
 
-from agv_nodes.world.fleet_floor import A_FIRST, B_FIRST, EXTENSION, STOP_AFTER, houses
+from agv_nodes.world.fleet_floor import (
+    A_FIRST,
+    B_FIRST,
+    EXTENSION,
+    STOP_AFTER,
+    house_markers,
+    house_stations,
+    houses,
+    room_wires,
+    route_map_markers,
+)
 
 GAP = 1.5  # m from a leg to C beside it: two trucks side by side clear by 0.6 m
 CROSS_RADIUS = 2.0  # m, C's half circle: the Electruk turns no tighter than ~1.4 m
@@ -47,20 +57,13 @@ def _kept(places: list[float], start: float, end: float) -> list[float]:
 
 def loops_floor_text(name: str = 'loops_1983', extension: float = EXTENSION) -> str:
     """Return the layout file of the two-loop floor (see the module docstring)."""
-    a_straight, b_straight = 13.0 + extension, 11.0 + extension
-    half = math.pi * ARC
-    l1 = round(a_straight + half + 1.5, 3)
-    l3 = round(b_straight + half + 1.5, 3)
-    a_all = houses(a_straight, A_FIRST)
+    a_all = houses(13.0 + extension, A_FIRST)
     junction = a_all[JUNCTION - 1]
-    a_places = [at for at in _kept(a_all, junction - 0.01, junction + SWEEP)]
-    ax0 = -3.0  # A's start, x
-    c_x0 = ax0 + junction + C_START
+    a_places = _kept(a_all, junction - 0.01, junction + SWEEP)
+    c_x0 = -3.0 + junction + C_START  # A starts at x = -3
     c_exit_x = c_x0 + C_EAST - EXIT_AFTER  # the exit marker's x, on the westward leg
-    bx0 = 7.0 + extension  # B's start, x; B runs west, so along = bx0 - x
-    b_exit = bx0 - c_exit_x
-    b_places = _kept(houses(b_straight, B_FIRST), b_exit - 1.0, b_exit + SWEEP)
-    c_length = C_EAST + math.pi * CROSS_RADIUS + EXIT_AFTER + C_SPUR
+    b_exit = 7.0 + extension - c_exit_x  # along B, which runs west from x = 7 + extension
+    b_places = _kept(houses(11.0 + extension, B_FIRST), b_exit - 1.0, b_exit + SWEEP)
     c_exit = round(C_EAST + math.pi * CROSS_RADIUS + EXIT_AFTER, 3)
     lines = [
         f'# The two-loop fleet floor: fleet_1983 widened to {WIDTH:g} m with a crossover wire C',
@@ -71,33 +74,20 @@ def loops_floor_text(name: str = 'loops_1983', extension: float = EXTENSION) -> 
         'vehicle: electruk',
         'kind: wire',
         'sensor: {standoff: 0.300, lateral: 0.45}',
-        'wires:',
-        '  - id: A',
-        f'    start: [{ax0:g}, 0.0, 0.0]',
-        '    segments:',
-        f'      - straight: {a_straight:g}',
-        f'      - {{arc: {ARC:g}, angle: 180}}',
-        '      - straight: 4.0',
-        '  - id: B',
-        f'    start: [{bx0:g}, {WIDTH:g}, 180.0]',
-        '    segments:',
-        f'      - straight: {b_straight:g}',
-        f'      - {{arc: {ARC:g}, angle: 180}}',
-        '      - straight: 5.0',
+        *room_wires(extension, ARC, WIDTH),
         '  - id: C',
         f'    start: [{c_x0:g}, {GAP:g}, 0.0]',
         '    segments:',
         f'      - straight: {C_EAST:g}',
         f'      - {{arc: {CROSS_RADIUS:g}, angle: 180}}',
-        f'      - straight: {round(c_length - C_EAST - math.pi * CROSS_RADIUS, 3):g}',
+        f'      - straight: {EXIT_AFTER + C_SPUR:g}',
         'stations:',
         '  - {id: W1, has_load: false, capacity: 1}',
         '  - {id: W3, has_load: false, capacity: 1}',
         '  - {id: C1, has_load: false, capacity: 1}']
     names = [(f'A{k + 1}', 'A', at) for k, at in enumerate(a_places)] + \
         [(f'B{k + 1}', 'B', at) for k, at in enumerate(b_places)]
-    lines += [f'  - {{id: {house}, has_load: {"true" if wire == "A" else "false"}, capacity: 1}}'
-              for house, wire, _ in names]
+    lines += house_stations(names)
     lines.append('markers:')
     # Identities alternate along A (the junction among its houses), along B, and along the
     # small loop: JA, C1, CX, then B's first house (identity 0).
@@ -107,26 +97,16 @@ def loops_floor_text(name: str = 'loops_1983', extension: float = EXTENSION) -> 
         raise ValueError(f"junction house {JUNCTION}: CX would share B1's identity 0")
     for k, (house, wire, at) in enumerate(names):
         index = a_order.index(at) if wire == 'A' else k - len(a_places)
-        identity = 0 if index % 2 == 0 else 2
         if wire == 'A' and index == a_order.index(junction) + 1:
             lines.append(f'  - {{kind: location, identity: {j_identity}, name: JA, path: A, '
                          f'at: {junction:g}}}')
-        lines.append(f'  - {{kind: location, identity: {identity}, name: {house}, path: {wire}, '
-                     f'at: {at:g}}}')
-        lines.append(f'  - {{kind: stop, station: {house}, path: {wire}, '
-                     f'at: {at + STOP_AFTER:g}}}')
+        lines += house_markers(house, wire, at, 0 if index % 2 == 0 else 2)
     lines += [f'  - {{kind: location, identity: {2 - j_identity}, name: C1, path: C, '
               f'at: {C_HOUSE:g}}}',
               f'  - {{kind: stop, station: C1, path: C, at: {C_HOUSE + STOP_AFTER:g}}}',
               f'  - {{kind: location, identity: {j_identity}, name: CX, path: C, '
               f'at: {c_exit:g}}}',
-              f'  - {{kind: location, identity: 1, path: A, at: {l1:g}}}',
-              f'  - {{kind: stop, station: W1, path: A, at: {l1 + STOP_AFTER:g}}}',
-              f'  - {{kind: location, identity: 3, path: B, at: {l3:g}}}',
-              f'  - {{kind: stop, station: W3, path: B, at: {l3 + STOP_AFTER:g}}}',
-              'start: {path: A, at: 1.0}',
-              '# The route map: the route leaves wire A at L1 and wire B at L3, 15 degrees left.',
-              "srm_map: ['1:15', '3:15']",
+              *route_map_markers(extension, ARC),
               '# Where a task may leave a wire by an SRM (srm at N angle A): onto C and off it.',
               f"junctions: ['JA:{SRM_ANGLE}', 'CX:{-SRM_ANGLE}']",
               '# A truck per place (agv-launch --trucks N): every other house, a block between.']
