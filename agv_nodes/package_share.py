@@ -50,7 +50,12 @@ def config_dir() -> Path:
     return share_dir() / 'config'
 
 
-class _UniqueKeyLoader(yaml.SafeLoader):
+# libyaml's parser where PyYAML was built with it (the PyPI wheels are): the pure-Python one
+# spent about half a second of every node's start-up on the record schemas and parameter files.
+_SafeLoader = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
+
+
+class _UniqueKeyLoader(_SafeLoader):
     """PyYAML's safe loader, refusing a key given twice in one mapping (it keeps the last)."""
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
@@ -61,7 +66,7 @@ class _UniqueKeyLoader(yaml.SafeLoader):
                 raise yaml.constructor.ConstructorError(
                     None, None, f'key {key!r} given twice', key_node.start_mark)
             seen.add(key)
-        return super().construct_mapping(node, deep)
+        return yaml.constructor.SafeConstructor.construct_mapping(self, node, deep)
 
 
 def load_yaml(text: str) -> Any:

@@ -254,6 +254,11 @@ class WriterTaggedSubscription:
 
         self.waitable = _Ready()
         node.add_waitable(self.waitable)
+        self._destroyed = False
+        # destroy_node frees the node's own subscriptions, not this one: left to the garbage
+        # collector, its delete_datareader could hang Fast DDS at some later, unrelated
+        # collection. So it goes, at the latest, when its context shuts down.
+        node.context.on_shutdown(self.destroy)
 
     def take(self) -> tuple[bytes, bytes | None, int] | None:
         """Take one queued message: (serialized bytes, writer GID, source stamp) or None."""
@@ -289,8 +294,12 @@ class WriterTaggedSubscription:
             return self.handle.get_publisher_count()
 
     def destroy(self) -> None:
-        """Leave the executor and free the subscription and its buffer."""
-        self._node.remove_waitable(self.waitable)
+        """Leave the executor and free the subscription and its buffer (once)."""
+        if self._destroyed:
+            return
+        self._destroyed = True
+        if self.waitable in self._node.waitables:
+            self._node.remove_waitable(self.waitable)
         self.handle.destroy_when_not_in_use()
         self._rcutils.rcutils_uint8_array_fini(self._msg_ref)
 

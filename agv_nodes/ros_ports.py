@@ -153,8 +153,9 @@ class RecordSubscription(RecordReader):
         """Free the subscription now, before its node is destroyed.
 
         The writer-tagged subscription is no subscription of the node's, so destroy_node does
-        not free it; left to the garbage collector it is finalised whenever a collection comes,
-        and Fast DDS can wait for ever there (delete_datareader against its event thread).
+        not free it; left to the garbage collector it would be finalised whenever a collection
+        comes, and Fast DDS can wait for ever there (delete_datareader against its event
+        thread). Its context's shutdown frees it too, at the latest.
         """
         if self._destroyed:
             return

@@ -138,3 +138,31 @@ def test_a_message_info_not_laid_out_as_expected_turns_the_check_off(context, mo
     sub, got = _a_record_from_an_intruder(context, 'traction')
     assert got and sub.rejected == 0
     assert sub.identity().startswith('not checked: the message info is not laid out')
+
+
+def test_a_tagged_subscription_goes_with_its_context_not_with_the_garbage_collector():
+    """Its node destroyed or not, a context's shutdown frees the tagged subscription at once.
+
+    destroy_node cannot (the subscription is not the node's), and what the collector finalises
+    at some later collection can hang Fast DDS's delete_datareader.
+    """
+    import rclpy
+    from std_msgs.msg import UInt8MultiArray
+
+    from agv_nodes import qos
+    from agv_nodes.rclpy_internals import writer_tagged_subscription
+
+    for destroy_node_first in (True, False):
+        ctx = rclpy.Context()
+        rclpy.init(context=ctx)
+        node = rclpy.create_node('tagged_shutdown', context=ctx)
+        sub = writer_tagged_subscription(node, UInt8MultiArray, 'tagged_shutdown',
+                                         qos.RECORD_READER, lambda *_s: None)
+        assert sub is not None and sub.waitable in list(node.waitables)
+        if destroy_node_first:
+            node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+        assert sub._destroyed and sub.waitable not in list(node.waitables)
+        with pytest.raises(Exception, match='destruction was requested'):
+            sub.publisher_count()  # the handle is gone, not waiting for a collection
+        sub.destroy()  # a second time: nothing

@@ -98,3 +98,23 @@ def test_the_layout_check_verdict_is_the_check_itself(cache, tmp_path):
     errors = check_errors(lay)
     assert errors == check_layout(lay).errors() and len(errors) == 1
     assert 'too far' in errors[0]
+
+
+def test_the_marker_sensor_calibration_kept_on_disk_is_the_threshold_experiment_itself(cache):
+    """The belt runs read back from disk equal, to the bit, the ones the optics compute."""
+    from agv_nodes.world import marker_sensor
+    from agv_nodes.world.settings import SensorParams
+
+    params = SensorParams()
+    key = marker_sensor.belt_key(params)
+    marker_sensor._belt_runs.cache_clear()
+    try:
+        computed = marker_sensor._belt_runs(key)  # computed, and written to the cache
+        assert list((cache / 'belt_runs').iterdir())
+        result_cache._memory.clear()
+        marker_sensor._belt_runs.cache_clear()
+        read = marker_sensor._belt_runs(key)  # from the disk
+        assert read == computed == tuple(tuple(d) for d in marker_sensor._run_belt(key))
+        assert marker_sensor.calibrate(params) == marker_sensor.calibrate(params)
+    finally:
+        marker_sensor._belt_runs.cache_clear()

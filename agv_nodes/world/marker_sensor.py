@@ -18,6 +18,7 @@ from types import ModuleType
 import numpy as np
 
 from agv_nodes.markers import ELEMENT_HEIGHT, LOCATION_PATTERNS, trough_and_peak
+from agv_nodes.result_cache import cached
 from agv_nodes.world import kernels
 from agv_nodes.world.marker_optics import (
     EDGE_ON,
@@ -333,7 +334,16 @@ def _belt_runs(params_key: tuple) -> tuple:
     Location-2's alternating pattern at 1 m/s, 256 samples at 340 Hz a run, 280-320 mm in 5 mm
     steps: per range and detector the mean over peaks and troughs of the x4 running sum of the
     black part X = illum (1 - cover) and the white part Y = illum cover (a detector: A X + B Y).
+    A third of a second of Python optics, so kept on disk by its inputs (result_cache) like the
+    layout check: every world process and lock-step truck calibrates at start-up.
     """
+    runs = cached('belt_runs', repr(params_key), lambda: _run_belt(params_key))
+    # JSON keeps every float exactly (shortest repr); the tuples come back as lists
+    return tuple(tuple(tuple(tuple(level) for level in detector) for detector in run)
+                 for run in runs)
+
+
+def _run_belt(params_key: tuple) -> tuple:
     model = MarkerSensorModel.__new__(MarkerSensorModel)  # the optics alone: no calibration
     model.p = SensorParams(**dict(params_key))
     model._seen_key, model._seen_last = None, []
@@ -359,6 +369,13 @@ def _belt_runs(params_key: tuple) -> tuple:
     return tuple(runs)
 
 
+def belt_key(params: SensorParams) -> tuple:
+    """Return the settings the threshold experiment depends on (not the calibration's own)."""
+    return tuple(sorted((k, v) for k, v in vars(params).items()
+                        if k not in ('gains', 'blacks', 'unit', 'noise', 'ambient',
+                                     'ambient_noise', 'dark_level')))
+
+
 def calibrate(params: SensorParams) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """Per-detector gains and black levels that reproduce Table 7.1.
 
@@ -369,10 +386,7 @@ def calibrate(params: SensorParams) -> tuple[tuple[float, ...], tuple[float, ...
     contrast, the black level is 0 and the worst trough lies above the table's (below the black
     threshold).
     """
-    key = tuple(sorted((k, v) for k, v in vars(params).items()
-                       if k not in ('gains', 'blacks', 'unit', 'noise', 'ambient',
-                                    'ambient_noise', 'dark_level')))
-    runs = _belt_runs(key)
+    runs = _belt_runs(belt_key(params))
     gains, blacks = [], []
     for d, (trough, peak) in enumerate(trough_and_peak(params.unit)):
         a, b = 0.0, 1.0
