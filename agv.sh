@@ -41,7 +41,10 @@ cmd=${1:-help}
 case "$cmd" in
   test)
     ensure_venv
-    exec "$VENV/bin/python" -m pytest "$@"
+    # Two workers (AGV_TEST_WORKERS; 0 runs in this process): the tests over DDS one at a time in
+    # a lane of their own, the rest beside them (test/conftest.py).
+    exec "$VENV/bin/python" -m pytest -n "${AGV_TEST_WORKERS:-2}" --dist loadgroup \
+      --no-loadscope-reorder "$@"
     ;;
   demo)
     ensure_venv

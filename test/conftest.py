@@ -58,6 +58,20 @@ settings.load_profile(os.environ.get('AGV_HYPOTHESIS_PROFILE', 'ci'))
 PYTHON = sys.executable
 
 
+# -- lanes for pytest-xdist -----------------------------------------------------------------------
+# `./agv.sh test` runs two workers (`-n 2 --dist loadgroup --no-loadscope-reorder`). A graph over
+# DDS keeps 1.5-1.9 of the machine's two cores busy, so the tests marked `dds` run one at a time,
+# in one lane, first (it is the longest); the lock-step tests, one core each, fill the other
+# lane. Every other module keeps its tests on one worker, so its module fixtures run once.
+def pytest_collection_modifyitems(config, items) -> None:
+    if config.getoption('dist', 'no') == 'no':
+        return
+    items.sort(key=lambda item: item.get_closest_marker('dds') is None)  # stable
+    for item in items:
+        lane = 'dds' if item.get_closest_marker('dds') else item.nodeid.split('::')[0]
+        item.add_marker(pytest.mark.xdist_group(lane))
+
+
 # -- the fault table: every fault test that passes adds its row ---------------------------------
 # The rows of a run go to a results file outside the repository (tests never write tracked
 # files); `python test/fault_table.py` turns the last full run's rows into docs/faults.md.
@@ -85,12 +99,24 @@ def pytest_runtest_setup(item) -> None:
 
 
 def pytest_sessionfinish(session, exitstatus) -> None:
+    workeroutput = getattr(session.config, 'workeroutput', None)
+    if workeroutput is not None:  # a pytest-xdist worker: its rows go to the controller
+        workeroutput['fault_rows'] = json.dumps(_fault_table.rows)
+        return
     if not _fault_table.rows:
         return
     FAULT_RESULTS.write_text(json.dumps({
         'tests_collected': session.testscollected, 'tests_failed': session.testsfailed,
         'rows': {fault: list(row) for fault, row in sorted(_fault_table.rows.items())}},
         indent=1))
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error) -> None:
+    """Take a finished pytest-xdist worker's fault rows (the controller writes the file)."""
+    rows = getattr(node, 'workeroutput', {}).get('fault_rows')
+    if rows:
+        _fault_table.rows.update({fault: tuple(row) for fault, row in json.loads(rows).items()})
 
 
 @pytest.fixture

@@ -9,7 +9,7 @@ from __future__ import annotations
 from fleet_probe import FleetProbe
 import pytest
 
-pytestmark = pytest.mark.timeout(420)
+pytestmark = [pytest.mark.dds, pytest.mark.timeout(420)]
 
 AT_REST = 0.005  # m/s
 

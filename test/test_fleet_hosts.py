@@ -53,6 +53,7 @@ def truck_host() -> Iterator[tuple[str, str, str]]:
         ip('netns', 'del', name)  # takes its end of the veth pair, and so both ends
 
 
+@pytest.mark.dds
 @pytest.mark.timeout(420)
 def test_a_master_on_this_host_drives_a_truck_whose_graph_runs_on_another(truck_host, tmp_path):
     import rclpy
