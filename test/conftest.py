@@ -60,16 +60,58 @@ PYTHON = sys.executable
 
 # -- lanes for pytest-xdist -----------------------------------------------------------------------
 # `./agv.sh test` runs two workers (`-n 2 --dist loadgroup --no-loadscope-reorder`). A graph over
-# DDS keeps 1.5-1.9 of the machine's two cores busy, so the tests marked `dds` run one at a time,
-# in one lane, first (it is the longest); the lock-step tests, one core each, fill the other
-# lane. Every other module keeps its tests on one worker, so its module fixtures run once.
+# DDS keeps 1.5-1.9 of the machine's two cores busy and misses its records when it is starved,
+# so the tests marked `dds` or `wall_clock` run one at a time, first, in one lane of their own at
+# full priority. The others, lock-step simulations that only need CPU, run in the second lane at
+# the lowest priority (nice 19): on the CPU the first lane leaves, so their time limits are
+# BACKGROUND_LIMITS times their own. Each module of the second lane stays on one worker, so its
+# module fixtures run once.
+FIRST_LANE = 'first_lane'
+BACKGROUND_LIMITS = 4
+
+
+def _lane(item) -> str:
+    if item.get_closest_marker('dds') or item.get_closest_marker('wall_clock'):
+        return FIRST_LANE
+    return item.nodeid.split('::')[0]
+
+
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist's own: it names the groups
 def pytest_collection_modifyitems(config, items) -> None:
-    if config.getoption('dist', 'no') == 'no':
+    if not hasattr(config, 'workerinput'):  # not a pytest-xdist worker: one process, as it is
         return
-    items.sort(key=lambda item: item.get_closest_marker('dds') is None)  # stable
+    items.sort(key=lambda item: _lane(item) != FIRST_LANE)  # stable: the first lane first
     for item in items:
-        lane = 'dds' if item.get_closest_marker('dds') else item.nodeid.split('::')[0]
+        lane = _lane(item)
         item.add_marker(pytest.mark.xdist_group(lane))
+        _name_group(item, lane)
+        limit = item.get_closest_marker('timeout')
+        if lane != FIRST_LANE and limit is not None:
+            seconds = limit.args[0] if limit.args else limit.kwargs['timeout']
+            item.add_marker(pytest.mark.timeout(seconds * BACKGROUND_LIMITS), append=False)
+
+
+def _name_group(item, lane: str) -> None:
+    """Suffix the item's id with its group, which is how the scheduler sees groups.
+
+    pytest-xdist 3.8 does it by setting `item._nodeid`, which pytest 9 no longer reads (its ids
+    are NodeId objects in `item._id`); on an older pytest, xdist's own hook does it.
+    """
+    try:
+        from _pytest.nodeid import NodeId
+    except ImportError:  # pytest < 9
+        return
+    item._id = NodeId.parse(f'{item.nodeid}@{lane}')
+
+
+_background: list[bool] = []
+
+
+def pytest_runtest_setup(item) -> None:
+    _fault_table.test = f'{Path(item.fspath).name}::{item.name}'
+    if hasattr(item.config, 'workerinput') and _lane(item) != FIRST_LANE and not _background:
+        os.nice(19)  # for good: the first lane's tests all come before (one work unit)
+        _background.append(True)
 
 
 # -- the fault table: every fault test that passes adds its row ---------------------------------
@@ -92,10 +134,6 @@ class FaultTable:
 
 
 _fault_table = FaultTable()
-
-
-def pytest_runtest_setup(item) -> None:
-    _fault_table.test = f'{Path(item.fspath).name}::{item.name}'
 
 
 def pytest_sessionfinish(session, exitstatus) -> None:

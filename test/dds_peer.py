@@ -11,11 +11,14 @@ import sys
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 
 from agv_nodes.records import codec
 from agv_nodes.records.cli import _parse_value
 from agv_nodes.ros_ports import RecordPublisher, RecordSubscription
+
+RCLError = rclpy_implementation.RCLError
 
 
 def main() -> int:
@@ -27,7 +30,14 @@ def main() -> int:
         if mode == 'pub':
             fields = {k: _parse_value(v) for k, v in (a.split('=', 1) for a in rest)}
             pub = RecordPublisher(node, schema)
-            node.create_timer(schema.period_ms / 1000.0, lambda: pub.publish(fields))
+
+            def publish() -> None:
+                try:
+                    pub.publish(fields)
+                except RCLError:  # SIGINT shut the context down while the timer ran: done
+                    if rclpy.ok():
+                        raise
+            node.create_timer(schema.period_ms / 1000.0, publish)
             rclpy.spin(node)
         else:
             wanted = int(rest[0])

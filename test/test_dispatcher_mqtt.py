@@ -31,6 +31,7 @@ from agv_nodes.vda5050.order import InstantActions, Order
 from agv_nodes.vda5050.topics import TOPICS, topic
 from agv_nodes.world.layout import layout_path, load_layout
 
+pytestmark = pytest.mark.wall_clock
 MANUFACTURER = 'agv_nodes'
 WAIT_S = 10.0  # an upper bound only: messages take milliseconds
 

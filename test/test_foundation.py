@@ -43,6 +43,7 @@ def test_every_core_and_the_harness_import_without_rclpy():
     assert run.returncode == 0 and run.stdout.strip() == 'ok', run.stderr
 
 
+@pytest.mark.wall_clock
 def test_the_rclpy_internals_work_on_the_installed_rclpy():
     """Each private attribute used (agv_nodes/rclpy_internals.py) is there and does its job."""
     import rclpy

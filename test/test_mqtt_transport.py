@@ -22,7 +22,7 @@ import pytest
 from agv_nodes.mqtt.broker import ENV_URL, EmbeddedBroker, broker_url
 from agv_nodes.mqtt.client import LastWill, MqttLink
 
-pytestmark = pytest.mark.timeout(60)
+pytestmark = [pytest.mark.wall_clock, pytest.mark.timeout(60)]
 
 WAIT_S = 10.0  # an upper bound only: on a loaded 2-core machine, messages take milliseconds
 QUIET_S = 0.3  # how long a message that must not come is waited for

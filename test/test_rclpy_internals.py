@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-pytestmark = pytest.mark.timeout(60)
+pytestmark = [pytest.mark.wall_clock, pytest.mark.timeout(60)]
 
 
 # Record readers and nodes a test made through _a_record_from_an_intruder: destroyed before
