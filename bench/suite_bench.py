@@ -1,13 +1,13 @@
 """Test-suite benchmark: the wall time of `./agv.sh test`, and where it goes.
 
-Runs the whole suite through `./agv.sh test` once per `--workers` value (AGV_TEST_WORKERS: 0 is
-one process, 2 the default two lanes of test/conftest.py) with this file as a pytest plugin that
+Runs the whole suite through `./agv.sh test` once per `--workers` value (AGV_TEST_WORKERS: 0, the
+default, is one process; 2 is the two lanes of test/conftest.py) with this file as a plugin that
 notes each test's wall time and CPU (its process and the child processes it waited for: a
 graph's nodes). Prints a Markdown table (bench/results/test_suite.md): per run the wall time,
 the CPU, the cores kept busy on average, and per lane (the tests over DDS, the rest) the tests'
 wall time and CPU; then the modules that take longest.
 
-Run: .venv/bin/python bench/suite_bench.py [--workers 0 --workers 2] [-- PYTEST ARGS]
+Run: .venv/bin/python bench/suite_bench.py [--workers 2 --workers 0] [-- PYTEST ARGS]
 """
 
 from __future__ import annotations
@@ -115,12 +115,12 @@ def main() -> int:
     """Run the suite per --workers and print the tables."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--workers', type=int, action='append',
-                    help='AGV_TEST_WORKERS for one run (repeat for several; default 2)')
+                    help='AGV_TEST_WORKERS for one run (repeat for several; default 0)')
     ap.add_argument('--top', type=int, default=15, help='modules listed')
     ap.add_argument('pytest_args', nargs='*', help='after --: passed to pytest')
     args = ap.parse_args()
     runs = []
-    for workers in args.workers or [2]:
+    for workers in args.workers or [0]:
         runs.append(run := run_suite(workers, args.pytest_args))
         print(f'{workers} workers: {run["summary"]} (exit {run["code"]}), '
               f'{run["wall"]:.0f} s wall', file=sys.stderr, flush=True)
