@@ -3,10 +3,11 @@
 The layout check (agv_nodes.world.layout_check) drives every route of a layout, seconds of CPU,
 and the marker sensor's threshold experiment (agv_nodes.world.marker_sensor) a third of a
 second; the world node and the lock-step harness run both each time they start. Their results
-depend only on their inputs and the code, so each is computed once per machine: the key is a digest of the inputs' text and of every source file of the package, so
-any change to either computes it afresh. Entries are JSON files under
-`$AGV_NODES_CACHE` (default `$XDG_CACHE_HOME/agv_nodes`, else `~/.cache/agv_nodes`); set
-`AGV_NODES_CACHE=off` to compute every time. A cache that cannot be read or written is
+depend only on their inputs and the code, so each is computed once per machine: the key is a
+digest of the inputs' text and of every source file of the package, so any change to either
+computes it afresh. Entries are JSON files under `$AGV_NODES_CACHE` (default
+`$XDG_CACHE_HOME/agv_nodes`, else `~/.cache/agv_nodes`); set `AGV_NODES_CACHE=off` to compute
+every time. A cache that cannot be read or written is
 skipped, never an error.
 """
 
