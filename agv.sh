@@ -43,7 +43,7 @@ case "$cmd" in
     ensure_venv
     # One process unless AGV_TEST_WORKERS=N: then N pytest-xdist workers, the tests over DDS one
     # at a time in a lane of their own, the rest beside them at nice 19 (test/conftest.py). On
-    # two cores the lanes are slower than one process (bench/results/test_suite.md).
+    # two cores the lanes are no faster than one process (bench/results/test_suite.md).
     exec "$VENV/bin/python" -m pytest -n "${AGV_TEST_WORKERS:-0}" --dist loadgroup \
       --no-loadscope-reorder "$@"
     ;;

@@ -60,7 +60,7 @@ PYTHON = sys.executable
 
 # -- lanes for pytest-xdist -----------------------------------------------------------------------
 # `AGV_TEST_WORKERS=2 ./agv.sh test` runs two workers (`-n 2 --dist loadgroup
-# --no-loadscope-reorder`; the default is one process, faster on two cores). A graph over
+# --no-loadscope-reorder`; the default is one process, as fast on two cores). A graph over
 # DDS keeps 1.5-1.9 of the machine's two cores busy and misses its records when it is starved,
 # so the tests marked `dds` or `wall_clock` run one at a time, first, in one lane of their own at
 # full priority. The others, lock-step simulations that only need CPU, run in the second lane at
