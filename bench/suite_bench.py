@@ -87,11 +87,11 @@ def lane_table(runs: list[dict]) -> list[str]:
     row('CPU, all processes (s)', lambda r: f'{r["cpu"]:.0f}')
     row('cores kept busy (of 2)', lambda r: f'{r["cpu"] / r["wall"]:.2f}')
     for lane, is_dds in (('tests over DDS', True), ('the other tests', False)):
-        def sums(r, key, is_dds=is_dds):
-            return sum(x[key] for x in r['rows'] if x['dds'] == is_dds)
-        row(f'{lane}: count', lambda r, d=is_dds: str(sum(x['dds'] == d for x in r['rows'])))
-        row(f'{lane}: their wall time (s)', lambda r, s=sums: f'{s(r, "wall"):.0f}')
-        row(f'{lane}: their CPU (s)', lambda r, s=sums: f'{s(r, "cpu"):.0f}')
+        picked = [[x for x in r['rows'] if x['dds'] == is_dds] for r in runs]
+        out.append(f'| {lane}: count | ' + ' | '.join(str(len(p)) for p in picked) + ' |')
+        for key, name in (('wall', 'their wall time (s)'), ('cpu', 'their CPU (s)')):
+            out.append(f'| {lane}: {name} | '
+                       + ' | '.join(f'{sum(x[key] for x in p):.0f}' for p in picked) + ' |')
     return out
 
 

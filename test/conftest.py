@@ -105,14 +105,15 @@ def _name_group(item, lane: str) -> None:
     item._id = NodeId.parse(f'{item.nodeid}@{lane}')
 
 
-_background: list[bool] = []
+_in_background = False
 
 
 def pytest_runtest_setup(item) -> None:
+    global _in_background
     _fault_table.test = f'{Path(item.fspath).name}::{item.name}'
-    if hasattr(item.config, 'workerinput') and _lane(item) != FIRST_LANE and not _background:
+    if hasattr(item.config, 'workerinput') and _lane(item) != FIRST_LANE and not _in_background:
         os.nice(19)  # for good: the first lane's tests all come before (one work unit)
-        _background.append(True)
+        _in_background = True
 
 
 # -- the fault table: every fault test that passes adds its row ---------------------------------
