@@ -128,3 +128,24 @@ def test_clock_timers_replace_the_time_sources_reader_and_set_the_ros_clock():
         node.destroy_node()
     finally:
         rclpy.try_shutdown()
+
+
+def test_the_world_sets_its_own_ros_clock_as_it_publishes_clock_with_no_reader_of_its_own():
+    """The world's ROS clock is set where it writes /clock, not read back over DDS.
+
+    Reading it back woke the world's loop at every clock step, and spun it thousands of times
+    a second while it waited for its peers.
+    """
+    from agv_nodes.world.node import WorldNode
+
+    rclpy.init(args=['--ros-args', '-p', 'use_sim_time:=true', '-p', 'publish_clock:=true'])
+    try:
+        world = WorldNode()
+        assert not [s for s in world.subscriptions if s.topic_name == '/clock']
+        for _ in range(340):  # one simulated second
+            world.core.step()
+        world.publish_clock_now()
+        assert world.get_clock().now().nanoseconds == round(world.time * 1e9) == 1_000_000_000
+        world.destroy_node()
+    finally:
+        rclpy.try_shutdown()

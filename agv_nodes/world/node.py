@@ -43,6 +43,7 @@ from visualization_msgs.msg import MarkerArray
 from agv_nodes import qos, sim_progress
 from agv_nodes.node_process import running, spin_main
 from agv_nodes.params import declare, parameter_error, refuse_unknown
+from agv_nodes.rclpy_internals import drop_clock_reader
 from agv_nodes.records import codec
 from agv_nodes.records.carrier import clock_cdr
 from agv_nodes.ros_ports import (
@@ -144,6 +145,13 @@ class WorldNode(Node):
 
     def _serve(self) -> None:
         """Offer the run-time faults and the services, last: a found service means it runs."""
+        # The world writes /clock, so it sets its own ROS clock as it does (publish_clock_now)
+        # instead of reading every /clock back over DDS: that wakes its loop once more per clock
+        # step, and while it waited for its peers the loop spun on its own clock thousands of
+        # times a second, flooding every node with it.
+        self._time_source = drop_clock_reader(self) if self.s.publish_clock and \
+            self.get_parameter('use_sim_time').value else None
+        self._clock_msg = Clock()
         self.add_on_set_parameters_callback(self._set_at_run_time)
         for name in ('pause', 'resume', 'step', 'hardware_reset'):
             self.create_service(Trigger, f'~/{name}', getattr(self, f'_service_{name}'))
@@ -261,7 +269,13 @@ class WorldNode(Node):
         It is the world's busiest publisher (116 Hz to every node): a Python Clock message per
         sample cost more than the bytes.
         """
-        self.clock_pub.publish(clock_cdr(round(self.time * 1e9)))
+        now = round(self.time * 1e9)
+        self.clock_pub.publish(clock_cdr(now))
+        msg = self._clock_msg
+        msg.clock.sec, msg.clock.nanosec = divmod(now, 1_000_000_000)
+        for m in (self, *self.members) if self.floor is not None else (self,):
+            if m._time_source is not None:
+                m._time_source.clock_callback(msg)
 
     def publish_events(self, events: list[dict[str, Any]]) -> None:
         """Publish world events as world_event records; the bumper switch when it changed."""
