@@ -5,12 +5,8 @@ records to the core, steps it once per marker-sensor sample, and publishes the h
 records, camera frames, ground truth and (with use_sim_time) /clock. A hardware driver could
 replace it topic for topic (docs/records.md, docs/hardware.md).
 
-The world is the clock: it does not run on a ROS timer (a sim-time timer cannot fire faster than
-/clock advances, and the world is what advances it). Its own loop steps the core, publishes
-/clock, services its subscriptions and services, and paces itself at `time_factor` x real time
-(0 = as fast as the graph keeps up: it waits for any node whose sim/progress lags,
-agv_nodes/world/pacing.py). It moves once every link named in `wait_for_links` has matched at
-both ends (agv_nodes/world/peers.py), then writes `ready_file` (when one is named).
+The world is the clock: it runs its own loop, not a ROS timer (agv_nodes/world/loop.py: waiting
+for the graph, pacing, stepping).
 
 With `trucks` set the world is a floor of several trucks, each a world node of its own in its
 truck's namespace, stepped together on one clock (agv_nodes/world/floor.py).
@@ -24,9 +20,7 @@ PAL's latches (Rajagopalan 1991, 6.3.11).
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 import sys
-import time
 from typing import Any
 
 from builtin_interfaces.msg import Time
@@ -41,7 +35,7 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
 from agv_nodes import qos, sim_progress
-from agv_nodes.node_process import running, spin_main
+from agv_nodes.node_process import spin_main
 from agv_nodes.params import declare, parameter_error, refuse_unknown
 from agv_nodes.rclpy_internals import drop_clock_reader
 from agv_nodes.records import codec
@@ -58,6 +52,7 @@ from agv_nodes.world.core import WorldCore
 from agv_nodes.world.floor import Control, Floor, Place, set_down
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
 from agv_nodes.world.layout_check import enforce
+from agv_nodes.world.loop import WorldLoop
 from agv_nodes.world.pacing import GraphPacer
 from agv_nodes.world.peers import LinkWatch, parse_link_entry
 from agv_nodes.world.settings import WorldNodeSettings, WorldParams
@@ -66,8 +61,8 @@ from agv_nodes.world.viz import camera_image, layout_messages, pose_message
 NODE = 'world'
 
 
-class WorldNode(Node):
-    """See the module docstring."""
+class WorldNode(WorldLoop, Node):
+    """See the module docstring; its loop is WorldLoop's (agv_nodes.world.loop)."""
 
     def __init__(self, namespace: str | None = None, place: Place | None = None) -> None:
         """Make the world of one truck; with `trucks` set and no `place`, the floor of all.
@@ -299,129 +294,6 @@ class WorldNode(Node):
         if pose_due:
             x, y, h, _v = self.core.pose()
             self.pose_pub.publish(pose_message(x, y, h, stamp))
-
-    # -- the loop ---------------------------------------------------------------------------
-    def _work_done(self) -> int:
-        return self._work + sum(m._work for m in self.members if m is not self)
-
-    def drain(self, executor: Any, limit: int = 200) -> None:
-        """Run every callback that is ready now (inputs, services)."""
-        for _ in range(limit):
-            before = self._work_done()
-            executor.spin_once(timeout_sec=0.0)
-            if self._work_done() == before:
-                return
-
-    def _missing(self) -> list[str]:
-        nodes = [self] if self.floor is None else [self, *self.members]
-        return [f'{n.get_namespace().rstrip("/")}/{link}' if n is not self else link
-                for n in nodes for link in n.peers.missing()]
-
-    def _wait_for_peers(self, executor: Any) -> bool:
-        started = time.monotonic()
-        while running() and self._missing():
-            if self.s.publish_clock:
-                self.publish_clock_now()
-            executor.spin_once(timeout_sec=0.05)
-            if time.monotonic() - started > self.s.peer_timeout:
-                self.get_logger().error(f'peers not matched after {self.s.peer_timeout:.0f} s '
-                                        f'(links still missing: {self._missing()})')
-                return False
-        links = sum(len(m.peers.links) for m in {self, *self.members})
-        trucks = f', {len(self.members)} trucks' if self.floor is not None else ''
-        self.get_logger().info(f'layout {self.layout.name}{trucks}: moving at time_factor '
-                               f'{self.s.time_factor:g} ({links} links matched '
-                               f'at both ends after {time.monotonic() - started:.2f} s)')
-        if self.s.ready_file:
-            Path(self.s.ready_file).write_text(f'moving at sim time {self.time:.3f} s\n')
-        return True
-
-    def _lagging(self) -> list[str]:
-        now = self.time
-        return [f'{m.get_namespace().rstrip("/")}/{node}'.lstrip('/') for m in self.members
-                for node in m.pacer.lagging(now)]
-
-    def _catch_up(self, executor: Any) -> None:
-        """Let lagging nodes catch up before time moves on (at most lag_patience).
-
-        start_patience instead while a lagging node has not been heard from since the world
-        started moving (agv_nodes/world/pacing.py).
-        """
-        late = self._lagging()
-        waited = time.monotonic()
-        nudge = waited + 0.05
-        now = self.time
-        starting = any(m.pacer.unheard(m.pacer.lagging(now)) for m in self.members)
-        patience = max(self.s.start_patience, self.s.lag_patience) if starting \
-            else self.s.lag_patience
-        while late and running() and time.monotonic() - waited < patience:
-            executor.spin_once(timeout_sec=0.002)
-            late = self._lagging()
-            if late and self.s.publish_clock and time.monotonic() > nudge:
-                # The same time again: a node that missed the last /clock gets another look;
-                # timers that already ran at this time do not run twice.
-                self.publish_clock_now()
-                nudge = time.monotonic() + 0.05
-        if late and running():  # (not when a stop request ended the wait)
-            for m in self.members:
-                m.pacer.give_up(m.pacer.lagging(self.time))
-            self.get_logger().warn(f'carrying on without {", ".join(late)} (behind for '
-                                   f'{patience:g} s)')
-
-    def _report_pacing(self) -> None:
-        """Log how far behind the world each node was heard at worst over the last minute."""
-        worst = ', '.join(f'{m.get_namespace().rstrip("/")}/{name}'.lstrip('/')
-                          + f' {s * 1000:.0f} ms' for m in self.members
-                          for name, s in sorted(m.pacer.worst.items()))
-        self.get_logger().info(f'pacing, the last minute: worst behind {worst or "-"}')
-        for m in self.members:
-            m.pacer.worst.clear()
-
-    def step_all(self) -> None:
-        """One sample: /clock, every truck's world, then (a floor) the contacts between them."""
-        outs = [m.core.step() for m in self.members]
-        if self.s.publish_clock and self.members[0].core.sample % self.s.clock_every == 0:
-            self.publish_clock_now()
-        for m, out in zip(self.members, outs, strict=True):
-            m.publish_step(out)
-        if self.floor is not None:
-            self.floor.contacts()
-
-    def run(self, executor: Any) -> int:
-        """Wait for peers, then step the world until shut down (or `duration`)."""
-        for m in self.members:
-            if m is not self:
-                executor.add_node(m)
-        if not self._wait_for_peers(executor):
-            return 1
-        wall0, sim0 = time.monotonic(), self.time
-        for m in self.members:
-            m.pacer.start(self.time)
-        report_at = self.time + 60.0
-        control = self.control
-        while running():
-            if self.time >= report_at:
-                report_at += 60.0
-                self._report_pacing()
-            self.drain(executor)
-            if control.paused and control.step_requests == 0:
-                executor.spin_once(timeout_sec=0.02)
-                wall0, sim0 = time.monotonic(), self.time
-                continue
-            if control.step_requests:
-                control.step_requests -= 1
-            if self._lagging():
-                self._catch_up(executor)
-                wall0, sim0 = time.monotonic(), self.time
-            self.step_all()
-            if self.s.duration and self.time >= self.s.duration:
-                self.get_logger().info(f'duration {self.s.duration:g} s reached')
-                return 0
-            if self.s.time_factor > 0:
-                ahead = (self.time - sim0) / self.s.time_factor - (time.monotonic() - wall0)
-                if ahead > 0:
-                    time.sleep(ahead)
-        return 0
 
 
 def main(args: list[str] | None = None) -> int:
