@@ -102,6 +102,11 @@ class FleetProbe:
         for truck in self.trucks.values():
             comms_handshake(lambda: self.executor.spin_once(timeout_sec=0.05), truck.send,
                             truck.reports, alive=lambda: not self.launch.poll())
+        # The watch's own readers matched too (a pose taken, the events' writer heard), or the
+        # first metres of a task would go uncounted and a collision unseen.
+        self.spin_until(lambda: all(t._last is not None and t._events.publisher_count() > 0
+                                    for t in self.trucks.values()), 60,
+                        "every truck's pose and world events")
 
     def close(self) -> None:
         """Shut the probe and the fleet down."""
