@@ -7,8 +7,7 @@ depend only on their inputs and the code, so each is computed once per machine: 
 digest of the inputs' text and of every source file of the package, so any change to either
 computes it afresh. Entries are JSON files under `$AGV_NODES_CACHE` (default
 `$XDG_CACHE_HOME/agv_nodes`, else `~/.cache/agv_nodes`); set `AGV_NODES_CACHE=off` to compute
-every time. A cache that cannot be read or written is
-skipped, never an error.
+every time. A cache that cannot be read or written is skipped, never an error.
 """
 
 from collections.abc import Callable

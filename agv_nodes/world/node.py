@@ -144,8 +144,13 @@ class WorldNode(WorldLoop, Node):
         # instead of reading every /clock back over DDS: that wakes its loop once more per clock
         # step, and while it waited for its peers the loop spun on its own clock thousands of
         # times a second, flooding every node with it.
-        self._time_source = drop_clock_reader(self) if self.s.publish_clock and \
+        # (Not rclpy's own `_time_source` attribute: that stays as rclpy set it.)
+        self._clock_source = drop_clock_reader(self) if self.s.publish_clock and \
             self.get_parameter('use_sim_time').value else None
+        # every ROS clock this node's /clock sets: its own and, on a floor, each truck world's
+        # (made, with theirs, before the floor's own _serve)
+        self._clock_feeds = [n._clock_source for n in dict.fromkeys((self, *self.members))
+                             if n._clock_source is not None]
         self._clock_msg = Clock()
         self.add_on_set_parameters_callback(self._set_at_run_time)
         for name in ('pause', 'resume', 'step', 'hardware_reset'):
@@ -266,11 +271,11 @@ class WorldNode(WorldLoop, Node):
         """
         now = round(self.time * 1e9)
         self.clock_pub.publish(clock_cdr(now))
-        msg = self._clock_msg
-        msg.clock.sec, msg.clock.nanosec = divmod(now, 1_000_000_000)
-        for m in (self, *self.members) if self.floor is not None else (self,):
-            if m._time_source is not None:
-                m._time_source.clock_callback(msg)
+        if self._clock_feeds:
+            msg = self._clock_msg
+            msg.clock.sec, msg.clock.nanosec = divmod(now, 1_000_000_000)
+            for source in self._clock_feeds:
+                source.clock_callback(msg)
 
     def publish_events(self, events: list[dict[str, Any]]) -> None:
         """Publish world events as world_event records; the bumper switch when it changed."""
