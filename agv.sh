@@ -23,7 +23,7 @@ ensure_venv() {
     "$(pick_python)" -m venv "$VENV"
   fi
   local stamp="$VENV/.agv_nodes-installed" want
-  want=$(cat requirements.txt setup.py setup.cfg package.xml agv_nodes/world/_kernels.c | sha256sum | cut -d' ' -f1)
+  want=$(cat requirements.txt setup.py setup.cfg package.xml agv_nodes/*/_*.c | sha256sum | cut -d' ' -f1)
   if [[ ! -f "$stamp" || "$(cat "$stamp")" != "$want" ]]; then
     echo "agv.sh: installing requirements into $VENV ..." >&2
     "$VENV/bin/python" -m pip install -q --upgrade pip

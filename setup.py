@@ -31,11 +31,13 @@ setup(
         *tree('msg_schemas'),
         *tree('config'),
     ],
-    # The world's hottest loops in C (agv_nodes/world/kernels.py). Optional: without a C
-    # compiler the package installs without it and runs the same arithmetic in Python. No
-    # fused multiply-adds, so the C code gives the Python code's bits.
-    ext_modules=[Extension('agv_nodes.world._kernels', ['agv_nodes/world/_kernels.c'],
-                           extra_compile_args=['-O2', '-ffp-contract=off'], optional=True)],
+    # Hot loops in C (agv_nodes/kernel_choice.py): the world's physics and optics, the position
+    # sensor's THRESH, the record codec. Optional: without a C compiler the package installs
+    # without them and runs the same arithmetic in Python. No fused multiply-adds, so the C
+    # code gives the Python code's bits.
+    ext_modules=[Extension(f'agv_nodes.{name}', [f'agv_nodes/{name.replace(".", "/")}.c'],
+                           extra_compile_args=['-O2', '-ffp-contract=off'], optional=True)
+                 for name in ('world._kernels', 'position_sensor._thresh', 'records._codec')],
     install_requires=['setuptools'],
     zip_safe=False,
     maintainer='agv_nodes developers',

@@ -16,6 +16,7 @@ clock.
 
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
+import math
 from pathlib import Path
 import random
 from typing import Any, Protocol
@@ -97,6 +98,7 @@ class Harness:
         self._routes: dict[str, tuple] = {}
         self._ns_of, self._now_ns = None, 0  # the sim time _now_ns (ns) is of
         self._depth = 0  # records delivered in answer to records, nested
+        self._timers_due = -math.inf  # no node timer is due before this sim time
         for core in cores:
             self.add(core)
 
@@ -108,6 +110,7 @@ class Harness:
                                     {s.name: RecordWriter(s, mode[s.name]) for s in writes},
                                     self.world.time))
         self._routes.clear()
+        self._timers_due = -math.inf
 
     def restart(self, node: str) -> None:
         """Start `node` afresh, as a respawned process: new core state, counters from 0.
@@ -123,6 +126,7 @@ class Harness:
                 if record in other.readers:
                     other.readers[record].resync()
         m.next_tick = m.next_supervise = self.now
+        self._timers_due = -math.inf
         if (cores := getattr(self, 'cores', None)) is not None:
             cores[node] = m.core
 
@@ -266,7 +270,8 @@ class Harness:
                     for m in self.members:
                         if hasattr(m.core, 'on_frame'):
                             self._publish(m, m.core.on_frame(frame, now, camera=camera))
-        fire_timers(self.members, self._publish, now)
+        if now + 1e-12 >= self._timers_due:
+            self._timers_due = fire_timers(self.members, self._publish, now)
         return out
 
     def run(self, seconds: float, until: Callable[[], bool] | None = None) -> bool:

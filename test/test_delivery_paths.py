@@ -1,7 +1,9 @@
 """The ports' fast paths and the harness's shared decoding agree with the checked paths.
 
-`RecordWriter.pack` and `RecordReader.accept` try generated code for whole records first
-(records/fast_paths.py `compile_port_paths`) and take the general codec on None; the lock-step
+`RecordWriter.pack` and `RecordReader.accept` try fast paths for whole records first (C where
+built, records/compiled_paths.py; else generated Python, records/fast_paths.py
+`compile_port_paths`; both are held to the general path here) and take the general codec on
+None; the lock-step
 harness decodes a record once for all its readers. Whatever a fast path returns must be what the
 general path makes of the same input, and every reader must count, name and keep exactly what
 it would alone.
@@ -15,10 +17,14 @@ import pytest
 
 from agv_nodes.harness import Harness, truck
 from agv_nodes.records import RecordError, RecordReader, RecordWriter, codec
+from agv_nodes.records.compiled_paths import compiled_port_paths
 from agv_nodes.records.e2e import Sequence
+from agv_nodes.records.fast_paths import compile_port_paths
 
 SCHEMAS = list(codec())
 INTEGRITY = ('e2e', 'none')
+# the ports' fast paths: C (test_record_codec_kernel.py checks it is built) and Python
+PATHS = {'c': compiled_port_paths, 'python': compile_port_paths}
 
 
 def _value(f, rng: random.Random, valid: bool):
@@ -47,10 +53,11 @@ def _values(schema, rng: random.Random, i: int) -> dict:
     return values
 
 
+@pytest.mark.parametrize('paths', PATHS)
 @pytest.mark.parametrize('integrity', INTEGRITY)
 @pytest.mark.parametrize('schema', SCHEMAS, ids=lambda s: s.name)
-def test_seal_gives_what_encode_gives(schema, integrity):
-    seal, _check = schema.port_paths(integrity)
+def test_seal_gives_what_encode_gives(schema, integrity, paths):
+    seal, _check = PATHS[paths](schema, integrity)
     rng = random.Random(schema.data_id)
     taken = 0
     for i in range(600):
@@ -71,10 +78,11 @@ def test_seal_gives_what_encode_gives(schema, integrity):
     assert taken > 0
 
 
+@pytest.mark.parametrize('paths', PATHS)
 @pytest.mark.parametrize('integrity', INTEGRITY)
 @pytest.mark.parametrize('schema', SCHEMAS, ids=lambda s: s.name)
-def test_check_gives_what_decode_gives(schema, integrity):
-    _seal, check = schema.port_paths(integrity)
+def test_check_gives_what_decode_gives(schema, integrity, paths):
+    _seal, check = PATHS[paths](schema, integrity)
     rng = random.Random(schema.data_id + 1)
     taken = 0
     for i in range(1500):

@@ -13,6 +13,7 @@ import functools
 from pathlib import Path
 from typing import Any
 
+from agv_nodes.records.compiled_paths import compiled_port_paths
 from agv_nodes.records.e2e import record_crc
 from agv_nodes.records.errors import RecordError, Reject
 from agv_nodes.records.fast_paths import compile_fast_paths, compile_port_paths
@@ -277,14 +278,18 @@ class RecordSchema:
         return {}
 
     def port_paths(self, integrity: str) -> tuple[Callable, Callable] | None:
-        """Return (seal, check) of whole records in `integrity` (records/fast_paths.py).
+        """Return (seal, check) of whole records in `integrity`.
+
+        In C where it was built (records/compiled_paths.py), else the generated Python
+        (records/fast_paths.py): the same results.
 
         None for an unknown mode, which only the general path may name.
         """
         if integrity not in INTEGRITY_MODES:
             return None
         if (paths := self._port_paths.get(integrity)) is None:
-            paths = self._port_paths[integrity] = compile_port_paths(self, integrity)
+            paths = self._port_paths[integrity] = compiled_port_paths(self, integrity) \
+                or compile_port_paths(self, integrity)
         return paths
 
 

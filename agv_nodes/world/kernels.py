@@ -6,30 +6,23 @@ The Electruk's substeps (`vehicles.py`, `Electruk.step`), the guide-wire pickup'
 same arithmetic as that Python code, in the same order, with the same functions (the C
 library's, and Python's own `math.hypot`): the two give the same bits
 (test/test_world_kernels.py), and the choice changes only speed. The world parameter
-`kernels` chooses: `auto` (default) the C code where it is built, else Python; `c` insists on
-it; `python` never uses it. The extension is optional: a machine without a C compiler
-installs the package without it and runs the Python code.
+`kernels` chooses (agv_nodes/kernel_choice.py).
 """
 
 from __future__ import annotations
 
 from types import ModuleType
 
+from agv_nodes import kernel_choice
+
 try:
     from agv_nodes.world import _kernels as compiled
 except ImportError:  # not built (no C compiler at install): the Python code runs
     compiled = None
 
-CHOICES = ('auto', 'c', 'python')
+CHOICES = kernel_choice.CHOICES
 
 
 def select(choice: str = 'auto') -> ModuleType | None:
     """Return the compiled kernels `choice` asks for, or None for the Python code."""
-    if choice not in CHOICES:
-        raise ValueError(f'world kernels: {choice!r} is not one of {", ".join(CHOICES)}')
-    if choice == 'python':
-        return None
-    if choice == 'c' and compiled is None:
-        raise ValueError("world kernels: 'c' asks for the compiled kernels, which are not built "
-                         '(pip install -e . builds them with the C compiler)')
-    return compiled
+    return kernel_choice.select(compiled, choice, 'world')
