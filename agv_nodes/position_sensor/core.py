@@ -23,6 +23,9 @@ CODE and `invalid` the status record carries either way.
 `variant = as_listed` keeps the listing's defects (5.2.3, App. B.1, register items 1 and 14): the
 black test compares only the high bytes of TOTAL and THROFF, and EDGE is searched over LEN = 5
 entries, so stop views 6 and 7 never match; `intended` (default) is the design as described.
+
+Steps 1-4 and the sequence decoder's running sum may run in C, with the same results
+(`kernels`; agv_nodes/position_sensor/kernels.py).
 """
 
 from collections.abc import Sequence
@@ -30,6 +33,7 @@ from operator import itemgetter
 from typing import Any
 
 from agv_nodes.markers import DARK_FIELDS, LIT_FIELDS, LOCATION_TABLE, STOP_VIEWS
+from agv_nodes.position_sensor import kernels
 from agv_nodes.position_sensor.sequence import SequenceDecoder
 from agv_nodes.position_sensor.settings import SensorProcessing
 from agv_nodes.subsystem import SubsystemCore
@@ -44,6 +48,10 @@ class PositionSensorCore(SubsystemCore):
 
     def __init__(self, params: SensorProcessing | None = None) -> None:
         super().__init__(params)
+        kernel = kernels.select(self.p.kernels)  # None: the Python code below
+        # its functions, not the module, which would not deep-copy (tests fork a truck)
+        self._c_thresh = None if kernel is None else kernel.thresh
+        self._c_levels = None if kernel is None else kernel.levels
         self.white, self.black = self.p.thresholds()  # THRON, THROFF (x4 units)
         n = self.p.run_length
         self._white = [w * n // 4 for w in self.white]  # THRON in run_length units
@@ -120,6 +128,35 @@ class PositionSensorCore(SubsystemCore):
         self.samples = (self.samples + 1) & 0xFFFF
         self.saturated = max(dark) >= p.saturation
         row = self._oldest[self._row]
+        if self._c_thresh is None:
+            code, valid, decisive = self._thresh(lit, dark, row)
+        else:
+            code, valid, decisive = self._c_thresh(
+                lit, dark, row, self._total, self._white, self._black, self._held,
+                p.variant == 'as_listed', p.invalid_band == 'hold')
+        self._row = (self._row + 1) % p.run_length
+        self.invalid = not valid
+        match = self._snapshot_rule(code, valid, decisive)
+        if valid:
+            self.code = code
+        if not self._reads_sequence:
+            return None if match is None else self._recognised(match, now)
+        # The sequence decoder adds its reads of passing cards to the thesis rule's (which
+        # still reads a card at rest or crawling); one report per card and passage.
+        read = self._sequence.sample(self._sequence_levels(row))  # row: this x
+        if self._sequence.passage != self._passage:
+            self._passage, self._passage_found = self._sequence.passage, set()
+        if match is None and read is not None:
+            match, self.code = self._templates[read], read
+        if match is None or match in self._passage_found:
+            return None
+        self._passage_found.add(match)
+        return self._recognised(match, now)
+
+    def _thresh(self, lit: Sequence[int], dark: Sequence[int],
+                row: list[int]) -> tuple[int, bool, bool]:
+        """SUBT, TOTAL and THRESH of one snapshot: (CODE, valid, decisive); `row` := its x."""
+        p = self.p
         code, valid, decisive = 0, True, True
         as_listed = p.variant == 'as_listed'
         hold, held = p.invalid_band == 'hold', self._held
@@ -139,24 +176,7 @@ class PositionSensorCore(SubsystemCore):
                 decisive = False
             else:
                 valid = False
-        self._row = (self._row + 1) % p.run_length
-        self.invalid = not valid
-        match = self._snapshot_rule(code, valid, decisive)
-        if valid:
-            self.code = code
-        if not self._reads_sequence:
-            return None if match is None else self._recognised(match, now)
-        # The sequence decoder adds its reads of passing cards to the thesis rule's (which
-        # still reads a card at rest or crawling); one report per card and passage.
-        read = self._sequence.sample(self._sequence_levels(row))  # row: this x
-        if self._sequence.passage != self._passage:
-            self._passage, self._passage_found = self._sequence.passage, set()
-        if match is None and read is not None:
-            match, self.code = self._templates[read], read
-        if match is None or match in self._passage_found:
-            return None
-        self._passage_found.add(match)
-        return self._recognised(match, now)
+        return code, valid, decisive
 
     def _snapshot_rule(self, code: int, valid: bool, decisive: bool) -> int | None:
         """TARGET and the consecutive-match count (thesis 7.1.4): a match to report, or None."""
@@ -182,6 +202,8 @@ class PositionSensorCore(SubsystemCore):
         """Sum SUBT's `x` over the sequence decoder's run, in band units (0 THROFF, 1 THRON)."""
         row, total = self._seq_oldest[self._seq_row], self._seq_total
         self._seq_row = (self._seq_row + 1) % self.p.sequence_run_length
+        if self._c_levels is not None:
+            return self._c_levels(x, row, total, self._seq_black, self._seq_band)
         for d in range(8):
             total[d] = total[d] + x[d] - row[d]
         row[:] = x

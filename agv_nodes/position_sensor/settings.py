@@ -3,6 +3,7 @@
 from typing import Any
 
 from agv_nodes.markers import THRESHOLDS
+from agv_nodes.position_sensor import kernels
 from agv_nodes.settings import settings_class
 
 
@@ -16,11 +17,21 @@ class SensorProcessing:
         return tuple(self.white) or table['white'], tuple(self.black) or table['black']
 
     def problems(self) -> list[tuple[str, Any, str]]:
-        """Check what `build` cannot field by field: each black threshold below its white."""
+        """Check what `build` cannot field by field.
+
+        Each black threshold below its white, and `kernels: c` only where the kernel was built
+        (no C compiler at install leaves it out).
+        """
+        out = []
+        try:
+            kernels.select(self.kernels)
+        except ValueError as exc:
+            out.append(('kernels', self.kernels, str(exc)))
         white, black = self.thresholds()
         low = [d for d, (w, b) in enumerate(zip(white, black, strict=True), 1) if b >= w]
         if not low:
-            return []
+            return out
         name = 'black' if self.black or not self.white else 'white'
-        return [(name, list(getattr(self, name)), 'each black threshold must be below its white '
-                 f'one (detector {", ".join(map(str, low))}; empty = Table 7.1 of {self.unit})')]
+        return [*out, (name, list(getattr(self, name)), 'each black threshold must be below its '
+                       f'white one (detector {", ".join(map(str, low))}; empty = Table 7.1 of '
+                       f'{self.unit})')]

@@ -37,11 +37,17 @@ def _separated(a: list[Point], b: list[Point]) -> bool:
     return False
 
 
-def _circle(corners: list[Point]) -> tuple[Point, float]:
-    """Return the corners' centroid and the distance to the farthest corner."""
-    cx = sum(x for x, _y in corners) / len(corners)
-    cy = sum(y for _x, y in corners) / len(corners)
-    return (cx, cy), max(math.hypot(x - cx, y - cy) for x, y in corners) * (1.0 + 1e-9) + 1e-9
+def bounding_circle(x: float, y: float, heading: float, p: ElectrukParams
+                    ) -> tuple[float, float, float]:
+    """Return (cx, cy, r): a circle about the body, for the rear axle centre at (x, y).
+
+    The rectangle's centre and half its diagonal, widened by a micrometre: a test that rounding
+    can never make tighter than the body, so it only spares the edge tests of bodies apart.
+    """
+    along = (p.wheelbase + p.front_overhang - p.rear_overhang) / 2.0
+    half_length = (p.wheelbase + p.front_overhang + p.rear_overhang) / 2.0
+    return (x + along * math.cos(heading), y + along * math.sin(heading),
+            math.hypot(half_length, p.width / 2.0) + 1e-6)
 
 
 def overlap(a: list[Point], b: list[Point]) -> bool:
@@ -75,18 +81,22 @@ class ContactWatch:
                  ) -> set[tuple[str, str]]:
         """Return the pairs (in `names` order) whose footprints touch or overlap.
 
-        A pair whose circles about the footprints (centre, farthest corner) are apart cannot
-        touch; only the others are tested edge by edge, which a floor's trucks mostly are not.
+        A pair whose circles about the bodies (`bounding_circle`) are apart cannot touch; only
+        the others are tested edge by edge, which a floor's trucks mostly are not.
         """
-        shapes = {name: footprint(*pose[:3], p) for name, (pose, p) in bodies.items()}
-        circles = {name: _circle(corners) for name, corners in shapes.items()}
+        circles = {name: bounding_circle(*pose[:3], p) for name, (pose, p) in bodies.items()}
+        shapes: dict[str, list[Point]] = {}
         out = set()
         for i, a in enumerate(self.names):
-            (ax, ay), ar = circles[a]
+            ax, ay, ar = circles[a]
             for b in self.names[i + 1:]:
-                (bx, by), br = circles[b]
-                if math.hypot(ax - bx, ay - by) > ar + br:
+                bx, by, br = circles[b]
+                if (ax - bx) ** 2 + (ay - by) ** 2 > (ar + br) ** 2:
                     continue
+                for name in (a, b):
+                    if name not in shapes:
+                        pose, p = bodies[name]
+                        shapes[name] = footprint(*pose[:3], p)
                 if overlap(shapes[a], shapes[b]):
                     out.add((a, b))
         return out

@@ -34,20 +34,21 @@ class _Every:
 
     def __init__(self, rate: float, sample_rate: float) -> None:
         self.ratio = rate / sample_rate
-        self._next = 0  # no sample before this one is due (asked every sample: one test)
+        # No sample before this one is due: the world tests it before calling due().
+        self.next = 0
 
     def _fires(self, sample: int) -> bool:
         return math.floor(sample * self.ratio) > math.floor((sample - 1) * self.ratio)
 
     def due(self, sample: int) -> bool:
         """Return True when a record is due at `sample` (samples asked in increasing order)."""
-        if sample < self._next:
+        if sample < self.next:
             return False
         fires = self._fires(sample)
         following = sample + 1
         while not self._fires(following):
             following += 1
-        self._next = following
+        self.next = following
         return fires
 
 
@@ -77,6 +78,7 @@ class WorldCore(GroundTruth):
             self.vehicle = Concic2Dynamic(self.p.concic2)
         else:
             self.vehicle = Concic2(self.p.concic2)
+        self._electruk = isinstance(self.vehicle, Electruk)
         self._place_vehicle()
         self.sensor = MarkerSensorModel(self.p.sensor, self.rng, compiled)
         # Only the Electruk carries Baker's marker sensor; the CONCIC-II reads its floor with
@@ -195,7 +197,7 @@ class WorldCore(GroundTruth):
         now = sample * dt  # self.time
         self._apply_safety(now)
         sub = dt / p.substeps
-        if isinstance(vehicle, Electruk):  # a sample's substeps in one call
+        if self._electruk:  # a sample's substeps in one call
             vehicle.step(sub, p.substeps)
         else:
             for _ in range(p.substeps):
@@ -203,19 +205,23 @@ class WorldCore(GroundTruth):
         records: dict[str, dict[str, Any]] = {}
         if self.marker_sensor:
             records['adc_snapshot'] = self._adc()
-        if self.pickup is not None and self._wire_every.due(sample):
+        # Each record's clock is tested here before its due() is called: most samples send none.
+        if self.pickup is not None and sample >= (every := self._wire_every).next \
+                and every.due(sample):
             records['guide_wire'] = self._guide_wire()
-        if self._odo_every.due(sample):
+        if sample >= (every := self._odo_every).next and every.due(sample):
             records['wheel_odometry'] = self._odometry()
-        if self.pal is not None and self._drive_every.due(sample):
+        if self.pal is not None and sample >= (every := self._drive_every).next \
+                and every.due(sample):
             records['drive_status'] = self.pal.record()
         at_rest = abs(vehicle.state.speed) <= 0.01
         if (moved := self.conveyors.step(now, dt, at_rest, self.lens_pose)) is not None:
             self._event('load_moved', marker=moved)
-        if self._conv_every.due(sample):
+        if sample >= (every := self._conv_every).next and every.due(sample):
             records['conveyor_status'] = self.conveyors.status(at_rest, self.lens_pose)
         frames = {}
-        if self.camera is not None and self._cam_every.due(sample):
+        if self.camera is not None and sample >= (every := self._cam_every).next \
+                and every.due(sample):
             frames = self._frames()
         self._detect_stop()
         self._detect_drive_off()
@@ -224,7 +230,7 @@ class WorldCore(GroundTruth):
     def _apply_safety(self, now: float) -> None:
         v = self.vehicle
         v.radio_stop = self.radio_stop or self.bumper
-        if isinstance(v, Electruk):
+        if self._electruk:
             # The trip relay's monostable: no watchdog change for 200 ms releases the relay and
             # with it the main contactor; retriggering closes it again (Baker 1983, B.2.1).
             v.relay_closed = now - self._watchdog_time <= self.p.drive_watchdog
@@ -248,15 +254,16 @@ class WorldCore(GroundTruth):
         return lens_position(self.vehicle.sensor_point, h, self.layout.sensor_lateral), h
 
     def _ride_height(self) -> float:
-        payload = self.p.electruk.payload if isinstance(self.vehicle, Electruk) else 0.0
+        payload = self.p.electruk.payload if self._electruk else 0.0
         return payload / 1000.0 * self.p.ride_height_per_tonne
 
     def _adc(self) -> dict[str, int]:
         lens, heading = self.lens_pose()
         self._cards_near(lens)
         lit, dark = self.sensor.snapshot(lens, heading, self._near_cards, self._ride_height())
-        self._marker_passages(lens, heading)
-        return dict(zip(SNAPSHOT_FIELDS, lit + dark, strict=True))
+        if self._near:
+            self._marker_passages(lens, heading)
+        return dict(zip(SNAPSHOT_FIELDS, (*lit, *dark), strict=True))
 
     def _guide_wire(self) -> dict[str, int]:
         sx, sy = self.vehicle.sensor_point
