@@ -148,7 +148,8 @@ class Harness:
         self._deliver(record, raw)
 
     def _deliver(self, record: str, raw: bytes) -> None:
-        now = self.world.time
+        world = self.world
+        now = world.sample * world.dt  # world.time
         for tap in self.taps:
             tap(record, raw, now)
         route = self._routes.get(record)
@@ -168,7 +169,7 @@ class Harness:
             else:
                 taken, given = world_reader.take(raw, fields, now_ns), True
             if taken is not None:
-                self.world.on_record(record, taken, now)
+                world.on_record(record, taken, now)
         out = []
         for m, reader in readers:
             if fields is None:

@@ -149,9 +149,12 @@ class RecordReader:
                 initial = verdict is Sequence.INITIAL
         # a writer taken up anew after one was followed: it restarted (or was replaced), and
         # whatever state its reader's node built on the old one is gone
-        self.restarted = restarted = self.accepted > 0 and (initial or self._new_writer)
-        self.restarts += restarted
-        self._new_writer = False
+        if initial or self._new_writer:
+            self.restarted = restarted = self.accepted > 0
+            self.restarts += restarted
+            self._new_writer = False
+        else:  # the usual record
+            self.restarted = False
         self.fields = fields
         self.raw = data if type(data) is bytes else bytes(data)
         self.stamp_ns = now_ns

@@ -258,7 +258,7 @@ class MarkerSensorModel:
         such detectors, and with no card in view at all the whole snapshot (a block's worth at
         a time); test_world_speed_paths holds the two to the same counts.
         """
-        seen = self._seen(lens, heading, cards, height)
+        seen = self._seen(lens, heading, cards, height) if cards else ()
         row = self._next_row()
         gains, blacks = self.gains, self.blacks
         quiet = self._quiet
