@@ -153,6 +153,10 @@ def side_by_side(baseline: str, rounds: int) -> None:
         archive = subprocess.run(['git', 'archive', baseline], cwd=here, check=True,
                                  capture_output=True, timeout=120).stdout
         subprocess.run(['tar', '-x', '-C', tmp], input=archive, check=True, timeout=120)
+        # its C kernels too, as its install would build them (optional: none to build, or no
+        # compiler, leaves its Python code)
+        subprocess.run([sys.executable, 'setup.py', '-q', 'build_ext', '--inplace'], cwd=tmp,
+                       check=False, capture_output=True, timeout=600)
         commit = subprocess.run(['git', 'rev-parse', '--short', baseline], cwd=here, check=True,
                                 capture_output=True, text=True, timeout=60).stdout.strip()
         trees = {f'commit {commit}': Path(tmp), 'this tree': here}
