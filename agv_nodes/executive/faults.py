@@ -53,7 +53,8 @@ class FaultSupervision:
                     return self._fail(now, 'stale_status', sub, 'never heard from')
                 continue
             age = now - t
-            max_age[sub] = max(max_age.get(sub, 0.0), age)
+            if age > max_age.get(sub, -1.0):  # max(), without its call at 200 Hz
+                max_age[sub] = age
             if age > timeout and (self.arrivals - self.arrivals_at.get(sub, 0) >= p.stale_confirm
                                   or age > 2 * timeout):
                 return self._fail(now, 'stale_status', sub, f'{age:.2f} s old')

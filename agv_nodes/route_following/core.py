@@ -48,9 +48,15 @@ def wire_offset(left: float, right: float, spacing: float, height: float, nomina
     k = nominal * (h * h + c * c)
     y_left = math.sqrt(max(k / left - h * h, 0.0))
     y_right = math.sqrt(max(k / right - h * h, 0.0))
-    pairs = [(a, b) for a in (c - y_left, c + y_left) for b in (-c + y_right, -c - y_right)]
-    a, b = min(pairs, key=lambda ab: abs(ab[0] - ab[1]))
-    return 0.5 * (a + b)
+    # the nearest pair, the first of equals in the order (c - y_L, -c + y_R), (c - y_L,
+    # -c - y_R), (c + y_L, -c + y_R), (c + y_L, -c - y_R)
+    best_a, best_b = c - y_left, -c + y_right
+    nearest = abs(best_a - best_b)
+    for a, b in ((c - y_left, -c - y_right), (c + y_left, -c + y_right),
+                 (c + y_left, -c - y_right)):
+        if abs(a - b) < nearest:
+            best_a, best_b, nearest = a, b, abs(a - b)
+    return 0.5 * (best_a + best_b)
 
 
 class RouteCore(SubsystemCore):
