@@ -86,9 +86,16 @@ def test_installed_package_has_its_parameter_declarations(workspace):
     assert int(count) == len(parameters(WorldParams)) > 50
 
 
-def test_installed_package_has_the_worlds_compiled_kernels(workspace):
+def test_installed_package_has_its_compiled_kernels(workspace):
+    """The world's, the position sensor's and the codec's C, built into the install."""
     probe = ('cd / && python -c "from agv_nodes.world import kernels; '
-             'print(kernels.compiled.__file__)"')
+             'from agv_nodes.position_sensor import kernels as sensor; '
+             'from agv_nodes.records import compiled_paths as codec; '
+             'print(kernels.compiled.__file__, sensor.compiled.__file__, '
+             'codec.compiled.__file__)"')
     res = in_workspace(workspace, probe.replace('python', PYTHON, 1))
     assert res.returncode == 0, res.stderr
-    assert res.stdout.strip().startswith(str(workspace / 'install'))
+    built = res.stdout.split()
+    assert len(built) == 3, res.stdout
+    for path in built:
+        assert path.startswith(str(workspace / 'install')), path
