@@ -1,10 +1,12 @@
 """The `kernels` parameter: compiled C for a hot loop, or the Python code it stands in for.
 
 Each package part with a C kernel (the world's physics and optics, the position sensor's
-THRESH, the record codec) keeps its Python code as the reference and offers the C code as
-the same arithmetic, tested to give the same results: `auto` (default) takes the C code
-where it was built, `c` insists on it, `python` never uses it. The extensions are optional: a
-machine without a C compiler installs the package without them and runs the Python code.
+THRESH, the record codec) keeps its Python code as the reference and its C code as the same
+arithmetic, tested to give the same results. Where a node has the parameter (the world, the
+position sensor), `auto` (default) takes the C code where it was built, `c` insists on it and
+`python` never uses it; the codec, below every node, takes its C wherever it was built. The
+extensions are optional: a machine without a C compiler installs the package without them and
+runs the Python code.
 """
 
 from __future__ import annotations

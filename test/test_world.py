@@ -10,7 +10,14 @@ import numpy as np
 import pytest
 
 from agv_nodes.harness import Harness
-from agv_nodes.markers import LOCATION_PATTERNS, THRESHOLDS, code_of, stop_view_columns
+from agv_nodes.markers import (
+    LOCATION_PATTERNS,
+    SNAPSHOT_FIELDS,
+    THRESHOLDS,
+    code_of,
+    snapshot_record,
+    stop_view_columns,
+)
 from agv_nodes.world.camera import BinaryCamera
 from agv_nodes.world.core import WorldCore
 from agv_nodes.world.guide_wire import SCALAR_SEGMENTS
@@ -273,6 +280,12 @@ def test_adc_snapshot_every_sample_at_340_hz(drive_codec):
     assert counts['adc_snapshot'] == 680
     assert counts['guide_wire'] == pytest.approx(200, abs=2)
     assert counts['wheel_odometry'] == pytest.approx(200, abs=2)
+
+
+def test_the_snapshot_record_is_its_fields_in_order():
+    lit, dark = list(range(10, 18)), list(range(200, 208))
+    record = snapshot_record(lit, dark)
+    assert list(record.items()) == list(zip(SNAPSHOT_FIELDS, lit + dark, strict=True))
 
 
 def test_guide_wire_coils_balance_over_the_wire_and_fade_away():

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from agv_nodes.markers import SNAPSHOT_FIELDS
+from agv_nodes.markers import snapshot_record
 from agv_nodes.world import kernels
 from agv_nodes.world.camera import BinaryCamera
 from agv_nodes.world.concic2_dynamics import Concic2Dynamic
@@ -270,7 +270,7 @@ class WorldCore(GroundTruth):
                                          p.electruk.payload / 1000.0 * p.ride_height_per_tonne)
         if self._near:
             self._marker_passages(lens, h)
-        return dict(zip(SNAPSHOT_FIELDS, (*lit, *dark), strict=True))
+        return snapshot_record(lit, dark)
 
     def _guide_wire(self) -> dict[str, int]:
         sx, sy = self.vehicle.sensor_point
@@ -326,8 +326,8 @@ class WorldCore(GroundTruth):
         lit, dark = self.sensor.snapshot(lens, h, self.layout.markers,
                                          float(rig.get('height', 0.0)))
         self._marker_passages(lens, h)
-        fields = dict(zip(SNAPSHOT_FIELDS, lit + dark, strict=True))
-        return {'records': {'adc_snapshot': fields}, 'frames': {}, 'events': self.events}
+        return {'records': {'adc_snapshot': snapshot_record(lit, dark)}, 'frames': {},
+                'events': self.events}
 
     # -- ground-truth views for the node ----------------------------------------------------
     def pose(self) -> tuple[float, float, float, float]:
