@@ -136,7 +136,11 @@ class PositionSensorCore(SubsystemCore):
                 p.variant == 'as_listed', p.invalid_band == 'hold')
         self._row = (self._row + 1) % p.run_length
         self.invalid = not valid
-        match = self._snapshot_rule(code, valid, decisive)
+        # TARGET: most snapshots match nothing, which ends any streak (_snapshot_rule)
+        if valid and code in self._templates:
+            match = self._snapshot_rule(code, valid, decisive)
+        else:
+            match, self._streak_key, self._streak = None, None, 0
         if valid:
             self.code = code
         if not self._reads_sequence:
