@@ -14,7 +14,7 @@ they return go out, each in turn and on to its readers; timers run after it on t
 clock.
 """
 
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 import math
 from pathlib import Path
@@ -71,6 +71,13 @@ class _Member:
     writers: dict[str, RecordWriter] = field(default_factory=dict)
     next_tick: float = 0.0
     next_supervise: float = 0.0
+
+
+def _answer(out: list | None, m: _Member, outputs: dict) -> list:
+    """Return `out` (a new list for None) with a member's answer to a record appended."""
+    out = [] if out is None else out
+    out.append((m, outputs))
+    return out
 
 
 class Harness:
@@ -170,7 +177,7 @@ class Harness:
                 taken, given = world_reader.take(raw, fields, now_ns), True
             if taken is not None:
                 world.on_record(record, taken, now)
-        out = []
+        out = None  # what the readers answer: a list made only once one does (most do not)
         for m, reader in readers:
             if fields is None:
                 taken = reader.accept(raw, now_ns)
@@ -180,12 +187,12 @@ class Harness:
                 taken, given = reader.take(raw, fields, now_ns), True
             if taken is not None:
                 if reader.restarted and (o := m.core.on_writer_restart(record, now)):
-                    out.append((m, o))
+                    out = _answer(out, m, o)
                 if o := m.core.on_record(record, taken, now):
-                    out.append((m, o))
+                    out = _answer(out, m, o)
             elif hasattr(m.core, 'on_reject') and \
                     (o := m.core.on_reject(record, reader.last_reason, now)):
-                out.append((m, o))
+                out = _answer(out, m, o)
         if out:
             self._publish_all(out)
 
@@ -207,9 +214,9 @@ class Harness:
 
     def _publish(self, m: _Member, outputs: dict | None) -> None:
         if outputs:
-            self._publish_all([(m, outputs)])
+            self._publish_all(((m, outputs),))
 
-    def _publish_all(self, queue: list[tuple[_Member, dict]]) -> None:
+    def _publish_all(self, queue: Sequence[tuple[_Member, dict]]) -> None:
         """Send each member's outputs in turn (each record delivered at once, depth first)."""
         self._depth += 1
         if self._depth > MAX_CHAIN:
@@ -262,7 +269,8 @@ class Harness:
                 self._send('world', record, raw)
             else:  # no link faults: straight to the readers
                 self._deliver(record, raw)
-        self.events.extend(out['events'])
+        if out['events']:
+            self.events.extend(out['events'])
         if out['frames']:
             self.frames = out['frames']
             # hw/camera/front and hw/camera/rear (sensor_msgs/Image in the graph), front first

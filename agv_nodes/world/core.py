@@ -29,6 +29,11 @@ from agv_nodes.world.settings import WorldParams
 from agv_nodes.world.vehicles import Concic2, Electruk
 
 
+def _mm_per_s(v: float) -> int:
+    """Return a speed in m/s as the odometry record's signed 16-bit mm/s, clipped."""
+    return int(min(max(round(v * 1000), -32768), 32767))
+
+
 class _Every:
     """Fires `rate` times per simulated second on the sample clock (exact on average)."""
 
@@ -45,8 +50,12 @@ class _Every:
         if sample < self.next:
             return False
         fires = self._fires(sample)
-        following = sample + 1
-        while not self._fires(following):
+        # the next sample that fires: _fires(s) for s = sample + 1, ..., each floor worked out
+        # once (floor(s * ratio) is the next test's floor((s - 1) * ratio))
+        ratio, floor = self.ratio, math.floor
+        following, level = sample + 1, floor(sample * ratio)
+        while (reached := floor(following * ratio)) <= level:
+            level = reached
             following += 1
         self.next = following
         return fires
@@ -294,8 +303,7 @@ class WorldCore(GroundTruth):
         self._odo_time = self.time
         self._odo_dist[0] += left * period
         self._odo_dist[1] += right * period
-        clip = lambda v: int(min(max(round(v * 1000), -32768), 32767))  # noqa: E731
-        return {'left_speed': clip(left), 'right_speed': clip(right),
+        return {'left_speed': _mm_per_s(left), 'right_speed': _mm_per_s(right),
                 'left_distance': int(round(self._odo_dist[0] * 1000)) & 0xFFFF,
                 'right_distance': int(round(self._odo_dist[1] * 1000)) & 0xFFFF,
                 'sample': self.counters['wheel_odometry'] & 0xFF}

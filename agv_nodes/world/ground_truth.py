@@ -16,6 +16,7 @@ from agv_nodes.world.layout import Marker
 from agv_nodes.world.marker_sensor import axis_on_card
 
 NEAR_MOVE = 0.3  # m the lens moves before the list of cards near it is redone
+NEAR_MOVE_SQUARED = NEAR_MOVE ** 2
 
 
 class GroundTruth:
@@ -29,7 +30,8 @@ class GroundTruth:
         and spares a pass over every marker of the floor at 340 Hz.
         """
         at = self._near_at
-        if at is not None and (lens[0] - at[0]) ** 2 + (lens[1] - at[1]) ** 2 < NEAR_MOVE ** 2:
+        if at is not None and (dx := lens[0] - at[0]) * dx + (dy := lens[1] - at[1]) * dy \
+                < NEAR_MOVE_SQUARED:
             return
         self._near_at = lens
         reach = (0.6 + NEAR_MOVE) ** 2
@@ -57,7 +59,8 @@ class GroundTruth:
 
     def _detect_stop(self) -> None:
         v = abs(self.vehicle.state.speed)
-        self._peak_speed = max(self._peak_speed, v)
+        if v > self._peak_speed:
+            self._peak_speed = v
         # Moving from 2 mm/s: a controlled stop's last creep back onto the centre peaks under
         # 10 mm/s, and a 10 mm/s threshold would leave its final rest unreported (the rest
         # before it, 3-4 mm short, would count as the stop).

@@ -115,13 +115,11 @@ class GuideWirePickup:
             lateral = self._lateral_numpy(points, x, y, lx, ly)
         else:
             lateral = self._lateral_scalar(points, x, y, lx, ly)
-        out = []
         gain, noise, gauss = self.p.gain, self.p.noise, self.rng.gauss
-        for b in lateral:
-            value = gain * abs(b) * 4 * math.pi + gauss(0.0, noise)
-            value = round(value)
-            out.append(0 if value < 0 else 4095 if value > 4095 else int(value))
-        return out[0], out[1]
+        left = round(gain * abs(lateral[0]) * 4 * math.pi + gauss(0.0, noise))
+        right = round(gain * abs(lateral[1]) * 4 * math.pi + gauss(0.0, noise))
+        return (0 if left < 0 else 4095 if left > 4095 else int(left),
+                0 if right < 0 else 4095 if right > 4095 else int(right))
 
     def _refresh_near(self, x: float, y: float) -> None:
         reach = self.p.reach + NEAR_MOVE

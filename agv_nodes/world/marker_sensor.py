@@ -85,7 +85,8 @@ class MarkerSensorModel:
         self._row = NOISE_BLOCK  # the next snapshot's row of the block (spent: draw anew)
         self._block_key: tuple | None = None  # the settings the block's conversions hold for
         self._base: list[float] = []  # per row: dark level + ambient + its noise
-        self._lit_noise: list[list[float]] = []  # per row: the lit conversions' noise, counts
+        self._base_block = np.zeros(0)  # the same, as numpy
+        self._lit_noise = np.zeros((0, 8))  # per row: the lit conversions' noise, counts
         self._dark: list[list[int]] = []  # per row: the dark conversions
         self._quiet: tuple | None = None  # (gains, blacks, signals, lit) with no card in view
         self._seen_key: tuple | None = None  # what _seen_last was looked at from
@@ -288,8 +289,9 @@ class MarkerSensorModel:
             self._block_key = key
             z = self._z
             base = (p.dark_level + p.ambient) + z[:, 16] * p.ambient_noise
-            self._base = base.tolist()
-            self._lit_noise = (z[:, :8] * p.noise).tolist()
+            self._base_block, self._base = base, base.tolist()
+            # kept as numpy: a lit row is turned into floats only where a card is seen
+            self._lit_noise = z[:, :8] * p.noise
             self._dark = _adc8(base[:, None] + z[:, 8:16] * p.noise).tolist()
             if self._quiet is not None:
                 self._quiet = self._quiet[:3] + (None,)
@@ -298,13 +300,13 @@ class MarkerSensorModel:
 
     def _quiet_lit(self, signals: list[float]) -> list[list[int]]:
         """Return the lit conversions of each row of the block with these signals."""
-        return _adc8((np.array(self._base)[:, None] + np.array(signals))
-                     + np.array(self._lit_noise)).tolist()
+        return _adc8((self._base_block[:, None] + np.array(signals))
+                     + self._lit_noise).tolist()
 
     def _lit(self, row: int, signals: list[float]) -> list[int]:
         base = self._base[row]
         return [0 if (x := base + s + n) <= 0 else 255 if x >= 255 else int(x + 0.5)
-                for s, n in zip(signals, self._lit_noise[row], strict=True)]
+                for s, n in zip(signals, self._lit_noise[row].tolist(), strict=True)]
 
 
 def _adc8(value: np.ndarray) -> np.ndarray:

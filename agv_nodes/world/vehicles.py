@@ -116,13 +116,16 @@ class Electruk:
                 self.mass * p.inertia_factor,
                 p.motors * p.drivetrain_friction * p.gear_ratio / p.wheel_radius
                 + p.rolling_resistance * self.mass * G,
-                p.motors * p.viscous_friction * (p.gear_ratio / p.wheel_radius) ** 2)
+                p.motors * p.viscous_friction * (p.gear_ratio / p.wheel_radius) ** 2,
+                p.battery_voltage, p.wheel_radius, p.gear_ratio, p.k_phi,
+                p.armature_resistance, p.current_limit, p.wheelbase, p.motors * p.k_phi)
         return self._step_constants
 
     def step(self, dt: float, n: int = 1) -> None:
         """Advance by `n` steps of dt seconds (the world's substeps of a sample in one call)."""
         p, s = self.p, self.state
-        field_gain, decay, m_eff, coulomb, viscous_per_speed = self._constants(dt)
+        (field_gain, decay, m_eff, coulomb, viscous_per_speed, battery_voltage, radius, gear,
+         k_phi, resistance, limit, wheelbase, motors_k_phi) = self._constants(dt)
         # The inputs hold over the n steps: what depends only on them is worked out once, and
         # the state is carried in locals (the arithmetic and its order are those of one step).
         powered = self.contactor and self.relay_closed and not self.radio_stop
@@ -130,10 +133,7 @@ class Electruk:
         target = (self.field_duty * (1 if self.field_forward else -1)
                   if powered and self.field_enable else 0.0)
         driven = powered and self.armature_enable
-        v_arm = self.armature_duty * p.battery_voltage
-        radius, gear, k_phi = p.wheel_radius, p.gear_ratio, p.k_phi
-        resistance, limit, wheelbase = p.armature_resistance, p.current_limit, p.wheelbase
-        motors_k_phi = p.motors * k_phi
+        v_arm = self.armature_duty * battery_voltage
         steering = self.steer_enable
         if steering:
             demand, most = self.steer_demand, p.max_steer
