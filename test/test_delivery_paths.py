@@ -14,6 +14,7 @@ from __future__ import annotations
 import random
 
 import pytest
+from record_values import field_value
 
 from agv_nodes.harness import Harness, truck
 from agv_nodes.records import RecordError, RecordReader, RecordWriter, codec
@@ -27,26 +28,9 @@ INTEGRITY = ('e2e', 'none')
 PATHS = {'c': compiled_port_paths, 'python': compile_port_paths}
 
 
-def _value(f, rng: random.Random, valid: bool):
-    """Draw a value for field `f`: valid, or sometimes a bool, a special's name, out of range."""
-    roll = 0.0 if valid else rng.random()
-    if f.encoding == 'enum':
-        if roll < 0.7:
-            return rng.choice(list(f.values))
-        return rng.choice([rng.choice(list(f.names)), 'no such name', 3.5, None])
-    if roll < 0.6:
-        return rng.randint(f.lo, f.hi)
-    if roll < 0.7:
-        return rng.choice([True, False])
-    if roll < 0.8 and f.special:
-        k = rng.choice(list(f.special))
-        return rng.choice([k, f.special[k]])
-    return rng.choice([f.lo - 1, f.hi + 1, -40000, 70000, 1.0, '7'])
-
-
 def _values(schema, rng: random.Random, i: int) -> dict:
     valid = i % 3 == 0
-    values = {f.name: _value(f, rng, valid) for f in schema.fields
+    values = {f.name: field_value(f, rng, valid) for f in schema.fields
               if i % 5 or rng.random() < 0.9}  # every fifth may leave fields to defaults
     if i % 7 == 0:
         values['no_such_field'] = 1
@@ -86,7 +70,7 @@ def test_check_gives_what_decode_gives(schema, integrity, paths):
     rng = random.Random(schema.data_id + 1)
     taken = 0
     for i in range(1500):
-        good = schema.encode({f.name: _value(f, rng, True) for f in schema.fields},
+        good = schema.encode({f.name: field_value(f, rng, True) for f in schema.fields},
                              integrity=integrity, counter=rng.randrange(256))
         kind = i % 5
         if kind == 0:
@@ -119,7 +103,7 @@ def _stream(schema, integrity, rng: random.Random) -> list[bytes | bytearray]:
     writer = RecordWriter(schema, integrity)
     out: list[bytes | bytearray] = []
     for _ in range(1200):
-        raw = writer.pack({f.name: _value(f, rng, True) for f in schema.fields})
+        raw = writer.pack({f.name: field_value(f, rng, True) for f in schema.fields})
         roll = rng.random()
         if roll < 0.05:
             continue  # lost

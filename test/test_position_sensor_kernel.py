@@ -319,27 +319,22 @@ BAD_LEVELS = [
 ]
 
 
-@pytest.mark.parametrize('at, value, error', BAD_THRESH)
-def test_thresh_refuses_bad_input_and_changes_nothing(at, value, error):
-    args = _thresh_args()
-    assert kernels.compiled.thresh(*args) == (0, True, True)  # the good call works
-    args = _thresh_args()
+# (function, good arguments, what it returns for them)
+CALLS = {'thresh': (_thresh_args, (0, True, True)), 'levels': (_levels_args, [1.0] * 8)}
+
+
+@pytest.mark.parametrize('function, at, value, error',
+                         [('thresh', *bad) for bad in BAD_THRESH]
+                         + [('levels', *bad) for bad in BAD_LEVELS])
+def test_the_functions_refuse_bad_input_and_change_nothing(function, at, value, error):
+    make_args, good = CALLS[function]
+    call = getattr(kernels.compiled, function)
+    assert call(*make_args()) == good  # the good call works
+    args = make_args()
     args[at] = value
     before = [list(a) if isinstance(a, list) else a for a in args]
     with pytest.raises(error):
-        kernels.compiled.thresh(*args)
-    assert args == before
-
-
-@pytest.mark.parametrize('at, value, error', BAD_LEVELS)
-def test_levels_refuses_bad_input_and_changes_nothing(at, value, error):
-    args = _levels_args()
-    assert kernels.compiled.levels(*args) == [1.0] * 8  # the good call works
-    args = _levels_args()
-    args[at] = value
-    before = [list(a) if isinstance(a, list) else a for a in args]
-    with pytest.raises(error):
-        kernels.compiled.levels(*args)
+        call(*args)
     assert args == before
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+from record_values import field_value
 
 from agv_nodes.records import RecordError, Reject, codec
 from agv_nodes.records.e2e import crc8_sae_j1850, record_crc
@@ -368,28 +369,6 @@ def test_a_record_in_any_layout_is_read_from_its_cdr():
         assert record_bytes(raw) == data
 
 
-def _random_value(f, rng, valid: bool = False):
-    """Draw a value for field `f` (`valid`: always one it can encode).
-
-    Mostly valid, sometimes a bool, a special's name, an enum code, out of range or of the
-    wrong type.
-    """
-    roll = 0.0 if valid else rng.random()
-    if f.encoding == 'enum':
-        names = list(f.values)
-        if roll < 0.7:
-            return rng.choice(names)
-        return rng.choice([rng.choice(list(f.names)), 'no such name', 3.5, None])
-    if roll < 0.6:
-        return rng.randint(f.lo, f.hi)
-    if roll < 0.7:
-        return rng.choice([True, False])
-    if roll < 0.8 and f.special:
-        k = rng.choice(list(f.special))
-        return rng.choice([k, f.special[k]])
-    return rng.choice([f.lo - 1, f.hi + 1, -40000, 70000, 1.0, '7'])
-
-
 def test_compiled_fast_paths_agree_with_the_field_by_field_codec():
     """The generated fast paths agree with the general loop and take the common cases.
 
@@ -405,7 +384,7 @@ def test_compiled_fast_paths_agree_with_the_field_by_field_codec():
         taken = {'pack': 0, 'unpack': 0}
         for i in range(400):
             # every fourth all valid: with twenty fields a mostly-valid draw is rarely valid
-            values = {f.name: _random_value(f, rng, valid=i % 4 == 0) for f in s.fields
+            values = {f.name: field_value(f, rng, valid=i % 4 == 0) for f in s.fields
                       if rng.random() < 0.9}
             fast = pack(values)
             try:

@@ -18,20 +18,29 @@
 #define DETECTORS 8
 #define INT_LIMIT 9007199254740992LL /* 2**53 */
 
-/* Read the 8 ints of a list or tuple (`none_ok`: None reads as -1, for a held decision). */
-static int read_ints(PyObject *seq, const char *name, long long out[DETECTORS], int none_ok)
+/* The 8 items of a list or tuple of `what` (ints or floats); NULL with an error set if it is
+ * not one or does not hold 8. */
+static PyObject **eight_items(PyObject *seq, const char *name, const char *what)
 {
     if (!PyList_Check(seq) && !PyTuple_Check(seq)) {
-        PyErr_Format(PyExc_TypeError, "%s must be a list or tuple of %d ints, not %.100s", name,
-                     DETECTORS, Py_TYPE(seq)->tp_name);
-        return -1;
+        PyErr_Format(PyExc_TypeError, "%s must be a list or tuple of %d %s, not %.100s", name,
+                     DETECTORS, what, Py_TYPE(seq)->tp_name);
+        return NULL;
     }
     if (PySequence_Fast_GET_SIZE(seq) != DETECTORS) {
         PyErr_Format(PyExc_ValueError, "%s must hold %d values (%zd given)", name, DETECTORS,
                      PySequence_Fast_GET_SIZE(seq));
-        return -1;
+        return NULL;
     }
-    PyObject **items = PySequence_Fast_ITEMS(seq);
+    return PySequence_Fast_ITEMS(seq);
+}
+
+/* Read the 8 ints of a list or tuple (`none_ok`: None reads as -1, for a held decision). */
+static int read_ints(PyObject *seq, const char *name, long long out[DETECTORS], int none_ok)
+{
+    PyObject **items = eight_items(seq, name, "ints");
+    if (items == NULL)
+        return -1;
     for (int d = 0; d < DETECTORS; d++) {
         PyObject *v = items[d];
         if (none_ok && v == Py_None) {
@@ -64,17 +73,9 @@ static int read_ints(PyObject *seq, const char *name, long long out[DETECTORS], 
 /* Read the 8 floats of a list or tuple. */
 static int read_doubles(PyObject *seq, const char *name, double out[DETECTORS])
 {
-    if (!PyList_Check(seq) && !PyTuple_Check(seq)) {
-        PyErr_Format(PyExc_TypeError, "%s must be a list or tuple of %d floats, not %.100s",
-                     name, DETECTORS, Py_TYPE(seq)->tp_name);
+    PyObject **items = eight_items(seq, name, "floats");
+    if (items == NULL)
         return -1;
-    }
-    if (PySequence_Fast_GET_SIZE(seq) != DETECTORS) {
-        PyErr_Format(PyExc_ValueError, "%s must hold %d values (%zd given)", name, DETECTORS,
-                     PySequence_Fast_GET_SIZE(seq));
-        return -1;
-    }
-    PyObject **items = PySequence_Fast_ITEMS(seq);
     for (int d = 0; d < DETECTORS; d++) {
         if (!PyFloat_Check(items[d])) {
             PyErr_Format(PyExc_TypeError, "%s[%d] must be a float, not %.100s", name, d,

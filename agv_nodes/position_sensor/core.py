@@ -52,6 +52,9 @@ class PositionSensorCore(SubsystemCore):
         # its functions, not the module, which would not deep-copy (tests fork a truck)
         self._c_thresh = None if kernel is None else kernel.thresh
         self._c_levels = None if kernel is None else kernel.levels
+        # THRESH's variants, fixed with the settings (asked 340 times a second)
+        self._as_listed = self.p.variant == 'as_listed'
+        self._hold = self.p.invalid_band == 'hold'
         self.white, self.black = self.p.thresholds()  # THRON, THROFF (x4 units)
         n = self.p.run_length
         self._white = [w * n // 4 for w in self.white]  # THRON in run_length units
@@ -133,7 +136,7 @@ class PositionSensorCore(SubsystemCore):
         else:
             code, valid, decisive = self._c_thresh(
                 lit, dark, row, self._total, self._white, self._black, self._held,
-                p.variant == 'as_listed', p.invalid_band == 'hold')
+                self._as_listed, self._hold)
         self._row = (self._row + 1) % p.run_length
         self.invalid = not valid
         # TARGET: most snapshots match nothing, which ends any streak (_snapshot_rule)
@@ -160,10 +163,8 @@ class PositionSensorCore(SubsystemCore):
     def _thresh(self, lit: Sequence[int], dark: Sequence[int],
                 row: list[int]) -> tuple[int, bool, bool]:
         """SUBT, TOTAL and THRESH of one snapshot: (CODE, valid, decisive); `row` := its x."""
-        p = self.p
         code, valid, decisive = 0, True, True
-        as_listed = p.variant == 'as_listed'
-        hold, held = p.invalid_band == 'hold', self._held
+        as_listed, hold, held = self._as_listed, self._hold, self._held
         totals, white, black = self._total, self._white, self._black
         for d in range(8):
             x = lit[d] - dark[d]

@@ -16,6 +16,7 @@ from collections.abc import Callable
 from typing import Any
 
 from agv_nodes.records.e2e import CRC_TABLE, INIT, XOROUT
+from agv_nodes.records.fast_paths import unpacked
 
 try:
     from agv_nodes.records import _codec as compiled
@@ -23,23 +24,17 @@ except ImportError:  # not built (no C compiler at install): the generated Pytho
     compiled = None
 
 RECORD_LENGTH = 16
-KINDS = {'flag': 1, 'enum': 2}  # any other encoding: an integer (0)
+FIELD_KINDS = {'flag': 1, 'enum': 2}  # any other encoding: an integer (0)
 
 
 def port_spec(schema: Any, integrity: str) -> tuple:
     """Return the arguments of `_codec.Port` for `schema` in `integrity` ('e2e' or 'none')."""
     fields = []
     for f in schema.fields:
-        two = f.n_bytes == 2
-        width = f.width
-        sign = f.encoding == ('s16le' if two else 'twos_complement')
-        if sign:
-            possible = (-(1 << (width - 1)), (1 << (width - 1)) - 1)
-        else:
-            possible = (0, (1 << width) - 1)
+        signed, possible = unpacked(f)
         enum = f.encoding == 'enum'
-        fields.append((f.name, f.byte - 1, int(two), f.lo_bit, (1 << width) - 1,
-                       width, KINDS.get(f.encoding, 0), int(sign), f.lo, f.hi,
+        fields.append((f.name, f.byte - 1, int(f.n_bytes == 2), f.lo_bit, (1 << f.width) - 1,
+                       f.width, FIELD_KINDS.get(f.encoding, 0), int(signed), f.lo, f.hi,
                        frozenset(f.special) if f.special else None,
                        dict(f.values) if enum else None, dict(f.names) if enum else None,
                        int(not (f.lo <= possible[0] and possible[1] <= f.hi))))

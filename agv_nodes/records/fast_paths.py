@@ -19,6 +19,19 @@ from agv_nodes.records.e2e import CRC_TABLE, INIT, XOROUT
 RECORD_LENGTH = 16
 
 
+def unpacked(f: Any) -> tuple[bool, tuple[int, int]]:
+    """Return whether field `f` unpacks signed, and the range of raw values its bits can hold.
+
+    Two bytes are signed as s16le, one byte's bits as twos_complement; a field whose whole
+    range is valid needs no range check when unpacked.
+    """
+    width = f.width
+    signed = f.encoding == ('s16le' if f.n_bytes == 2 else 'twos_complement')
+    if signed:
+        return True, (-(1 << (width - 1)), (1 << (width - 1)) - 1)
+    return False, (0, (1 << width) - 1)
+
+
 def _field_code(schema: Any, env: dict[str, Any],
                 read: Callable[[int], str]) -> tuple[list[str], list[str], list[list[str]]]:
     """Return per field the lines that check `v<k>` for packing, and that unpack it.
@@ -43,11 +56,11 @@ def _field_code(schema: Any, env: dict[str, Any],
             pack.append(f'    if type({v}) is not int or not {f.lo} <= {v} <= {f.hi}{special}: '
                         'return None')
         # -- unpack
+        signed, possible = unpacked(f)
         if f.n_bytes == 2:
             unpack.append(f'    {v} = {read(index)} | {read(index + 1)} << 8')
-            if f.encoding == 's16le':
+            if signed:
                 unpack.append(f'    if {v} & 0x8000: {v} -= 0x10000')
-            possible = (-0x8000, 0x7FFF) if f.encoding == 's16le' else (0, 0xFFFF)
             byte_parts[index].append(f'({v} & 0xFF)')
             byte_parts[index + 1].append(f'(({v} & 0xFFFF) >> 8)')
         else:
@@ -55,11 +68,8 @@ def _field_code(schema: Any, env: dict[str, Any],
             read_byte = read(index) if f.lo_bit == 0 else f'({read(index)} >> {f.lo_bit})'
             unpack.append(f'    {v} = {read_byte}' if mask == 0xFF and not f.lo_bit else
                           f'    {v} = {read_byte} & {mask}')
-            if f.encoding == 'twos_complement':
+            if signed:
                 unpack.append(f'    if {v} >> {width - 1}: {v} -= {1 << width}')
-                possible = (-(1 << (width - 1)), (1 << (width - 1)) - 1)
-            else:
-                possible = (0, mask)
             shift = f' << {f.lo_bit}' if f.lo_bit else ''
             byte_parts[index].append(f'(({v} & {mask}){shift})')
         if f.encoding == 'enum':

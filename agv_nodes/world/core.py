@@ -262,13 +262,9 @@ class WorldCore(GroundTruth):
         h = self.vehicle.state.heading
         return lens_position(self.vehicle.sensor_point, h, self.layout.sensor_lateral), h
 
-    def _ride_height(self) -> float:
-        payload = self.p.electruk.payload if self._electruk else 0.0
-        return payload / 1000.0 * self.p.ride_height_per_tonne
-
     def _adc(self) -> dict[str, int]:
-        # lens_pose() and _ride_height() of the Electruk, the one truck with a marker sensor,
-        # inline: the same arithmetic, 340 times a simulated second
+        # lens_pose() of the Electruk, the one truck with a marker sensor, inline (the same
+        # arithmetic, 340 times a simulated second), and its ride height under the payload
         s, p = self.vehicle.state, self.p
         h = s.heading
         cos_h, sin_h, lateral = math.cos(h), math.sin(h), self.layout.sensor_lateral
