@@ -29,7 +29,10 @@ junction SRM is a `srm at N` task it sends where the way takes a junction (loops
 re-routing is the watchdog's (agv_nodes.fleet.reroute).
 
 Run: .venv/bin/python bench/fleet_bench.py [--seconds 900] [--big-seconds 600]
-     [--rows demo_1983:1 fleet_1983:8 fleet_1983_n16:16 ...]
+     [--rows demo_1983:1 fleet_1983:8 fleet_1983_n16:16 ...] [--processes 1 2]
+`--processes P`: the trucks stepped in P processes (agv_nodes.fleet.truck_processes), the
+same samples; then `trucks ms/s` is the first process's wall time stepping its own trucks and
+waiting for the others'.
 Prints a Markdown table (bench/results/fleet_bench.md). Fails (SystemExit) on a failed transfer
 or a collision.
 """
@@ -38,6 +41,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
+import itertools
 from pathlib import Path
 import statistics
 import tempfile
@@ -104,7 +108,8 @@ def floor(name: str, trucks: int, tmp: Path) -> str:
     return str(path)
 
 
-def run(name: str, trucks: int, seconds: float, tmp: Path) -> dict[str, Any]:
+def run(name: str, trucks: int, seconds: float, tmp: Path, processes: int = 1
+        ) -> dict[str, Any]:
     """Run `trucks` trucks on layout `name` for `seconds` of simulated time; return the figures."""
     layout = floor(name, trucks, tmp)
     lay = load_layout(layout_path(layout))
@@ -116,7 +121,7 @@ def run(name: str, trucks: int, seconds: float, tmp: Path) -> dict[str, Any]:
     loads = programme_loads(lay.stations, trucks)
     if name == 'demo_1983' and (lay.parking[:3] != DEMO_POSITIONS or loads != DEMO_LOADS):
         raise SystemExit(f'demo_1983 changed: parking {lay.parking}, loads {loads}')
-    fleet = Fleet(layout, [at[places[n]] for n in names])
+    fleet = Fleet(layout, [at[places[n]] for n in names], processes=processes)
     d = TimedDispatcher(track_graph(lay), names, positions=places, parking=places)
     where = {load: 0 for load in loads}  # index of the station the load is at
     pending: dict[str, str] = {}  # transfer id -> load
@@ -135,10 +140,9 @@ def run(name: str, trucks: int, seconds: float, tmp: Path) -> dict[str, Any]:
     passes = [0, 0]
     for bridge in bridged.bridges.values():
         count_passes(bridge.flow, passes)
-    spent = dict.fromkeys(('trucks', 'fleet', 'all'), 0.0)
-    for h in fleet.trucks.values():
-        h.step = timed(h.step, spent, 'trucks')
-    fleet.step = timed(fleet.step, spent, 'fleet')
+    spent = dict.fromkeys(('trucks', 'contact', 'all'), 0.0)
+    fleet.step_trucks = timed(fleet.step_trucks, spent, 'trucks')
+    fleet.check_contacts = timed(fleet.check_contacts, spent, 'contact')
     bridged.step = timed(bridged.step, spent, 'all')
     done = 0
 
@@ -152,7 +156,8 @@ def run(name: str, trucks: int, seconds: float, tmp: Path) -> dict[str, Any]:
         return bool(d.failed or fleet.collisions)
 
     wall = time.perf_counter()
-    stopped = bridged.run(seconds, until=follow)
+    with fleet:
+        stopped = bridged.run(seconds, until=follow)
     wall = time.perf_counter() - wall
     if stopped:
         raise SystemExit(f'{name}, {trucks} trucks at {fleet.now:.1f} s: failed {d.failed}, '
@@ -165,8 +170,8 @@ def run(name: str, trucks: int, seconds: float, tmp: Path) -> dict[str, Any]:
             'median_ms': statistics.median(ms), 'p99_ms': ms[int(0.99 * (len(ms) - 1))],
             'max_ms': ms[-1], 'factor': seconds / wall,
             'trucks_ms': spent['trucks'] * per_s,
-            'contact_ms': (spent['fleet'] - spent['trucks']) * per_s,
-            'master_ms': (spent['all'] - spent['fleet']) * per_s,
+            'contact_ms': spent['contact'] * per_s,
+            'master_ms': (spent['all'] - spent['trucks'] - spent['contact']) * per_s,
             'collisions': len(fleet.collisions), 'deadlocks': len(d.cycles),
             'srms': f'{passes[1] / done:.2f}' if done else '-', 'reroutes': len(d.reroutes)}
 
@@ -189,24 +194,28 @@ def main() -> None:
                     metavar='LAYOUT:N', help='layout (config/layouts, or a fleet floor '
                     'written for N, e.g. fleet_1983_n16) and trucks; default: '
                     + ' '.join(ROWS))
+    ap.add_argument('--processes', type=int, nargs='+', default=[1], metavar='P',
+                    help='run each row with the trucks stepped in P processes '
+                    '(agv_nodes.fleet.truck_processes), once per value; default 1')
     args = ap.parse_args()
     print(f'Fleet in lock step, {args.seconds:g} s simulated per row ({args.big_seconds:g} s '
           f'from {BIG} trucks); `bench/fleet_bench.py`. Time split: wall ms per simulated s.\n')
-    print('| layout | trucks | blocks | sim s | transfers | per hour | per truck-hour | '
-          'passes / transfer | decision median ms | p99 ms | max ms | real-time factor | '
-          'trucks ms/s | contact ms/s | bridges+dispatcher ms/s | collisions | deadlocks | '
-          'junction SRMs / transfer | re-routings |')
-    print('|' + '---|' * 19)
+    columns = ('layout', 'trucks', 'processes', 'blocks', 'sim s', 'transfers', 'per hour',
+               'per truck-hour', 'passes / transfer', 'decision median ms', 'p99 ms', 'max ms',
+               'real-time factor', 'trucks ms/s', 'contact ms/s', 'bridges+dispatcher ms/s',
+               'collisions', 'deadlocks', 'junction SRMs / transfer', 're-routings')
+    print('| ' + ' | '.join(columns) + ' |')
+    print('|' + '---|' * len(columns))
     with tempfile.TemporaryDirectory() as tmp:
-        for name, n in args.rows:
-            r = run(name, n, args.big_seconds if n >= BIG else args.seconds, Path(tmp))
-            print(f'| {name} | {n} | {r["blocks"]} | {r["seconds"]:g} | {r["transfers"]} | '
-                  f'{r["per_hour"]:.0f} | {r["per_hour"] / n:.1f} | {r["passes"]} | '
-                  f'{r["median_ms"]:.2f} | {r["p99_ms"]:.2f} | {r["max_ms"]:.2f} | '
-                  f'{r["factor"]:.2f} | {r["trucks_ms"]:.1f} | {r["contact_ms"]:.1f} | '
-                  f'{r["master_ms"]:.1f} | {r["collisions"]} | {r["deadlocks"]} | '
-                  f'{r["srms"]} | {r["reroutes"]} |', flush=True)
-
+        for (name, n), p in itertools.product(args.rows, args.processes):
+            r = run(name, n, args.big_seconds if n >= BIG else args.seconds, Path(tmp), p)
+            cells = (name, n, p, r['blocks'], f'{r["seconds"]:g}', r['transfers'],
+                     f'{r["per_hour"]:.0f}', f'{r["per_hour"] / n:.1f}', r['passes'],
+                     f'{r["median_ms"]:.2f}', f'{r["p99_ms"]:.2f}', f'{r["max_ms"]:.2f}',
+                     f'{r["factor"]:.2f}', f'{r["trucks_ms"]:.1f}', f'{r["contact_ms"]:.1f}',
+                     f'{r["master_ms"]:.1f}', r['collisions'], r['deadlocks'], r['srms'],
+                     r['reroutes'])
+            print('| ' + ' | '.join(map(str, cells)) + ' |', flush=True)
 
 if __name__ == '__main__':
     main()

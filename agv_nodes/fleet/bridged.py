@@ -82,10 +82,9 @@ class BridgedFleet:
                 self._apply(name, bridge.reconnected(None, self.now))
         self.fleet.step()
         now = self.now
-        for name, h in self.fleet.trucks.items():
-            bridge = self.bridges[name]
-            for note in h.cores['communications'].notes.take():
-                self._apply(name, bridge.on_report(note.text, now))
+        for name, bridge in self.bridges.items():
+            for text in self.fleet.take_notes(name):
+                self._apply(name, bridge.on_report(text, now))
             self._apply(name, bridge.tick(now))
         if now + 1e-12 >= self._next_master:
             self._next_master = now + self.master_period

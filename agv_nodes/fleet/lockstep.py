@@ -10,18 +10,45 @@ is a failure of traffic control and is never silent: `collisions` lists each one
 
 Every truck steps the same sample in turn, so all share one simulated clock; the seeds differ
 per truck (seed + index), so their sensors' noise does too.
+
+`processes` > 1 steps the trucks in that many processes, forked once the trucks are built
+(agv_nodes.fleet.truck_processes): the same samples in the same order, on more cores. Then
+`trucks` holds only the trucks of this process (the first ones); `query` reaches any truck.
+Close such a fleet (`close`, or use it as a context manager) to end its processes.
 """
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from agv_nodes.fleet.truck_processes import (
+    TruckProcess,
+    bump,
+    load_changes,
+    merge_load_changes,
+)
 from agv_nodes.harness import Harness, run_for, submit, truck
 from agv_nodes.world.contact import Collision, ContactWatch
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
 
 __all__ = ['Collision', 'Fleet']
+
+NOTES_KEPT = 500  # a far truck's notes not yet taken, as many as its core keeps (Notes)
+
+
+def _reports(h: Harness) -> list[str]:
+    return h.cores['communications'].notes.texts()
+
+
+def shares(n: int, processes: int) -> list[int]:
+    """Return how many of `n` trucks each process steps, the first process's first.
+
+    The first process also checks the contacts and runs any master: it gets the fewest.
+    """
+    processes = max(1, min(processes, n))
+    return sorted(n // processes + (k < n % processes) for k in range(processes))
 
 
 class Fleet:
@@ -29,13 +56,16 @@ class Fleet:
 
     def __init__(self, layout_name: str, starts: Sequence[tuple[str, float]], *, seed: int = 1,
                  names: Sequence[str] | None = None,
-                 overrides: dict[str, dict[str, Any]] | None = None) -> None:
+                 overrides: dict[str, dict[str, Any]] | None = None,
+                 processes: int = 1) -> None:
         layout = load_layout(layout_path(layout_name))
         if layout.vehicle != 'electruk' or layout.kind != 'wire':
             raise LayoutError(f'{layout.file}: a fleet runs on a wire layout of the Electruk')
         self.names = list(names or (f'agv{k + 1}' for k in range(len(starts))))
         if len(self.names) != len(starts):
             raise ValueError(f'{len(starts)} starts for {len(self.names)} trucks')
+        if processes < 1:
+            raise ValueError(f'processes: {processes!r} must be >= 1')
         loads = {sid: int(st.has_load) for sid, st in layout.stations.items()}
         self.trucks: dict[str, Harness] = {
             name: truck(layout_name, seed=seed + k, start=start, station_loads=loads,
@@ -44,32 +74,117 @@ class Fleet:
         self.station_loads = loads
         self.contacts = ContactWatch(self.names)
         self.collisions: list[Collision] = self.contacts.collisions
+        self._params = {name: h.world.p.electruk for name, h in self.trucks.items()}
+        self._poses = {name: h.world.pose() for name, h in self.trucks.items()}
         if touching := self.contacts.contacts(self._bodies()):
             raise ValueError(f'trucks {sorted(touching)[0]} touch at the start: place them '
                              'further apart')
+        self._workers: list[TruckProcess] = []
+        self._owner: dict[str, TruckProcess] = {}
+        self._notes: dict[str, deque[str]] = {}
+        counts = shares(len(self.names), processes)
+        local, first = self.names[:counts[0]], counts[0]  # the first process's: the first trucks
+        for count in counts[1:]:
+            theirs = self.names[first:first + count]
+            first += count
+            worker = TruckProcess({n: self.trucks[n] for n in theirs}, loads)
+            self._workers.append(worker)
+            for name in theirs:
+                self._owner[name] = worker
+                self._notes[name] = deque(maxlen=NOTES_KEPT)
+                del self.trucks[name]  # stepped there from now on
+        self._local = local
+
+    def __enter__(self) -> Fleet:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """End the fleet's other processes (none with `processes` 1)."""
+        for worker in self._workers:
+            worker.close()
+        self._workers = []
 
     @property
     def now(self) -> float:
         """Simulated seconds (the same for every truck)."""
-        return next(iter(self.trucks.values())).now
+        return self.trucks[self._local[0]].now
 
     def submit(self, name: str, text: str) -> None:
         """Hand a task to truck `name`'s communications (a comms/task message in the graph)."""
-        submit(self.trucks[name], text)
+        if (worker := self._owner.get(name)) is not None:
+            worker.pending.append(('submit', name, text))  # at this time, before its next sample
+        else:
+            submit(self.trucks[name], text)
+
+    def take_notes(self, name: str) -> list[str]:
+        """Return the texts truck `name`'s communications wrote since the last take."""
+        if (kept := self._notes.get(name)) is not None:
+            out = list(kept)
+            kept.clear()
+            return out
+        return [n.text for n in self.trucks[name].cores['communications'].notes.take()]
+
+    def query(self, name: str, fn: Callable[..., Any], *args: Any) -> Any:
+        """Return fn(truck `name`'s harness, *args), in the process that steps it.
+
+        With more than one process `fn` must pickle (a module's function) and so must what it
+        returns; what it changes of a far truck stays in that truck's process.
+        """
+        if (worker := self._owner.get(name)) is not None:
+            return worker.query(name, fn, *args)
+        return fn(self.trucks[name], *args)
 
     def _bodies(self) -> dict[str, tuple[tuple[float, ...], Any]]:
-        return {name: (h.world.pose(), h.world.p.electruk) for name, h in self.trucks.items()}
+        return {name: (self._poses[name], self._params[name]) for name in self.names}
 
     def step(self) -> None:
         """One world sample for every truck, then the contacts between them."""
-        for h in self.trucks.values():
+        self.step_trucks()
+        self.check_contacts()
+
+    def step_trucks(self) -> None:
+        """One world sample for every truck (in its own process)."""
+        workers = self._workers
+        if not workers:
+            for name, h in self.trucks.items():
+                h.step()
+                self._poses[name] = h.world.pose()
+            return
+        for worker in workers:
+            worker.send(('step',))
+        loads = self.station_loads
+        before = dict(loads)
+        for name, h in self.trucks.items():
             h.step()
+            self._poses[name] = h.world.pose()
+        changes = [load_changes(before, loads)]
+        for worker in workers:
+            poses, notes, changed = worker.answer()
+            self._poses.update(zip(worker.names, poses, strict=True))
+            for name, texts in notes.items():
+                self._notes[name].extend(texts)
+            changes.append(changed)
+        if any(changes[1:]):
+            merged = merge_load_changes(changes, self.now)
+            loads.update(merged)
+            for worker, changed in zip(workers, changes[1:], strict=True):
+                if others := {s: n for s, n in merged.items() if s not in changed}:
+                    worker.pending.append(('loads', others))
+        elif changes[0]:
+            for worker in workers:
+                worker.pending.append(('loads', changes[0]))
+
+    def check_contacts(self) -> None:
+        """Find new contacts between the bodies; bump both trucks of each."""
         for collision in self.contacts.check(self._bodies(), self.now):
             for name in collision.trucks:
-                h = self.trucks[name]
-                before = len(h.world.events)
-                h.world.bump()
-                h.events.extend(h.world.events[before:])
+                if (worker := self._owner.get(name)) is not None:
+                    worker.pending.append(('bump', name))  # before its next sample
+                else:
+                    bump(self.trucks[name])
 
     def run(self, seconds: float, until: Callable[[], bool] | None = None) -> bool:
         """Step for `seconds` of simulated time, or until `until()` is true (returns it)."""
@@ -77,4 +192,4 @@ class Fleet:
 
     def reports(self, name: str) -> list[str]:
         """Return truck `name`'s communications reports so far."""
-        return self.trucks[name].cores['communications'].notes.texts()
+        return self.query(name, _reports)
