@@ -10,6 +10,7 @@ leaves by L1's SRM; four fill demo_1983's four blocks, and the watchdog reports 
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from itertools import pairwise
 from typing import Any
 
@@ -17,6 +18,7 @@ import pytest
 
 from agv_nodes.fleet.bridged import BridgedFleet
 from agv_nodes.fleet.lockstep import Fleet
+from agv_nodes.harness import Harness
 from agv_nodes.vda5050 import VERSION
 from agv_nodes.vda5050.common import Action, BlockingType, now
 from agv_nodes.vda5050.order import Edge, Node, Order
@@ -50,6 +52,19 @@ class ScriptedMaster:
     def step(self, now: float) -> list[tuple[str, str, Order]]:
         ready = [t for t in self.orders if t in self.states]
         return [(t, 'order', self.orders.pop(t)) for t in ready]
+
+
+@pytest.fixture
+def closing() -> Iterator[Callable[[Fleet], None]]:
+    """Return a function that has a fleet closed (its processes ended) after the test."""
+    fleets: list[Fleet] = []
+    yield fleets.append
+    for fleet in fleets:
+        fleet.close()
+
+
+def _events(h: Harness) -> list[dict]:
+    return h.events
 
 
 def _finished(state: State | None) -> bool:
@@ -120,15 +135,21 @@ def test_the_dispatcher_runs_two_trucks_through_three_transfers_without_a_collis
     assert moved == 6
 
 
-def _dispatched(positions: dict[str, str]) -> tuple[Fleet, Any, BridgedFleet, list]:
-    """Trucks set down at `positions` (told by initPosition), the dispatcher as their master."""
+def _dispatched(positions: dict[str, str], processes: int = 1
+                ) -> tuple[Fleet, Any, BridgedFleet, list]:
+    """Trucks set down at `positions` (told by initPosition), the dispatcher as their master.
+
+    `processes`: 2 steps the trucks in two processes, which run as one does
+    (test_fleet_processes.py).
+    """
     from agv_nodes.fleet.dispatcher import Dispatcher
     from agv_nodes.fleet.track_graph import track_graph
     from agv_nodes.world.layout import layout_path, load_layout
 
     lay = load_layout(layout_path('demo_1983'))
     at = {m.name: (m.path, m.at) for m in lay.markers}
-    fleet = Fleet('demo_1983', [at[node] for node in positions.values()], names=list(positions))
+    fleet = Fleet('demo_1983', [at[node] for node in positions.values()], names=list(positions),
+                  processes=processes)
     graph = track_graph(lay)
     dispatcher = Dispatcher(graph, fleet.names, positions=positions)
     seen: list[tuple[str, State]] = []
@@ -143,7 +164,7 @@ def _dispatched(positions: dict[str, str]) -> tuple[Fleet, Any, BridgedFleet, li
 
 
 @pytest.mark.timeout(900)
-def test_the_dispatcher_runs_three_trucks_one_set_down_at_w1_1_through_four_transfers():
+def test_the_dispatcher_runs_three_trucks_one_set_down_at_w1_1_through_four_transfers(closing):
     """Three trucks, one at W1.1: told by initPosition (the `at` task), it leaves by L1's SRM.
 
     Loads A (W0 -> W2 -> W0) and B (W1 -> W3 -> W1): a load's way back is submitted once its
@@ -152,7 +173,8 @@ def test_the_dispatcher_runs_three_trucks_one_set_down_at_w1_1_through_four_tran
     from agv_nodes.fleet.dispatcher import TransportOrder
 
     positions = {'agv1': 'W2.2', 'agv2': 'W0.1', 'agv3': 'W1.1'}
-    fleet, dispatcher, run, seen = _dispatched(positions)
+    fleet, dispatcher, run, seen = _dispatched(positions, processes=2)
+    closing(fleet)
     back = {'t1': ('t3', 'W2', 'W0'), 't2': ('t4', 'W3', 'W1')}
     dispatcher.submit(TransportOrder('t1', 'W0', 'W2'))
     dispatcher.submit(TransportOrder('t2', 'W1', 'W3'))
@@ -173,7 +195,8 @@ def test_the_dispatcher_runs_three_trucks_one_set_down_at_w1_1_through_four_tran
         assert told and told[-1].endswith(f'completed [last marker L{n}]'), told
     # both loads went there and back
     assert fleet.station_loads == {'W0': 1, 'W1': 1, 'W2': 0, 'W3': 0}
-    moved = sum(e['event'] == 'load_moved' for h in fleet.trucks.values() for e in h.events)
+    moved = sum(e['event'] == 'load_moved' for name in fleet.names
+                for e in fleet.query(name, _events))
     assert moved == 8
 
 
@@ -201,7 +224,7 @@ def test_a_fourth_truck_at_w3_1_fills_every_block_and_the_watchdog_reports_the_d
         assert any(r.startswith("task 1 'at ") and 'completed' in r for r in fleet.reports(name))
 
 
-def test_the_dispatcher_runs_four_trucks_on_the_house_numbered_floor():
+def test_the_dispatcher_runs_four_trucks_on_the_house_numbered_floor(closing):
     """fleet_1983 repeats identities 0 and 2 along its streets (Baker 1983, 8.5).
 
     Four trucks parked a block apart each carry a load from Ak to Bk, half way round the loop:
@@ -215,7 +238,9 @@ def test_the_dispatcher_runs_four_trucks_on_the_house_numbered_floor():
     lay = load_layout(layout_path('fleet_1983'))
     at = {m.name: (m.path, m.at) for m in lay.markers}
     positions = {f'agv{k + 1}': place for k, place in enumerate(lay.parking[:4])}
-    fleet = Fleet('fleet_1983', [at[p] for p in positions.values()], names=list(positions))
+    fleet = Fleet('fleet_1983', [at[p] for p in positions.values()], names=list(positions),
+                  processes=2)
+    closing(fleet)
     graph = track_graph(lay)
     dispatcher = Dispatcher(graph, fleet.names, positions=positions, parking=positions)
     for load, (source, destination) in programme_loads(lay.stations, 4).items():

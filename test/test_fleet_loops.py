@@ -8,6 +8,8 @@ other loop (agv_nodes.fleet.reroute).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
+
 import pytest
 
 from agv_nodes.fleet.bridged import BridgedFleet
@@ -23,14 +25,28 @@ pytestmark = pytest.mark.timeout(600)
 LAYOUT = 'loops_1983'
 
 
-def dispatched(positions: dict[str, str]) -> tuple[Fleet, Dispatcher, BridgedFleet]:
-    """Return trucks set down at `positions`, their dispatcher (parking them there), the run."""
-    lay = load_layout(layout_path(LAYOUT))
-    at = {m.name: (m.path, m.at) for m in lay.markers}
-    fleet = Fleet(LAYOUT, [at[p] for p in positions.values()], names=list(positions))
-    graph = track_graph(lay)
-    dispatcher = Dispatcher(graph, fleet.names, positions=positions, parking=positions)
-    return fleet, dispatcher, BridgedFleet(fleet, dispatcher, graph=graph)
+@pytest.fixture
+def dispatched() -> Iterator[Callable[[dict[str, str]], tuple[Fleet, Dispatcher, BridgedFleet]]]:
+    """Return a maker of trucks set down at `positions`, their dispatcher and the run.
+
+    The dispatcher parks them where they were set down. The trucks are stepped in two
+    processes, which run as one does (test_fleet_processes.py).
+    """
+    fleets: list[Fleet] = []
+
+    def make(positions: dict[str, str]) -> tuple[Fleet, Dispatcher, BridgedFleet]:
+        lay = load_layout(layout_path(LAYOUT))
+        at = {m.name: (m.path, m.at) for m in lay.markers}
+        fleet = Fleet(LAYOUT, [at[p] for p in positions.values()], names=list(positions),
+                      processes=2)
+        fleets.append(fleet)
+        graph = track_graph(lay)
+        dispatcher = Dispatcher(graph, fleet.names, positions=positions, parking=positions)
+        return fleet, dispatcher, BridgedFleet(fleet, dispatcher, graph=graph)
+
+    yield make
+    for fleet in fleets:
+        fleet.close()
 
 
 def released_edges(run: BridgedFleet) -> list[tuple[str, str | None]]:
@@ -39,7 +55,7 @@ def released_edges(run: BridgedFleet) -> list[tuple[str, str | None]]:
             for e in message.edges if e.released]
 
 
-def test_four_trucks_carry_their_loads_on_both_loops_without_a_collision():
+def test_four_trucks_carry_their_loads_on_both_loops_without_a_collision(dispatched):
     lay = load_layout(layout_path(LAYOUT))
     positions = {f'agv{k + 1}': place for k, place in enumerate(lay.parking[:4])}
     fleet, dispatcher, run = dispatched(positions)
@@ -58,7 +74,7 @@ def test_four_trucks_carry_their_loads_on_both_loops_without_a_collision():
     assert ('JA-A4', 'straight') in edges or ('L1-B1', None) in edges
 
 
-def test_a_truck_behind_one_off_the_broker_is_re_routed_round_the_other_loop():
+def test_a_truck_behind_one_off_the_broker_is_re_routed_round_the_other_loop(dispatched):
     """agv2 stands at C1.1, off the broker: the crossover is closed, and nobody can open it.
 
     agv1 carries a load from A2 to B2. The shorter way crosses at JA; agv1 waits at A3.1, its
@@ -84,7 +100,7 @@ def test_a_truck_behind_one_off_the_broker_is_re_routed_round_the_other_loop():
     assert not any('queued' in r for r in fleet.reports('agv2'))  # sent nothing while away
 
 
-def test_ten_trucks_deadlocked_on_the_small_loop_are_freed_by_re_routing_one():
+def test_ten_trucks_deadlocked_on_the_small_loop_are_freed_by_re_routing_one(dispatched):
     """Ten trucks stand at the ten stop markers round the small loop; one gets a load to move.
 
     agv1 at A3.1 is to fetch a load from A1 (the shorter way across, through C1). Each truck

@@ -82,17 +82,24 @@ class ContactWatch:
         """Return the pairs (in `names` order) whose footprints touch or overlap.
 
         A pair whose circles about the bodies (`bounding_circle`) are apart cannot touch; only
-        the others are tested edge by edge, which a floor's trucks mostly are not.
+        the others are tested edge by edge, which a floor's trucks mostly are not. Only the
+        circles whose spans along x overlap are compared (sweep and prune).
         """
-        circles = {name: bounding_circle(*pose[:3], p) for name, (pose, p) in bodies.items()}
+        names = self.names
+        # the circles in order of their left ends: a pair is near only while the later
+        # circle's left end is within the earlier one's right end (sweep and prune)
+        circles = sorted((cx - r, cx, cy, r, k) for k, (cx, cy, r) in enumerate(
+            bounding_circle(*bodies[name][0][:3], bodies[name][1]) for name in names))
         shapes: dict[str, list[Point]] = {}
         out = set()
-        for i, a in enumerate(self.names):
-            ax, ay, ar = circles[a]
-            for b in self.names[i + 1:]:
-                bx, by, br = circles[b]
+        for i, (_left, ax, ay, ar, ka) in enumerate(circles):
+            right = ax + ar
+            for left, bx, by, br, kb in circles[i + 1:]:
+                if left > right:
+                    break
                 if (ax - bx) ** 2 + (ay - by) ** 2 > (ar + br) ** 2:
                     continue
+                a, b = (names[ka], names[kb]) if ka < kb else (names[kb], names[ka])
                 for name in (a, b):
                     if name not in shapes:
                         pose, p = bodies[name]
