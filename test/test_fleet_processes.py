@@ -29,7 +29,7 @@ pytestmark = pytest.mark.timeout(300)
 def _trace(h: Harness) -> tuple:
     """Return what a truck did (run in the process that steps it: picklable)."""
     return (h.now, h.world.pose(), h.events, h.world.events,
-            [(n.now, n.text) for n in h.cores['communications'].notes.recent])
+            [(n.time, n.text) for n in h.cores['communications'].notes.recent])
 
 
 def _fail(h: Harness) -> None:
