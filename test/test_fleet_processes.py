@@ -137,3 +137,5 @@ def test_a_failure_in_the_other_process_is_raised_named_and_its_process_ends():
     assert not worker._process.is_alive()
     with pytest.raises(RuntimeError, match='fleet process of agv2 ended'):
         worker.answer()
+    with pytest.raises(RuntimeError, match='fleet: closed'):  # never half a fleet stepped
+        fleet.step()

@@ -74,8 +74,8 @@ class Fleet:
         self.station_loads = loads
         self.contacts = ContactWatch(self.names)
         self.collisions: list[Collision] = self.contacts.collisions
-        self._params = {name: h.world.p.electruk for name, h in self.trucks.items()}
-        self._poses = {name: h.world.pose() for name, h in self.trucks.items()}
+        # a far truck's body: its outline, and its pose as its process last answered
+        self._far: dict[str, tuple[tuple[float, ...], Any]] = {}
         if touching := self.contacts.contacts(self._bodies()):
             raise ValueError(f'trucks {sorted(touching)[0]} touch at the start: place them '
                              'further apart')
@@ -92,8 +92,10 @@ class Fleet:
             for name in theirs:
                 self._owner[name] = worker
                 self._notes[name] = deque(maxlen=NOTES_KEPT)
-                del self.trucks[name]  # stepped there from now on
+                h = self.trucks.pop(name)  # stepped there from now on
+                self._far[name] = (h.world.pose(), h.world.p.electruk)
         self._local = local
+        self._closed = False
 
     def __enter__(self) -> Fleet:
         return self
@@ -102,10 +104,11 @@ class Fleet:
         self.close()
 
     def close(self) -> None:
-        """End the fleet's other processes (none with `processes` 1)."""
+        """End the fleet's other processes (none with `processes` 1); it steps no more."""
         for worker in self._workers:
             worker.close()
         self._workers = []
+        self._closed = bool(self._owner)
 
     @property
     def now(self) -> float:
@@ -138,7 +141,10 @@ class Fleet:
         return fn(self.trucks[name], *args)
 
     def _bodies(self) -> dict[str, tuple[tuple[float, ...], Any]]:
-        return {name: (self._poses[name], self._params[name]) for name in self.names}
+        far = self._far
+        return {name: far[name] if name in far else
+                (self.trucks[name].world.pose(), self.trucks[name].world.p.electruk)
+                for name in self.names}
 
     def step(self) -> None:
         """One world sample for every truck, then the contacts between them."""
@@ -149,21 +155,23 @@ class Fleet:
         """One world sample for every truck (in its own process)."""
         workers = self._workers
         if not workers:
-            for name, h in self.trucks.items():
+            if self._closed:
+                raise RuntimeError('fleet: closed, its other processes ended')
+            for h in self.trucks.values():
                 h.step()
-                self._poses[name] = h.world.pose()
             return
         for worker in workers:
             worker.send(('step',))
         loads = self.station_loads
         before = dict(loads)
-        for name, h in self.trucks.items():
+        for h in self.trucks.values():
             h.step()
-            self._poses[name] = h.world.pose()
         changes = [load_changes(before, loads)]
+        far = self._far
         for worker in workers:
             poses, notes, changed = worker.answer()
-            self._poses.update(zip(worker.names, poses, strict=True))
+            for name, pose in zip(worker.names, poses, strict=True):
+                far[name] = (pose, far[name][1])
             for name, texts in notes.items():
                 self._notes[name].extend(texts)
             changes.append(changed)
