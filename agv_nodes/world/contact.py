@@ -86,8 +86,8 @@ class ContactWatch:
         circles whose spans along x overlap are compared (sweep and prune).
         """
         names = self.names
-        # the circles in order of their left ends: a pair is near only while the later
-        # circle's left end is within the earlier one's right end (sweep and prune)
+        # in order of their left ends: a later circle whose left end is past this one's right
+        # end is apart from it, and so is every circle after that
         circles = sorted((cx - r, cx, cy, r, k) for k, (cx, cy, r) in enumerate(
             bounding_circle(*bodies[name][0][:3], bodies[name][1]) for name in names))
         shapes: dict[str, list[Point]] = {}
