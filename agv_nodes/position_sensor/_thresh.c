@@ -127,6 +127,23 @@ static int still_eight(PyObject *const lists[], int n)
     return 0;
 }
 
+/* The call's end: with its result made and every list still of 8, put the new items in the
+ * lists (new[i] into lists[i]) and drop the old; else drop the new and the result. */
+static PyObject *commit(PyObject *out, PyObject *const lists[], int n,
+                        PyObject *new[][DETECTORS])
+{
+    PyObject *old[3][DETECTORS];
+    if (out == NULL || still_eight(lists, n) < 0) {
+        Py_XDECREF(out);
+        release(&new[0][0], n * DETECTORS);
+        return NULL;
+    }
+    for (int i = 0; i < n; i++)
+        swap_in(lists[i], new[i], old[i]);
+    release(&old[0][0], n * DETECTORS);
+    return out;
+}
+
 /* Make the 8 ints, each within the limit; on failure none is kept. */
 static int make_ints(const long long v[DETECTORS], const char *name, PyObject *out[DETECTORS])
 {
@@ -205,7 +222,7 @@ static PyObject *thresh(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
             }
         }
     }
-    PyObject *new[3][DETECTORS], *old[3][DETECTORS];
+    PyObject *new[3][DETECTORS];
     if (make_ints(row, "row", new[0]) < 0)
         return NULL;
     if (make_ints(total, "totals", new[1]) < 0) {
@@ -221,16 +238,7 @@ static PyObject *thresh(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     PyObject *out = Py_BuildValue("(lOO)", code, valid ? Py_True : Py_False,
                                   decisive ? Py_True : Py_False);
     PyObject *const lists[3] = {row_list, total_list, held_list};
-    if (out == NULL || still_eight(lists, 3) < 0) {
-        Py_XDECREF(out);
-        release(&new[0][0], 3 * DETECTORS);
-        return NULL;
-    }
-    swap_in(row_list, new[0], old[0]);
-    swap_in(total_list, new[1], old[1]);
-    swap_in(held_list, new[2], old[2]);
-    release(&old[0][0], 3 * DETECTORS);
-    return out;
+    return commit(out, lists, 3, new);
 }
 
 /* levels(x, seq_row, seq_total, seq_black, seq_band) -> [8 floats]
@@ -259,7 +267,7 @@ static PyObject *levels(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
         }
         total[d] = total[d] + x[d] - row[d];
     }
-    PyObject *new[2][DETECTORS], *old[2][DETECTORS];
+    PyObject *new[2][DETECTORS];
     if (make_ints(total, "seq_total", new[1]) < 0)
         return NULL;
     PyObject **x_items = PySequence_Fast_ITEMS(args[0]);  /* before any allocation */
@@ -279,15 +287,7 @@ static PyObject *levels(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
             PyList_SET_ITEM(out, d, level);
     }
     PyObject *const lists[2] = {row_list, total_list};
-    if (out == NULL || still_eight(lists, 2) < 0) {
-        Py_XDECREF(out);
-        release(&new[0][0], 2 * DETECTORS);
-        return NULL;
-    }
-    swap_in(row_list, new[0], old[0]);
-    swap_in(total_list, new[1], old[1]);
-    release(&old[0][0], 2 * DETECTORS);
-    return out;
+    return commit(out, lists, 2, new);
 }
 
 static PyMethodDef methods[] = {
