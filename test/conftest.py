@@ -12,7 +12,6 @@ import json
 import os
 from pathlib import Path
 import sys
-import tempfile
 
 from hypothesis import HealthCheck, settings
 import pytest
@@ -117,10 +116,12 @@ def pytest_runtest_setup(item) -> None:
 
 
 # -- the fault table: every fault test that passes adds its row ---------------------------------
-# The rows of a run go to a results file outside the repository (tests never write tracked
-# files); `python test/fault_table.py` turns the last full run's rows into docs/faults.md.
-FAULT_RESULTS = Path(os.environ.get('AGV_FAULT_RESULTS',
-                                    Path(tempfile.gettempdir()) / 'agv_nodes_fault_rows.json'))
+# A test's rows wait until its teardown has passed too, then join the session's table. Each
+# session writes its own results file outside the repository (tests never write tracked files),
+# under its basetemp unless `AGV_FAULT_RESULTS` names one, and says where at the end; a partial
+# run cannot overwrite another's. `python test/fault_table.py --results FILE` turns a full run's
+# rows into docs/faults.md.
+FAULT_ROWS_FILE = 'fault_rows.json'
 
 
 class FaultTable:
@@ -129,13 +130,44 @@ class FaultTable:
     def __init__(self) -> None:
         self.rows: dict[str, tuple[str, str, str]] = {}
         self.test = ''
+        self.pending: list[tuple[str, tuple[str, str, str]]] = []  # the running test's rows
+        self.spoiled = False  # a phase of the running test failed or skipped: its rows go
 
     def add(self, fault: str, expected: str, observed: str) -> None:
         """Record a fault the current test tried, once its assertions have passed."""
-        self.rows[fault] = (expected, observed, self.test)
+        self.pending.append((fault, (expected, observed, self.test)))
+
+    def start(self) -> None:
+        """Begin a test: nothing of it is in the table yet."""
+        self.pending, self.spoiled = [], False
+
+    def settle(self, report) -> None:
+        """Take one phase's report; commit the test's rows once its teardown passed too."""
+        if not report.passed:
+            self.spoiled = True
+        if report.when == 'teardown':
+            if not self.spoiled:
+                self.rows.update(self.pending)
+            self.pending = []
 
 
 _fault_table = FaultTable()
+
+
+def pytest_runtest_logstart(nodeid, location) -> None:
+    _fault_table.start()
+
+
+def pytest_runtest_logreport(report) -> None:
+    # a pytest-xdist controller sees its workers' reports too, with nothing pending of its own
+    _fault_table.settle(report)
+
+
+def fault_results(config) -> Path:
+    """Return the session's own results file (AGV_FAULT_RESULTS, else under its basetemp)."""
+    if 'AGV_FAULT_RESULTS' in os.environ:
+        return Path(os.environ['AGV_FAULT_RESULTS'])
+    return config._tmp_path_factory.getbasetemp() / FAULT_ROWS_FILE
 
 
 def pytest_sessionfinish(session, exitstatus) -> None:
@@ -145,10 +177,16 @@ def pytest_sessionfinish(session, exitstatus) -> None:
         return
     if not _fault_table.rows:
         return
-    FAULT_RESULTS.write_text(json.dumps({
+    fault_results(session.config).write_text(json.dumps({
         'tests_collected': session.testscollected, 'tests_failed': session.testsfailed,
         'rows': {fault: list(row) for fault, row in sorted(_fault_table.rows.items())}},
         indent=1))
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:
+    if _fault_table.rows and not hasattr(config, 'workerinput'):
+        terminalreporter.write_line(f'fault table: {len(_fault_table.rows)} rows in '
+                                    f'{fault_results(config)} (test/fault_table.py --results)')
 
 
 @pytest.hookimpl(optionalhook=True)

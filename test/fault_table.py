@@ -1,22 +1,22 @@
 """Build docs/faults.md from the fault rows of the last test run.
 
-The fault tests add a row each (fault, what must happen, what happened) when they pass; the
-test session writes them to a results file outside the repository (test/conftest.py,
-`AGV_FAULT_RESULTS`). This command turns one run's rows into the table, saying which run it
-was: run it after a full `./agv.sh test` to refresh the committed docs/faults.md.
+The fault tests add a row each (fault, what must happen, what happened) when they pass, their
+teardown included; each test session writes its rows to a results file of its own outside the
+repository (test/conftest.py: under the session's basetemp, or `AGV_FAULT_RESULTS`) and names
+it in its summary line `fault table: N rows in FILE`. This command turns that run's rows into
+the table, saying which run it was: run it after a full `./agv.sh test` to refresh the
+committed docs/faults.md.
 
-Run: .venv/bin/python test/fault_table.py [--results FILE] [--output docs/faults.md]
+Run: .venv/bin/python test/fault_table.py --results FILE [--output docs/faults.md]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
 from pathlib import Path
 import subprocess
 import sys
-import tempfile
 
 REPO = Path(__file__).resolve().parent.parent
 HEAD = """# Faults tried and what the truck did
@@ -32,8 +32,8 @@ Every row is asserted by the test it names; a row appears only when its test pas
 def main() -> int:
     """Entry point."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument('--results', type=Path, default=Path(os.environ.get(
-        'AGV_FAULT_RESULTS', Path(tempfile.gettempdir()) / 'agv_nodes_fault_rows.json')))
+    ap.add_argument('--results', type=Path, required=True,
+                    help="the session's results file (its line `fault table: N rows in FILE`)")
     ap.add_argument('--output', type=Path, default=REPO / 'docs' / 'faults.md')
     args = ap.parse_args()
     results = json.loads(args.results.read_text())
