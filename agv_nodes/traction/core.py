@@ -22,7 +22,10 @@ formula 100 and 50 ms (6.3 against App. B.2.2); both are parameters, the prose t
 Trip relay (modern): traction opens the contactor (drive and field off) and latches when its loop
 stalls, the executive's command is older than `command_timeout`, the Position link it obeys older
 than `link_timeout`, or a command/link record is corrupt; it also starts tripped. Only a valid
-command with byte 2 = 00H, then one non-zero, clears it.
+command with byte 2 = 00H, then one non-zero, clears it. While it is open, traction_status shows
+`emergency_stop` = 1 once a 00H has been taken (the latch is armed): a writer cannot know
+otherwise whether its 00H arrived, since what it sends before traction's reader has matched it
+is lost (docs/hardware.md, "Starting a board: the start-up contract").
 
 `closed_loop` (the default; beyond 1983: B.2's skeleton with a speed sensor): REF is a speed demand
 through the open-loop map v = (|REF| - 5) / 75 m/s (6.3.2), shaped by acceleration and jerk limits,
@@ -142,6 +145,18 @@ class TractionCore(SubsystemCore):
             # restart at BEGIN: INIT (field bit 5 = 0), build-up wait
             self.state, self.field_forward, self.wait_until = 'start', False, 0.0
 
+    def _armed(self) -> bool:
+        """Tripped, with a 00H taken: the next non-zero demand closes the relay."""
+        return self.tripped and self._reset_stage == 1
+
+    def on_clock_jump(self, text: str, now: float) -> None:
+        """Open the relay on a jump of the genuine /clock (agv_nodes/clock_jump.py), named so.
+
+        Else the command would trip it as stale_command, blaming a silent executive.
+        """
+        self._trip('clock_jumped')
+        self.clock_jump = text
+
     def _trip(self, cause: str) -> None:
         if not self.tripped:
             self.trip_cause = cause
@@ -185,7 +200,8 @@ class TractionCore(SubsystemCore):
         if not self.tripped:
             return 0, ''
         hint = {'stale_command': ' (the executive is silent)',
-                'stale_link': ' (navigation is silent)'}.get(self.trip_cause, '')
+                'stale_link': ' (navigation is silent)',
+                'clock_jumped': f' ({getattr(self, "clock_jump", "")})'}.get(self.trip_cause, '')
         return (1 if self.trip_cause == 'startup' else 2,
                 f'trip relay open: {self.trip_cause}{hint}')
 
@@ -377,7 +393,8 @@ class TractionCore(SubsystemCore):
         """Return the traction_status record."""
         return {
             'ref': max(-128, min(127, self.ref)), 'duty': self.dcycle,
-            'emergency_stop': int(self.estop and not self.tripped), 'radio_stop': int(self.radio),
+            'emergency_stop': int(self.estop and not self.tripped or self._armed()),
+            'radio_stop': int(self.radio),
             'bumper': int(self.bumper),
             'tripped': int(self.tripped), 'manual': int(self.manual),
             'field_forward': int(self.field_forward),
