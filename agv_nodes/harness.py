@@ -20,6 +20,7 @@ import math
 from pathlib import Path
 import random
 from typing import Any, Protocol
+import warnings
 
 from agv_nodes.harness_timers import fire_timers
 from agv_nodes.records.codec import Codec
@@ -352,7 +353,8 @@ def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
           overrides: Mapping[str, Mapping[str, Any]] | None = None,
           params_file: Path | str | None = None, integrity: str = 'e2e',
           start: tuple[str, float] | None = None,
-          station_loads: dict[str, int] | None = None) -> Harness:
+          station_loads: dict[str, int] | None = None,
+          world_params: Any = None) -> Harness:
     """Build the world and the truck's node cores in lock step, set as a launched graph's are.
 
     The layout's vehicle picks the cores, as it picks the launched graph's nodes: all seven for
@@ -363,6 +365,10 @@ def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
     NODE:NAME:=VALUE`). `seed` seeds world and harness. Like the world node it refuses a layout
     with a marker the sensor cannot read on the route (unless the world's `layout_check` is
     'warn'). `start` and `station_loads` place one truck of a fleet (WorldCore).
+
+    `world_params` (deprecated, warns; goes in the next release): the world's settings whole, a
+    WorldParams as the harness took them before `overrides`; the same as
+    `overrides={'world': settings.values_of(world_params)}`.
     """
     from agv_nodes.communications.core import CommunicationsCore
     from agv_nodes.executive.core import ExecutiveCore
@@ -372,7 +378,7 @@ def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
     from agv_nodes.package_share import config_dir
     from agv_nodes.position_sensor.core import PositionSensorCore
     from agv_nodes.route_following.core import RouteCore
-    from agv_nodes.settings import parameters, settings_from_file
+    from agv_nodes.settings import parameters, settings_from_file, values_of
     from agv_nodes.traction.core import TractionCore
     from agv_nodes.world.layout import layout_parameters, layout_path, load_layout
     from agv_nodes.world.settings import WorldNodeSettings, WorldParams
@@ -381,6 +387,11 @@ def truck(layout_name: str = 'demo_1983', *, seed: int = 1,
     lay = load_layout(layout_path(layout_name))
     from_layout = layout_parameters(lay)
     given = {node: dict(values) for node, values in (overrides or {}).items()}
+    if world_params is not None:
+        warnings.warn("truck(world_params=...) is deprecated and goes in the next release: use "
+                      "overrides={'world': {name: value}} (agv_nodes.settings.values_of gives "
+                      "a WorldParams' values)", DeprecationWarning, stacklevel=2)
+        given['world'] = {**values_of(world_params), **given.get('world', {})}
 
     def settings(node: str, cls: type, also: type | None = None, **fixed: Any) -> Any:
         values = {**from_layout.get(node, {}), **fixed, **given.get(node, {})}
