@@ -46,6 +46,7 @@ def test_every_shipped_layout_passes(file):
     for p in report.passages:
         assert p.passed and p.in_range, p.marker.name
         assert lo <= p.standoff <= hi and abs(p.angle) <= READ_ANGLE
+        assert p.grade == '' and p.problem() == '', p.marker.name
 
 
 @pytest.mark.timeout(60)
@@ -64,40 +65,38 @@ def test_the_demo_layout_drives_each_marker_as_expected():
 
 
 @pytest.mark.timeout(60)
-@pytest.mark.parametrize(('standoff', 'verdict'), [
-    (0.325, 'standoff 0.325 m as driven, sensor reads 0.280-0.320 m: 0.005 m too far'),
-    (0.315, ''),
-    (0.270, 'standoff 0.270 m as driven, sensor reads 0.280-0.320 m: 0.010 m too near'),
-    (0.285, ''),
-])
-def test_a_card_just_out_of_range_is_refused_and_just_in_accepted(tmp_path, standoff, verdict):
+@pytest.mark.parametrize(('standoff', 'refused'), [(0.370, True), (0.300, False)])
+def test_a_refusal_names_the_card_its_geometry_and_the_way_to_go_on(tmp_path, standoff, refused):
+    # Whether the simulated truck reads a card is held against its drives in
+    # test_layout_readability.py; here, what the refusal says.
     lay = load_layout(straight(tmp_path, 'edge', standoff=standoff))
     report = check_layout(lay)
     (p,) = report.passages
     assert p.standoff == pytest.approx(standoff, abs=0.002)
     assert abs(p.angle) < 0.5
-    if verdict:
+    if refused:
         (error,) = report.errors()
         x, y = lay.markers[0].centre
-        assert error.startswith(f"layout {lay.file}: marker 'L0' at ({x:.2f}, {y:.2f}): ")
-        assert verdict in error
-        with pytest.raises(LayoutError, match=re.escape(verdict)):
+        assert error.startswith(f"layout {lay.file}: unreadable marker 'L0' at ({x:.2f}, "
+                                f'{y:.2f}): the simulated sensor does not read it as driven '
+                                f'(standoff {standoff:.3f} m, angle ')
+        assert 'read if moved' in error and error.endswith(
+            "to run anyway: -p world:layout_check:=warn (harness: layout_check='warn'); or "
+            'move or turn the card as the margin says')
+        with pytest.raises(LayoutError, match=re.escape(error)):
             enforce(lay)
+        assert enforce(lay, mode='warn') == [error]
     else:
-        assert report.errors() == [] and enforce(lay) == []
+        assert report.errors() == report.warnings() == [] and enforce(lay) == []
 
 
 @pytest.mark.timeout(60)
-@pytest.mark.parametrize(('yaw', 'readable'), [(12.0, False), (-12.0, False), (8.0, True)])
-def test_a_card_turned_beyond_the_angle_limit_is_refused(tmp_path, yaw, readable):
+@pytest.mark.parametrize(('yaw', 'in_range'), [(12.0, False), (-12.0, False), (8.0, True)])
+def test_a_turned_card_is_measured_against_the_thesis_range(tmp_path, yaw, in_range):
     report = check_layout(load_layout(straight(tmp_path, 'turned', yaw=yaw)))
     (p,) = report.passages
     assert p.angle == pytest.approx(yaw, abs=0.5)
-    assert p.in_range is readable
-    if not readable:
-        (error,) = report.errors()
-        assert f'angle {yaw:+.1f} deg as driven, sensor reads within +-10.0 deg: 2.0 deg too ' \
-            'oblique' in error
+    assert p.in_range is in_range  # the thesis's +-10 degrees (Baker 1983, 7.1.4)
 
 
 def wire_geometry_view(lay, marker) -> tuple[float, float]:
@@ -150,9 +149,7 @@ def test_off_tracking_on_a_bend_puts_a_card_out_of_range_that_the_wire_puts_in(t
     assert not mid.in_range and not after.in_range
     assert after.angle > 15.0
     assert far.in_range and abs(far.angle) < 2.0
-    errors = report.errors()
-    assert [e.split("'")[1] for e in errors] == ['L0', 'L1']
-    assert all('deg too oblique' in e for e in errors)
+    # whether the truck reads them as driven: test_layout_readability.py (this room, 'left_bend')
 
 
 def agv_layout(*args: str) -> subprocess.CompletedProcess:
@@ -170,12 +167,18 @@ def test_cli_exit_codes(tmp_path):
     assert len(marker_rows) == 8 + 6 and all(r[5] == 'yes' for r in marker_rows)
     assert ok.stderr == ''
 
-    bad = agv_layout('check', str(straight(tmp_path, 'far', standoff=0.33)))
+    bad = agv_layout('check', str(straight(tmp_path, 'far', standoff=0.37)))
     assert bad.returncode == 1
     (error,) = bad.stderr.splitlines()
-    assert error.startswith(f"layout {tmp_path / 'far.yaml'}: marker 'L0' at (6.00, -0.78): "
-                            'standoff 0.330 m as driven')
-    assert re.search(r'^L0 +A +6\.000 +0\.330 +[-+]0\.\d +no', bad.stdout, re.M)
+    assert error.startswith(f"layout {tmp_path / 'far.yaml'}: unreadable marker 'L0' at (6.00, "
+                            '-0.82): the simulated sensor does not read it as driven (standoff '
+                            '0.370 m')
+    assert re.search(r'^L0 +A +6\.000 +0\.370 +[-+]0\.\d +no +unreadable', bad.stdout, re.M)
+
+    edge = agv_layout('check', str(straight(tmp_path, 'edge', standoff=0.34)))
+    assert edge.returncode == 0  # marginal: warned on stderr, not refused
+    (warning,) = edge.stderr.splitlines()
+    assert "marginal marker 'L0'" in warning and 'unread if' in warning
 
     missing = agv_layout('check', str(tmp_path / 'none.yaml'))
     assert missing.returncode == 2
@@ -191,8 +194,8 @@ def test_cli_exit_codes(tmp_path):
 
 @pytest.mark.timeout(60)
 def test_the_world_refuses_an_unreadable_marker_unless_told_to_warn(tmp_path):
-    file = straight(tmp_path, 'refused', standoff=0.35)
-    with pytest.raises(LayoutError, match="marker 'L0'.*0.030 m too far"):
+    file = straight(tmp_path, 'refused', standoff=0.37)
+    with pytest.raises(LayoutError, match="unreadable marker 'L0'.*layout_check:=warn"):
         truck(str(file))
     h = truck(str(file), overrides={'world': {'layout_check': 'warn'}})
-    assert h.world.layout.markers[0].standoff == 0.35
+    assert h.world.layout.markers[0].standoff == 0.37

@@ -93,11 +93,11 @@ def test_the_layout_check_verdict_is_the_check_itself(cache, tmp_path):
     layout.write_text(text.replace('STANDOFF', '0.300'))
     lay = load_layout(layout)
     assert check_errors(lay) == check_layout(lay).errors() == []
-    layout.write_text(text.replace('STANDOFF', '0.330'))  # now out of the sensor's range
+    layout.write_text(text.replace('STANDOFF', '0.370'))  # now beyond what the sensor reads
     lay = load_layout(layout)
     errors = check_errors(lay)
     assert errors == check_layout(lay).errors() and len(errors) == 1
-    assert 'too far' in errors[0]
+    assert 'does not read it' in errors[0]
 
 
 def test_the_marker_sensor_calibration_kept_on_disk_is_the_threshold_experiment_itself(cache):

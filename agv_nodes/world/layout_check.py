@@ -1,17 +1,19 @@
-"""Layout check: the marker sensor's view of every marker as the truck drives the route.
+"""Layout check: whether the truck can read every marker as it drives the route.
 
 On a bend the front axle (the sensor point, Baker 1983, 6.3.2) follows the wire while the rear axle
 cuts inside, so the lens (Baker 1983, 5.1) swings off the cards' normal for a few wheelbases, and
 likewise after an SRM's landing (7.2). So the check drives the world's Electruk model
 (agv_nodes.world.vehicles) with the route-following core's wire law, fed as in the lock-step
 harness, every wire from its start and the truck by the route map twice round, and takes each
-marker's pass furthest from the sensor's working range (`READ_STANDOFF`, `READ_ANGLE`,
-agv_nodes.world.marker_sensor). On the belt rig the lens runs along the belt line itself; tape
-layouts (camera) have no marker check: their table lists each road sign and where its branches
-lead (agv_nodes.world.tape_layout). See docs/architecture.md, "Layout check".
+marker's pass furthest from the thesis's working range (`READ_STANDOFF`, `READ_ANGLE`,
+agv_nodes.world.marker_sensor). Whether that pass reads is decided by the world's own sensor
+model and the position sensor's decoder, on the pass's lens poses (agv_nodes.world.readability):
+a card is refused only when the simulated truck cannot read it, and one near that edge is
+marginal. On the belt rig the lens runs along the belt line itself; tape layouts (camera) have no
+marker check: their table lists each road sign and where its branches lead
+(agv_nodes.world.tape_layout). See docs/architecture.md, "Layout check".
 """
 
-from dataclasses import dataclass, field
 import math
 import random
 
@@ -21,7 +23,9 @@ from agv_nodes.route_following.settings import RouteParams
 from agv_nodes.world.core import _Every
 from agv_nodes.world.guide_wire import GuideWirePickup
 from agv_nodes.world.layout import Layout, LayoutError, Marker
-from agv_nodes.world.marker_sensor import READ_ANGLE, READ_STANDOFF, axis_on_card, lens_position
+from agv_nodes.world.layout_report import Passage, Report
+from agv_nodes.world.marker_sensor import axis_on_card, lens_position
+from agv_nodes.world.readability import Pose, expected_identity, readability
 from agv_nodes.world.settings import WorldParams
 from agv_nodes.world.tape_layout import branch_ends
 from agv_nodes.world.vehicles import Electruk
@@ -31,91 +35,6 @@ from agv_nodes.world.vehicles import Electruk
 CRUISE, SRM_SPEED = 0.7, 0.3
 VIEW = 0.6  # m: the optics look no further for a card (MarkerSensorModel.optics)
 LAPS = 2  # the route map is driven twice round, so what a lap leaves off-wire comes round again
-
-
-@dataclass
-class Passage:
-    """A marker as the truck passes it: the pass of all drives furthest from the working range."""
-
-    marker: Marker
-    standoff: float = math.nan  # m, lens to card along the optical axis, as it meets the centre
-    angle: float = math.nan  # degrees, the card's normal off the axis (+ = card turned left)
-    drive: str = ''
-    closest: float = math.inf  # m, the lens's closest approach to the card centre (any drive)
-
-    @property
-    def passed(self) -> bool:
-        """Return True when the optical axis crossed the card centre on some drive."""
-        return not math.isnan(self.standoff)
-
-    @property
-    def score(self) -> float:
-        """Return how far out it is as a fraction of the range's half-width (> 1: outside)."""
-        if not self.passed:
-            return math.inf
-        lo, hi = READ_STANDOFF
-        return max(abs(self.standoff - (lo + hi) / 2.0) / ((hi - lo) / 2.0),
-                   abs(self.angle) / READ_ANGLE)
-
-    @property
-    def in_range(self) -> bool:
-        """Return True when the sensor can read the marker on every drive."""
-        lo, hi = READ_STANDOFF
-        return self.passed and lo <= self.standoff <= hi and abs(self.angle) <= READ_ANGLE
-
-    def problem(self) -> str:
-        """Return what is out of range, and by how much ('' when it is in range)."""
-        if not self.passed:
-            return (f'never crossed by the optical axis as driven (closest {self.closest:.3f} m; '
-                    'seen edge-on, off the route or beyond the view)')
-        lo, hi = READ_STANDOFF
-        out = []
-        if not lo <= self.standoff <= hi:
-            far = self.standoff > hi
-            by = self.standoff - hi if far else lo - self.standoff
-            out.append(f'standoff {self.standoff:.3f} m as driven, sensor reads {lo:.3f}-'
-                       f'{hi:.3f} m: {by:.3f} m too {"far" if far else "near"}')
-        if abs(self.angle) > READ_ANGLE:
-            out.append(f'angle {self.angle:+.1f} deg as driven, sensor reads within '
-                       f'+-{READ_ANGLE:.1f} deg: {abs(self.angle) - READ_ANGLE:.1f} deg too '
-                       'oblique')
-        return '; '.join(out)
-
-
-@dataclass
-class Report:
-    """Every marker of a layout as driven."""
-
-    layout: Layout
-    passages: list[Passage]
-    note: str = ''
-    signs: list[str] = field(default_factory=list)  # tape floors: each sign and its branches
-
-    def errors(self) -> list[str]:
-        """Return one line per marker the sensor cannot read."""
-        return [f'layout {self.layout.file}: marker {p.marker.name!r} at '
-                f'({p.marker.centre[0]:.2f}, {p.marker.centre[1]:.2f}): {p.problem()}'
-                f'{f" ({p.drive})" if p.drive else ""}'
-                for p in self.passages if not p.in_range]
-
-    def table(self) -> str:
-        """Return the per-marker table: marker, standoff m, angle deg, in range, where."""
-        lay = self.layout
-        lines = [f'layout {lay.file} ({lay.kind}, {lay.vehicle}): {len(self.passages)} markers'
-                 f'{f"; {self.note}" if self.note else ""}']
-        if self.passages:
-            lines.append(f'{"marker":8} {"path":>5} {"at m":>7} {"standoff m":>10} '
-                         f'{"angle deg":>9} {"in range":>8}  worst pass')
-        for p in self.passages:
-            m = p.marker
-            standoff = f'{p.standoff:.3f}' if p.passed else '-'
-            angle = f'{p.angle:+.1f}' if p.passed else '-'
-            lines.append(f'{m.name:8} {m.path:>5} {m.at:7.3f} {standoff:>10} {angle:>9} '
-                         f'{"yes" if p.in_range else "no":>8}  {p.drive}')
-        if self.signs:
-            lines.append(f'{len(self.signs)} road signs (Rajagopalan 1991, 4.3):')
-            lines += [f'  {line}' for line in self.signs]
-        return '\n'.join(lines)
 
 
 def check_layout(layout: Layout, world: WorldParams | None = None,
@@ -143,19 +62,31 @@ def check_layout(layout: Layout, world: WorldParams | None = None,
         _Drive(layout, passages, 'from the start by the route map').truck(
             world, route, (layout.start_path, layout.start_at, layout.start_lateral,
                            layout.start_heading), total * LAPS, route_map=True)
+    for p in passages:
+        if p.passed and p.poses and expected_identity(p.marker) is not None:
+            p.read = readability(p.marker, p.poses, world, p.angle, p.standoff)
     return Report(layout, passages)
 
 
-def check_errors(layout: Layout, world: WorldParams | None = None) -> list[str]:
-    """Return `check_layout(...).errors()`, computed once per layout, settings and code.
+def check_findings(layout: Layout, world: WorldParams | None = None) -> dict[str, list[str]]:
+    """Return `check_layout`'s lines, {'errors': [...], 'warnings': [...]}, computed once.
 
-    The drives take seconds and every world start (and lock-step truck) asks, so the lines are
-    kept in agv_nodes.result_cache by what the drives depend on: the layout file, the markers
-    it kept (a world's `remove_markers`) and the vehicle settings the drives use.
+    The drives and replays take seconds and every world start (and lock-step truck) asks, so
+    the lines are kept in agv_nodes.result_cache by what they depend on: the layout file, the
+    markers it kept (a world's `remove_markers`) and the vehicle and sensor settings.
     """
     world = world or WorldParams()
-    inputs = _drive_inputs(layout, world)
-    return cached('layout_check', inputs, lambda: check_layout(layout, world).errors())
+
+    def compute() -> dict[str, list[str]]:
+        report = check_layout(layout, world)
+        return {'errors': report.errors(), 'warnings': report.warnings()}
+
+    return cached('layout_check', _drive_inputs(layout, world) + repr(world.sensor), compute)
+
+
+def check_errors(layout: Layout, world: WorldParams | None = None) -> list[str]:
+    """Return `check_layout(...).errors()`, computed once per layout, settings and code."""
+    return check_findings(layout, world)['errors']
 
 
 JUNCTION_DRIVE = 40.0  # m driven from each junction: past its landing and the way it opens
@@ -225,11 +156,14 @@ def junction_passes(layout: Layout, world: WorldParams | None = None
 
 
 def enforce(layout: Layout, world: WorldParams | None = None, mode: str = 'error') -> list[str]:
-    """Check as the world does: LayoutError of the lines (mode 'error'), else return them."""
-    errors = check_errors(layout, world)
-    if errors and mode != 'warn':
-        raise LayoutError('\n'.join(errors))
-    return errors
+    """Check as the world does: LayoutError of the unreadable markers' lines (mode 'error').
+
+    Returns the lines to log: the marginal markers', and with mode 'warn' the unreadable too.
+    """
+    found = check_findings(layout, world)
+    if found['errors'] and mode != 'warn':
+        raise LayoutError('\n'.join(found['errors']))
+    return found['errors'] + found['warnings']
 
 
 class _Drive:
@@ -238,6 +172,8 @@ class _Drive:
     def __init__(self, layout: Layout, passages: list[Passage], label: str) -> None:
         self.layout, self.passages, self.label = layout, passages, label
         self._side: dict[int, tuple[float, float, float]] = {}  # marker -> last (t, u, angle)
+        self._trace: dict[int, list[Pose]] = {}  # marker -> lens poses while it is in view
+        self._worst: set[int] = set()  # markers whose pass in view is their worst so far
         self.passed: list[Marker] = []  # cards whose centre the axis crossed on the last sample
         self.log: list[tuple[str, float]] = []  # every card counted, with the distance driven
         self.distance = 0.0  # m the sensor point has driven: on a wire, the wire's length
@@ -251,6 +187,10 @@ class _Drive:
             distance = math.hypot(dx, dy)
             if count:
                 p.closest = min(p.closest, distance)
+            if distance <= VIEW:
+                self._trace.setdefault(i, []).append((lens, heading))
+            elif i in self._trace:
+                self._leave(i)
             on_card = axis_on_card(lens, heading, m) if distance <= VIEW else None
             if on_card is None:
                 self._side.pop(i, None)
@@ -270,8 +210,21 @@ class _Drive:
                                before[2] + f * (angle - before[2]), self.label)
             if crossing.score > p.score or not p.passed:
                 p.standoff, p.angle, p.drive = crossing.standoff, crossing.angle, self.label
+                self._worst.add(i)
             self.passed.append(m)
             self.log.append((m.name, self.distance))
+
+    def _leave(self, i: int) -> None:
+        """Close a card's pass as it leaves the view: keep its poses if it was its worst."""
+        poses = self._trace.pop(i)
+        if i in self._worst:
+            self._worst.discard(i)
+            self.passages[i].poses = poses
+
+    def finish(self) -> None:
+        """End the drive: the cards still in view leave it."""
+        for i in list(self._trace):
+            self._leave(i)
 
     def rig(self, path, dt: float) -> None:
         """Run the lens along the belt line, as the belt rig does (WorldCore._step_rig)."""
@@ -280,6 +233,7 @@ class _Drive:
             x, y, h = path.pose_at(s)
             self.look((x, y), h)
             s += float(self.layout.rig.get('speed', 1.0)) * dt
+        self.finish()
 
     def truck(self, world: WorldParams, route_params: RouteParams,
               start: tuple[str, float, float, float], distance: float, route_map: bool,
@@ -356,4 +310,5 @@ class _Drive:
                 truck.steer_demand = command['angle'] / 1000.0
                 truck.steer_enable = bool(command['enable'])
             if core.state == 'lost':
-                return  # the wire has ended (or an SRM found none): the truck would stop here
+                break  # the wire has ended (or an SRM found none): the truck would stop here
+        self.finish()

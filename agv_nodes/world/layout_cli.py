@@ -3,7 +3,9 @@
     agv-layout check FILE [FILE...]
     agv-layout graph FILE [--json]
 
-check: exit 0: every marker readable; 1: one line per marker that is not (stderr). graph: the
+check: exit 0: the simulated truck reads every marker as driven (a line on stderr for each one
+read with little to spare: marginal, with its margin); 1: one line per marker it cannot read
+(stderr), each saying how to go on. graph: the
 track graph a VDA 5050 master plans on (agv_nodes/fleet/track_graph.py): its nodes and edges
 as a table, or as JSON to load into a master's plant model. Exit 2: a file that is no valid
 layout (or, for graph, one without a track graph). FILE may be a layout's name
@@ -24,8 +26,8 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of agv-layout."""
     ap = argparse.ArgumentParser(prog='agv-layout', description=__doc__.splitlines()[0])
     commands = ap.add_subparsers(dest='command', required=True)
-    check = commands.add_parser('check', help='can the marker sensor read every marker as the '
-                                'truck drives the route?')
+    check = commands.add_parser('check', help='can the simulated truck read every marker as it '
+                                'drives the route?')
     check.add_argument('files', nargs='+', metavar='FILE', help='layout file or name')
     graph = commands.add_parser('graph', help="the track graph: the markers a master's orders "
                                 'name as nodes, the ways between them as edges')
@@ -47,14 +49,15 @@ def main(argv: list[str] | None = None) -> int:
             return 2
     if args.command == 'graph':
         return _graph(layouts[0], args.json)
-    errors = []
+    errors, failed = [], False
     for lay in layouts:
         report = check_layout(lay)
         print(report.table())
-        errors += report.errors()
+        errors += report.errors() + report.warnings()
+        failed = failed or bool(report.errors())
     for line in errors:
         print(line, file=sys.stderr)
-    return 1 if errors else 0
+    return 1 if failed else 0
 
 
 def _graph(layout: Layout, as_json: bool) -> int:
