@@ -36,11 +36,28 @@ ensure_venv() {
   "$VENV/bin/python" -m compileall -q agv_nodes >/dev/null
 }
 
+# The MQTT tests run against mosquitto, the broker plants use (Debian's package): installed here
+# when it is missing and this is root with apt-get (as on CI), else named as what is missing.
+ensure_broker() {
+  if command -v mosquitto >/dev/null 2>&1 || [[ -x /usr/sbin/mosquitto ]]; then
+    return
+  fi
+  if [[ $(id -u) == 0 ]] && command -v apt-get >/dev/null 2>&1; then
+    echo "agv.sh: installing mosquitto (Debian package) for the MQTT tests ..." >&2
+    apt-get update -qq >/dev/null
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mosquitto >/dev/null
+  else
+    echo "agv.sh: mosquitto is not installed and this is not root: install the package" \
+      "mosquitto (the MQTT tests need it)" >&2
+  fi
+}
+
 cmd=${1:-help}
 [[ $# -gt 0 ]] && shift
 case "$cmd" in
   test)
     ensure_venv
+    ensure_broker
     # One process unless AGV_TEST_WORKERS=N: then N pytest-xdist workers, the tests over DDS one
     # at a time in a lane of their own, the rest beside them at nice 19 (test/conftest.py). On
     # two cores the lanes are no faster than one process (bench/results/test_suite.md).
