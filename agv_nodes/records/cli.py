@@ -1,4 +1,7 @@
-"""agv-records: list, show, encode and decode the 16-byte records; regenerate docs/records.md.
+"""agv-records: list, show, encode, decode and echo the 16-byte records; regenerate the tables.
+
+`echo RECORD` prints a live record topic field by field with each record's E2E verdict
+(agv_nodes/records/echo.py); RECORD may be a record's name or its topic.
 
 Bad input exits with status 2 and a one-line reason on stderr, never a traceback.
 """
@@ -70,6 +73,16 @@ def _cmd_decode(codec: Codec, args: argparse.Namespace) -> None:
         print(f'{line:32s} # {meaning[name]}')
 
 
+def _cmd_echo(codec: Codec, args: argparse.Namespace) -> int:
+    from agv_nodes.records.echo import find_schema, run
+
+    try:
+        find_schema(codec, args.record)
+    except KeyError as exc:
+        raise UsageError(exc.args[0]) from None
+    return run(codec, args.record, args.integrity, args.count, args.timeout)
+
+
 def _cmd_doc(codec: Codec, args: argparse.Namespace) -> None:
     text = render_markdown(codec)
     if args.check:
@@ -101,6 +114,14 @@ def build_parser() -> argparse.ArgumentParser:
         else:
             cmd.add_argument('hex')
         cmd.add_argument('--integrity', choices=('e2e', 'none'), default='e2e')
+    echo = sub.add_parser('echo', help='print a live record topic field by field, with each '
+                          "record's E2E verdict (as ros2 topic echo, decoded)")
+    echo.add_argument('record', help='record name or topic (agv-records list)')
+    echo.add_argument('--count', type=int, default=0, help='stop after N records (0: never)')
+    echo.add_argument('--timeout', type=float, default=0.0,
+                      help='stop after S s of wall time without a record, exit 1 if none came '
+                      '(0: never)')
+    echo.add_argument('--integrity', choices=('e2e', 'none'), default='e2e')
     doc = sub.add_parser('doc', help='regenerate the record tables (docs/records.md)')
     doc.add_argument('--output', default='-', help="file to write, '-' for stdout")
     doc.add_argument('--check', action='store_true', help='exit 2 if --output is stale')
@@ -115,14 +136,14 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exc:  # argparse already printed its one-line usage error
         return 2 if exc.code else 0
     handlers = {'list': _cmd_list, 'show': _cmd_show, 'encode': _cmd_encode, 'decode': _cmd_decode,
-                'doc': _cmd_doc}
+                'echo': _cmd_echo, 'doc': _cmd_doc}
     try:
-        handlers[args.command](load_codec(args.schemas) if args.schemas else installed_codec(),
-                               args)
+        status = handlers[args.command](
+            load_codec(args.schemas) if args.schemas else installed_codec(), args)
     except (RecordError, SchemaError, UsageError, OSError) as exc:
         print(f'agv-records: {exc}', file=sys.stderr)
         return 2
-    return 0
+    return status or 0
 
 
 if __name__ == '__main__':
