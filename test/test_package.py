@@ -32,6 +32,21 @@ def test_package_xml_format3_and_dependencies():
     assert root.find('export/build_type').text == 'ament_python'
 
 
+def test_every_package_xml_dependency_is_a_rosdep_key():
+    """`rosdep install --from-paths src` resolves every key: each is one of ros/rosdistro's.
+
+    test/data/rosdep_keys.txt lists rosdistro's keys and Jazzy's package names (its header says
+    from which commit and how); what rosdep cannot install (amqtt) stays a pip dependency,
+    named in a comment of package.xml.
+    """
+    root = ET.parse(REPO / 'package.xml').getroot()
+    keys = {line.strip() for line in (REPO / 'test' / 'data' / 'rosdep_keys.txt').read_text()
+            .splitlines() if line.strip() and not line.startswith('#')}
+    deps = [e.text for tag in ('depend', 'build_depend', 'exec_depend', 'test_depend',
+                               'buildtool_depend') for e in root.findall(tag)]
+    assert deps and [d for d in deps if d not in keys] == []
+
+
 def test_package_xml_and_setup_py_agree():
     root = ET.parse(REPO / 'package.xml').getroot()
     kw = setup_py_keywords()
