@@ -20,7 +20,6 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Bool
 
 from agv_nodes import qos, sim_progress
 from agv_nodes.clock_watch import ClockWatch
@@ -37,6 +36,7 @@ from agv_nodes.ros_ports import (
     clock_time_ns,
 )
 from agv_nodes.settings import NodeSettings
+from agv_nodes.stop_switches import switch_inputs
 
 __all__ = ['ClockTimers', 'CoreNode', 'SimProgress', 'spin_main']
 
@@ -119,11 +119,8 @@ class CoreNode(Node):
             outputs[sim_progress.LINK] = progress
         # the world moves once every link has matched at both ends
         self.links = LinkAnnouncer(self, self.readers, outputs)
-        if hasattr(self.core, 'on_radio_stop'):
-            self.create_subscription(Bool, 'hw/radio_stop', self._radio_stop,
-                                     qos.RECORD_READER)
-        if hasattr(self.core, 'on_bumper'):  # the world's (or the truck's) bumper switch
-            self.create_subscription(Bool, 'hw/bumper', self._bumper, qos.LATCHED)
+        # hw/radio_stop, hw/bumper: each from its named writer (agv_nodes/stop_switches.py)
+        self.switches = switch_inputs(self)
         if self.core.period:
             self.periodic(self.core.period, self._tick)
         if getattr(self.core, 'supervision_period', None):
@@ -133,7 +130,7 @@ class CoreNode(Node):
             self.periodic(0.001, self._release)  # fires once per /clock step
         if ns.fault_record:
             self.add_on_set_parameters_callback(self._set_fault)
-        self.input_diagnostics = InputDiagnostics(self, self.readers,
+        self.input_diagnostics = InputDiagnostics(self, {**self.readers, **self.switches},
                                                   health=getattr(self.core, 'health', None))
         if self.get_parameter('use_sim_time').value:
             self.clock_watch = ClockWatch(self)
@@ -177,12 +174,6 @@ class CoreNode(Node):
             if handler is not None:
                 self.publish(handler(reader.schema.name, reader.last_reason, self.now_s()))
         return callback
-
-    def _radio_stop(self, msg: Bool) -> None:
-        self.core.on_radio_stop(msg.data, self.now_s())
-
-    def _bumper(self, msg: Bool) -> None:
-        self.core.on_bumper(msg.data, self.now_s())
 
     def _tick(self) -> None:
         self.publish(self.core.tick(self.now_s()))

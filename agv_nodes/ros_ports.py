@@ -21,11 +21,14 @@ from agv_nodes import qos
 from agv_nodes.rclpy_internals import writer_identity_unavailable, writer_tagged_subscription
 from agv_nodes.records.carrier import clock_ns, uint8_array_cdr, uint8_array_data
 from agv_nodes.records.ports import (
+    DUPLICATE_WRITER,
     FOREIGN_WRITER,
     RecordReader,
     RecordWriter,
     WriterCheck,
+    gid_writer,
     inputs_report,
+    node_name,
 )
 from agv_nodes.records.schema import RecordSchema
 
@@ -95,21 +98,80 @@ def clock_time_ns(raw: bytes) -> int:
 
 
 def full_name(node: Node, name: str) -> str:
-    """Return the full name of node `name` as seen from `node` (relative: its namespace)."""
-    if name.startswith('/'):
+    """Return the full name of node `name` as seen from `node` (relative: its namespace).
+
+    With one leading '/', as WriterCheck compares names. A `gid:<hex>` writer is no node
+    name and is returned as it is.
+    """
+    if gid_writer(name) is not None:
         return name
-    return f'{node.get_namespace().rstrip("/")}/{name}'
+    if name.startswith('/'):
+        return node_name(name)
+    return node_name(f'{node.get_namespace().rstrip("/")}/{name}')
 
 
-def writer_name(node: Node, schema: RecordSchema) -> str:
-    """Return the full name of the node whose records `node` takes on `schema`'s topic.
+def writer_name(node: Node, schema: RecordSchema | str, default: str | None = None) -> str:
+    """Return the full name of the writer whose samples `node` takes on an input.
 
-    The schema's writer, unless the node's `record_writers` setting names another (a hardware
-    driver in its place).
+    The input is a record (its schema: the schema's writer by default) or a stop switch's
+    name (`default` its writer), unless the node's `record_writers` setting names another (a
+    hardware driver in its place: a node, or `gid:<hex>`).
     """
     settings = getattr(node, 'node_settings', None)
     named = settings.writer_nodes() if hasattr(settings, 'writer_nodes') else {}
+    if isinstance(schema, str):
+        return full_name(node, named.get(schema, default or ''))
     return full_name(node, named.get(schema.name, schema.writer))
+
+
+def graph_writers(node: Node, topic: str) -> list[tuple[str, bytes]]:
+    """Return `topic`'s writers as the graph shows them: (node's full name, endpoint GID)."""
+    return [(node_name(f'{i.node_namespace.rstrip("/")}/{i.node_name}'), bytes(i.endpoint_gid))
+            for i in node.get_publishers_info_by_topic(topic)]
+
+
+# Wall seconds an input may wait for its named writer before it says so: past a start-up of
+# the whole graph on a loaded machine, short enough to be read before anyone gives up.
+WRITER_PATIENCE_S = 5.0
+
+
+class WriterWatch:
+    """Says once, on the log and in /diagnostics (`waiting`), that an input's writer is absent.
+
+    Polls the graph once a wall second (a steady timer: sim time stands still until the world
+    moves, which it does not while a writer is missing) until the input has taken a sample
+    or its named writer is in the graph; says so past WRITER_PATIENCE_S, and clears it when
+    the writer comes.
+    """
+
+    def __init__(self, node: Node, port: Any, name: str, topic: str) -> None:
+        self._node, self._port, self._name, self._topic = node, port, name, topic
+        self._since = None
+        self._said = False
+        self._steady = RosClock(clock_type=ClockType.STEADY_TIME)
+        self._timer = node.create_timer(1.0, self.poll, clock=self._steady)
+
+    def poll(self) -> None:
+        """Check once; stop polling once the writer has been heard."""
+        port, check = self._port, self._port.check
+        now = self._steady.now().nanoseconds * 1e-9
+        self._since = now if self._since is None else self._since
+        there = any(check.names(node, gid) for node, gid in graph_writers(self._node,
+                                                                           self._topic))
+        if port.accepted or there:
+            if self._said:
+                self._node.get_logger().info(f'{self._name}: its writer {check.writer} is here')
+            port.waiting, self._said = '', False
+            if port.accepted:
+                self._node.destroy_timer(self._timer)
+            return
+        if now - self._since >= WRITER_PATIENCE_S and not self._said:
+            others = len(graph_writers(self._node, self._topic))
+            port.waiting = (f'{self._name}: waiting for its writer {check.writer} on '
+                            f'{self._topic} ({now - self._since:.0f} s; {others} other '
+                            f'writer{"s" if others != 1 else ""} there)')
+            self._node.get_logger().warning(port.waiting)
+            self._said = True
 
 
 class RecordSubscription(RecordReader):
@@ -137,6 +199,7 @@ class RecordSubscription(RecordReader):
         self.sent_ns = 0  # DDS source timestamp of the record being handled (writer's wall ns)
         self.writer = writer or writer_name(node, schema)
         self.check = WriterCheck(self.writer, self._graph_writers)
+        self.writer = self.check.writer
         self._current: bytes | None = None  # the genuine writer's GID: the hot path's test
         self._destroyed = False
         self._tagged = writer_tagged_subscription(node, UInt8MultiArray, schema.topic,
@@ -148,6 +211,7 @@ class RecordSubscription(RecordReader):
             self._sub = node.create_subscription(
                 UInt8MultiArray, schema.topic, self._on_msg_info if sent_stamps else self._on_msg,
                 qos.reader_qos(schema), raw=True)
+        self.watch = WriterWatch(node, self, schema.name, schema.topic)
 
     def destroy(self) -> None:
         """Free the subscription now, before its node is destroyed.
@@ -180,11 +244,11 @@ class RecordSubscription(RecordReader):
         gid = self._current.hex() if self._current else 'not heard yet'
         check = self.check
         return (f'{self.writer} ({gid}); {check.held} held for the graph, {check.restarts} '
-                f'restarts, {check.lookups} graph queries')
+                f'restarts, {check.duplicate_samples} from a duplicate, {check.lookups} graph '
+                'queries')
 
     def _graph_writers(self) -> list[tuple[str, bytes]]:
-        return [(f'{i.node_namespace.rstrip("/")}/{i.node_name}', bytes(i.endpoint_gid))
-                for i in self._node.get_publishers_info_by_topic(self.schema.topic)]
+        return graph_writers(self._node, self.schema.topic)
 
     def _on_sample(self, raw: bytes, gid: bytes | None, stamp: int) -> None:
         self.sent_ns = stamp
@@ -193,10 +257,19 @@ class RecordSubscription(RecordReader):
             return
         for (data, sent_ns), who, verdict in self.check.admit((raw, stamp), gid):
             self.sent_ns = sent_ns  # a held sample's own
+            self.duplicate = self.check.duplicate_text(self.schema.name)
             if verdict == FOREIGN_WRITER:
                 self._reject(FOREIGN_WRITER, f'{self.schema.name}: from '
-                             f'{self.check.nodes.get(who, "?")} ({who.hex()}), not the '
+                             f'{self.check.name(who)} ({who.hex()}), not the '
                              f'writer {self.writer}')
+                continue
+            if verdict == DUPLICATE_WRITER:  # a fault: its node stops the truck
+                self._current = None  # every sample judged until the duplicate ends
+                if self.last_reason != DUPLICATE_WRITER:
+                    self._node.get_logger().error(f'duplicate writer: {self.duplicate}')
+                self._reject(DUPLICATE_WRITER, self.duplicate)
+                if self.on_reject is not None:
+                    self.on_reject()
                 continue
             if verdict == 'restart':
                 self.resync()  # a new process: its counter starts afresh

@@ -340,24 +340,38 @@ def settings_from_file(cls: type, path: Path | str, node: str,
         raise ParameterFileError(f'{path}: node {node}: {exc}') from None
 
 
+# The stop switches (std_msgs/Bool, true = stop) and their writers by default, as msg_schemas/
+# names each record's: the radio receiver's driver (in the tests, the probe's node of that name,
+# test/graph_probe.py) and the world's bumper. record_writers names another, as for a record.
+SWITCH_WRITERS = {'radio_stop': 'radio_receiver', 'bumper': 'world'}
+_GID_HEX = re.compile(r'gid:(?:[0-9a-fA-F]{2}){1,16}')
+
+
 @settings_class
 class ProcessSettings:
     """What every node process of the package has (agv_nodes/node_process.py)."""
 
     def writer_nodes(self) -> dict[str, str]:
-        """Return the record_writers entries: record -> the node to take it from."""
+        """Return the record_writers entries: record or switch -> the writer to take it from.
+
+        A writer is a node name or `gid:<hex>` (an endpoint's GID, or its first bytes).
+        """
         return dict(entry.split('=', 1) for entry in self.record_writers)  # type: ignore[attr-defined]
 
     def problems(self) -> list[tuple[str, Any, str]]:
         """Make the checks `build` needs beyond each field's own: record_writers' entries."""
         from agv_nodes.records import codec  # the schemas, only when a node is built
 
-        names = {s.name for s in codec()}
+        names = {s.name for s in codec()} | set(SWITCH_WRITERS)
         for entry in self.record_writers:  # type: ignore[attr-defined]
             record, sep, node = entry.partition('=')
-            if not sep or record not in names or not node.strip('/') or ' ' in node:
+            gid = node.startswith('gid:')
+            if not sep or record not in names or not node.strip('/') or ' ' in node \
+                    or (gid and not _GID_HEX.fullmatch(node)):
                 return [('record_writers', list(self.record_writers),  # type: ignore[attr-defined]
-                         f'entry {entry!r} is not record=node with a record of msg_schemas/')]
+                         f'entry {entry!r} is not record=node or record=gid:<hex, up to 16 '
+                         'bytes> with a record of msg_schemas/ or a switch '
+                         f'({", ".join(SWITCH_WRITERS)})')]
         return []
 
 

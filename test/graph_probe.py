@@ -79,7 +79,10 @@ class GraphProbe:
             RecordSubscription(n, codec()['traction_status'], 'e2e', self._traction),
             RecordSubscription(n, codec()['world_event'], 'e2e', self._event)]
         self.task_pub = n.create_publisher(String, 'comms/task', qos.EVENTS)
-        self.radio_pub = n.create_publisher(Bool, 'hw/radio_stop', qos.RECORD_WRITER)
+        # the radio receiver's driver: the radio stop's named writer (settings.SWITCH_WRITERS)
+        self.radio_node = rclpy.create_node('radio_receiver', context=self.context)
+        self.radio_pub = self.radio_node.create_publisher(Bool, 'hw/radio_stop',
+                                                          qos.RECORD_WRITER)
         self._pause = n.create_client(Trigger, 'world/pause')
         self._resume = n.create_client(Trigger, 'world/resume')
         self.launch.start()
@@ -251,6 +254,7 @@ class GraphProbe:
         import rclpy
 
         self.node.destroy_node()
+        self.radio_node.destroy_node()
         self.executor.shutdown()
         rclpy.try_shutdown(context=self.context)
         self.launch.stop()

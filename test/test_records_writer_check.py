@@ -1,12 +1,27 @@
 """Who may write a record topic (records.ports.WriterCheck), without DDS: a fake graph.
 
 The graph is a list of (node, GID) the test edits as discovery would; the clock is the test's.
+Restart against duplicate, writers named by GID, and the stop switches' rule (a foreign `true`
+stops, a foreign `false` never releases) are judged here; test_duplicate_writer_dds.py,
+test_plain_dds_driver_dds.py and test_foreign_writer_dds.py show them over DDS.
 """
 
 from __future__ import annotations
 
+import pytest
+
 from agv_nodes.records import codec
-from agv_nodes.records.ports import FOREIGN_WRITER, RecordReader, WriterCheck, inputs_report
+from agv_nodes.records.ports import (
+    DUPLICATE_WRITER,
+    FOREIGN_WRITER,
+    RecordReader,
+    SwitchInput,
+    WriterCheck,
+    inputs_report,
+    node_name,
+)
+
+pytestmark = pytest.mark.timeout(60)
 
 GENUINE, OTHER, LATE, RESTARTED = (bytes([k]) * 16 for k in (1, 2, 3, 4))
 
@@ -150,3 +165,165 @@ def test_foreign_writer_rejections_are_shown_in_the_inputs_report_like_every_rea
     assert level == 1 and 'foreign_writer=1' in message
     assert values['traction_status rejects by reason'] == 'foreign_writer=1'
     assert 'traction_status writer' not in values  # no endpoints without DDS (the harness)
+
+
+# -- restart against duplicate ----------------------------------------------------------------
+# The graph and the samples are the test's: a restart is one endpoint of the writer's name
+# that stops and another that starts; a duplicate is two that both keep sending.
+SECOND = bytes([5]) * 16
+
+
+def verdicts(check: WriterCheck, samples) -> list[str]:
+    return [v for gid in samples for _d, _g, v in check.admit(b'r', gid)]
+
+
+def test_two_live_endpoints_of_the_writer_are_a_duplicate_not_restarts():
+    """Two executives: their records interleave. Today's 1,621 'restarts' are one duplicate."""
+    g = Graph(('/executive', GENUINE), ('/executive', SECOND))
+    check = g.check(requery_s=0.0)
+    out = verdicts(check, [GENUINE, GENUINE, SECOND, GENUINE, SECOND, GENUINE, SECOND])
+    # the second's first record is taken as a restart would be: nothing yet says the first
+    # still writes; the first's next record does
+    assert out == ['genuine', 'genuine', 'restart'] + [DUPLICATE_WRITER] * 4
+    assert check.restarts == 1 and check.duplicate_samples == 4
+    assert check.duplicates == [GENUINE, SECOND]
+    text = check.duplicate_text('traction_command')
+    assert GENUINE.hex() in text and SECOND.hex() in text and '/executive' in text
+    # a foreign endpoint stays foreign, not part of the duplicate
+    g.endpoints.append(('/intruder', OTHER))
+    assert verdicts(check, [OTHER]) == [FOREIGN_WRITER]
+
+
+def test_a_restart_is_no_duplicate_even_while_the_old_endpoint_lingers_in_the_graph():
+    """A killed process's endpoint stays in the graph until its lease ends, but sends nothing."""
+    g = Graph(('/executive', GENUINE))
+    check = g.check(requery_s=0.0)
+    g.endpoints.append(('/executive', RESTARTED))  # the old one still listed
+    out = verdicts(check, [GENUINE, GENUINE, RESTARTED, RESTARTED, RESTARTED])
+    assert out == ['genuine', 'genuine', 'restart', 'genuine', 'genuine']
+    assert check.duplicates == [] and check.duplicate_text('x') == ''
+    g.endpoints = [('/executive', SECOND)]  # a second restart (respawn again)
+    assert verdicts(check, [SECOND, SECOND]) == ['restart', 'genuine']
+    assert check.restarts == 2
+
+
+def test_a_duplicate_stands_while_both_are_in_the_graph_and_ends_when_one_leaves():
+    g = Graph(('/executive', GENUINE), ('/executive', SECOND))
+    check = g.check(requery_s=1.0)
+    verdicts(check, [GENUINE, SECOND, GENUINE])
+    g.now += 5.0
+    assert verdicts(check, [GENUINE, SECOND]) == [DUPLICATE_WRITER] * 2  # both still there
+    g.endpoints = [('/executive', GENUINE)]  # the second executive quits
+    g.now += 0.5
+    assert verdicts(check, [GENUINE]) == [DUPLICATE_WRITER]  # not asked again yet
+    g.now += 1.0
+    # the graph shows one: it is the writer again, its counter taken afresh
+    assert verdicts(check, [GENUINE, GENUINE]) == ['restart', 'genuine']
+    assert check.duplicates == []
+
+
+def test_a_third_live_endpoint_joins_the_duplicate():
+    g = Graph(('/executive', GENUINE), ('/executive', SECOND), ('/executive', RESTARTED))
+    check = g.check(requery_s=0.0)
+    assert verdicts(check, [GENUINE, SECOND, GENUINE, RESTARTED])[-1] == DUPLICATE_WRITER
+    assert check.duplicates == [GENUINE, SECOND, RESTARTED]
+
+
+def test_a_reader_with_a_duplicate_is_an_error_in_the_inputs_report():
+    schema = codec()['traction_command']
+    reader = RecordReader(schema)
+    reader.duplicate = 'traction_command: 2 live endpoints write as /executive: /executive (01..)'
+    level, message, _values = inputs_report({'traction_command': reader})
+    assert level == 2 and message.startswith('duplicate writer: traction_command: 2 live')
+    reader.duplicate, reader.waiting = '', 'traction_command: waiting for its writer /executive'
+    level, message, _values = inputs_report({'traction_command': reader})
+    assert level == 1 and message.startswith('traction_command: waiting for its writer')
+
+
+# -- a writer that is no ROS node ---------------------------------------------------------------
+BARE = '_CREATED_BY_BARE_DDS_APP_/_CREATED_BY_BARE_DDS_APP_'  # the graph's name, no leading '/'
+
+
+def test_names_compare_with_one_leading_slash():
+    """The graph names a plain DDS writer without a leading '/'; a reader's name has one."""
+    g = Graph((BARE, GENUINE))
+    assert g.check('/' + BARE).admit(b'a', GENUINE) == [(b'a', GENUINE, 'genuine')]
+    assert node_name(BARE) == '/' + BARE and node_name('//executive/') == '/executive'
+
+
+def test_a_writer_named_by_its_gid_is_taken_at_once_whatever_the_graph_says():
+    g = Graph((BARE, GENUINE), (BARE, OTHER))
+    check = g.check(f'gid:{GENUINE.hex()}', patience_s=100.0)
+    assert check.admit(b'a', GENUINE) == [(b'a', GENUINE, 'genuine')]
+    assert check.admit(b'b', OTHER) == [(b'b', OTHER, FOREIGN_WRITER)]  # its own node: no
+    unnamed = Graph().check(f'gid:{GENUINE.hex()}', patience_s=100.0)  # graph not caught up
+    assert unnamed.admit(b'c', GENUINE) == [(b'c', GENUINE, 'genuine')]
+    # a participant's prefix (12 bytes) admits each of its writers
+    prefix = Graph().check(f'gid:{GENUINE[:12].hex()}')
+    assert prefix.admit(b'd', GENUINE[:12] + bytes(4)) == [(b'd', GENUINE[:12] + bytes(4),
+                                                            'genuine')]
+
+
+def test_record_writers_takes_gid_entries_and_switches_and_refuses_bad_hex():
+    from agv_nodes.settings import NodeSettings, SettingError, build
+
+    ok = build(NodeSettings, {'record_writers': [f'adc_snapshot=gid:{GENUINE.hex()}',
+                                                 'radio_stop=radio_board']})
+    assert ok.writer_nodes() == {'adc_snapshot': f'gid:{GENUINE.hex()}',
+                                 'radio_stop': 'radio_board'}
+    for bad in ('adc_snapshot=gid:xyz', 'adc_snapshot=gid:' + '00' * 17, 'clock=world'):
+        with pytest.raises(SettingError, match='record_writers'):
+            build(NodeSettings, {'record_writers': [bad]})
+
+
+# -- the stop switches ----------------------------------------------------------------------------
+def switch(*endpoints: tuple[str, bytes], patience_s: float = 2.0) -> tuple[Graph, SwitchInput]:
+    g = Graph(*endpoints)
+    return g, SwitchInput('radio_stop', g.check('/radio_receiver', requery_s=0.0,
+                                                patience_s=patience_s))
+
+
+def test_a_foreign_stop_is_taken_and_counted_but_a_foreign_release_is_refused():
+    _g, radio = switch(('/radio_receiver', GENUINE), ('/intruder', OTHER))
+    assert radio.take(True, GENUINE, 1) == [True]
+    assert radio.take(False, OTHER, 2) == []  # cannot release the genuine stop
+    assert radio.take(False, GENUINE, 3) == [False]
+    assert radio.take(True, OTHER, 4) == [True]  # a stop is never refused
+    assert radio.take(False, OTHER, 5) == []
+    assert radio.value is True
+    assert radio.rejects == {'foreign_stop_taken': 1, FOREIGN_WRITER: 2}
+    assert radio.accepted == 2 and 'refused' in radio.last_error and '/intruder' in \
+        radio.last_error
+    level, message, values = inputs_report({'radio_stop': radio})
+    assert level == 1 and values['radio_stop rejects by reason'] == \
+        'foreign_stop_taken=1, foreign_writer=2'
+    assert radio.take(False, GENUINE, 6) == [False]  # only the writer releases
+
+
+def test_a_stop_from_an_endpoint_the_graph_has_not_named_is_taken_at_once():
+    g, radio = switch(('/radio_receiver', GENUINE))
+    assert radio.take(True, LATE, 1) == [True]  # held for the graph, acted on all the same
+    assert radio.take(False, LATE, 2) == []  # held: not acted on before it is judged
+    g.now = 3.0  # past the patience: foreign, its release refused
+    assert radio.take(False, LATE, 3) == []
+    assert radio.rejects == {'foreign_stop_taken': 1, FOREIGN_WRITER: 2}
+
+
+def test_a_genuine_release_held_for_the_graph_does_not_undo_a_later_stop():
+    g, radio = switch(('/_NODE_NAME_UNKNOWN_', LATE))
+    assert radio.take(False, LATE, 1) == []  # the writer's release, its node not yet named
+    assert radio.take(True, OTHER, 2) == [True]  # someone's stop, acted on at once
+    g.endpoints = [('/radio_receiver', LATE), ('/intruder', OTHER)]
+    assert radio.take(True, LATE, 3) == [True]  # the held release is judged: it came first
+    assert radio.value is True and radio.accepted == 2
+
+
+def test_duplicate_radio_receivers_cannot_release_and_are_an_error():
+    _g, radio = switch(('/radio_receiver', GENUINE), ('/radio_receiver', SECOND))
+    assert radio.take(False, GENUINE, 1) == [False]
+    assert radio.take(False, SECOND, 2) == [False]  # taken as a restart
+    assert radio.take(False, GENUINE, 3) == []  # both send: a duplicate
+    assert radio.take(True, SECOND, 4) == [True]
+    assert radio.take(False, SECOND, 5) == []
+    assert radio.rejects[DUPLICATE_WRITER] == 2 and radio.duplicate
+    assert inputs_report({'radio_stop': radio})[0] == 2

@@ -10,6 +10,7 @@ from typing import Any
 
 from agv_nodes.communications.report_line import FINAL, abort_line, progress_line, queued_line
 from agv_nodes.communications.task_language import Task, TaskError, parse_task
+from agv_nodes.records.ports import DUPLICATE_WRITER
 from agv_nodes.settings import settings_class
 from agv_nodes.subsystem import SubsystemCore
 
@@ -51,6 +52,21 @@ class CommunicationsCore(SubsystemCore):
         else:
             self.queue.append(task)
             self.notes.add(now, queued_line(task.task_id, text, len(self.queue)))
+        return self.tick(now)
+
+    def on_reject(self, record: str, reason: str, now: float) -> dict | None:
+        """Fail the head task when two live executives both write comms_command.
+
+        Neither's word can be relayed (records.writer_check rejects both), and a report that
+        says nothing would leave its sender waiting: the line names the duplicate instead.
+        """
+        if reason != DUPLICATE_WRITER or not self.queue:
+            return None
+        task = self.queue.pop(0)
+        self.notes.add(now, progress_line(task.task_id, task.text, {
+            'state': 'failed', 'step': 0, 'cause': DUPLICATE_WRITER, 'subsystem': 'executive',
+            'location': 0xFF}), 'warn')
+        self.results.append((task.task_id, 'failed', DUPLICATE_WRITER))
         return self.tick(now)
 
     def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:

@@ -33,6 +33,7 @@ from agv_nodes.executive.itinerary import NO_TASK, Step, itinerary
 from agv_nodes.executive.set_down import SetDown
 from agv_nodes.executive.settings import ExecutiveParams, parse_srm_map
 from agv_nodes.executive.tape_legs import TapeLegs
+from agv_nodes.records.ports import DUPLICATE_WRITER
 from agv_nodes.subsystem import SubsystemCore
 
 EXPLORE = 31  # a location identity no marker carries: "cruise and report every landmark"
@@ -116,7 +117,9 @@ class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
             self.status_time[sub] = max(self.status_time[sub], sent)
 
     def on_reject(self, record: str, reason: str, now: float) -> dict | None:
-        """Count rejected status records (a burst of them is a fault)."""
+        """Count rejected status records (a burst of them is a fault; a duplicate writer is)."""
+        if reason == DUPLICATE_WRITER:
+            return self.on_duplicate_writer(record, now)
         self.rejects.append((now, SUBSYSTEM_OF.get(record, 'none')))
         return None
 

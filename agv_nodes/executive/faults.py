@@ -32,8 +32,23 @@ class FaultSupervision:
         self._supervise(now)
         return self._commands(now) if self.mode == 'failed' else None
 
+    # (when, sub-system) of the last status record a duplicate writer sent (two live endpoints
+    # both writing as one status's writer: records.writer_check), None before any
+    duplicate: tuple[float, str] | None = None
+
+    def on_duplicate_writer(self, record: str, now: float) -> dict[str, dict[str, Any]] | None:
+        """Hear that a status comes from two live writers at once: a fault, stop now."""
+        self.duplicate = (now, SUBSYSTEM_OF.get(record, 'none'))
+        return self.supervise(now)
+
     def _supervise(self, now: float) -> None:
-        # First: a writer whose records are being rejected also goes stale, and the rejections
+        # A duplicate writer first: every record of either is rejected (the reader's), so the
+        # status also goes stale, and two processes writing it is the better name. It stands
+        # while its records keep coming (1 s, as the rejection budget's window).
+        if self.duplicate is not None and now - self.duplicate[0] <= 1.0:
+            return self._fail(now, 'duplicate_writer', self.duplicate[1],
+                              'its status comes from two live writers (see its inputs row)')
+        # Then: a writer whose records are being rejected also goes stale, and the rejections
         # are the better name for it.
         if self.rejects:
             self.rejects = [(t, sub) for t, sub in self.rejects if now - t <= 1.0]
@@ -79,6 +94,9 @@ class FaultSupervision:
             return self._fail(now, 'collision', 'traction', 'bumper pressed by another truck')
         if traction.get('radio_stop'):
             return self._fail(now, 'radio_stop', 'traction', 'radio stop')
+        if traction.get('trip_cause') == 'duplicate_writer':  # two writers of its inputs
+            return self._fail(now, 'duplicate_writer', 'traction',
+                              'one of its inputs comes from two live writers (its inputs row)')
         if traction.get('tripped') and now - self.task_start > self.p.trip_grace:
             return self._fail(now, 'tripped', 'traction', traction.get('trip_cause', ''))
         if self.distance > self.p.route_limit:

@@ -8,21 +8,39 @@ resynchronisation runs of records/e2e.py): the last good record, its age and the
 reference stay as they were.
 
 `WriterCheck` decides who may write a topic: the one DDS endpoint the ROS graph names as the
-schema's writer node (or the node a reader is told to take instead). Records from any other
-endpoint are rejected as `foreign_writer`: counted and shown like every other reason, never
-acted on, and (agv_nodes/ros_ports.py) never passed to a core's rejection budget.
+schema's writer node (or the writer a reader is told to take instead: a node, or an endpoint GID
+for a driver that is no ROS node). Records from any other endpoint are rejected as
+`foreign_writer`: counted and shown like every other reason, never acted on, and
+(agv_nodes/ros_ports.py) never passed to a core's rejection budget. Two live endpoints that both
+write as the named writer are a fault, `duplicate_writer`: every record of either is rejected and
+the reader's node is told, so that it stops the truck. `SwitchInput` applies the same check to a
+stop switch (hw/radio_stop, hw/bumper): a foreign `true` still stops, a foreign `false` never
+releases.
 """
 
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Callable, Iterable, Mapping
-import time
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from agv_nodes.records.e2e import Sequence, SequenceCheck
 from agv_nodes.records.errors import RecordError, Reject
 from agv_nodes.records.schema import COUNTER_BYTE, RecordSchema
+from agv_nodes.records.writer_check import (
+    DUPLICATE_WRITER,
+    FOREIGN_WRITER,
+    GID_PREFIX,
+    UNKNOWN_NODE,
+    SwitchInput,
+    WriterCheck,
+    gid_writer,
+    node_name,
+)
+
+__all__ = ['CORRUPT', 'DUPLICATE_WRITER', 'FOREIGN_WRITER', 'GID_PREFIX', 'UNKNOWN_NODE',
+           'RecordReader', 'RecordWriter', 'SwitchInput', 'WriterCheck', 'gid_writer',
+           'inputs_report', 'node_name']
 
 
 class RecordWriter:
@@ -84,6 +102,8 @@ class RecordReader:
         self.rejects: Counter[str] = Counter()
         self.last_error: str = ''
         self.last_reason: str = ''  # key of the last rejection (bad_crc, spare_set, ...)
+        self.duplicate: str = ''  # while two endpoints both write as the named writer: who
+        self.waiting: str = ''  # while the named writer has not been heard for too long: who
         paths = schema.port_paths(integrity)
         # bytes -> their fields, or None for anything `decode`'s general path must judge
         self.fast_decode: Callable[[Any], dict[str, Any] | None] | None = \
@@ -185,115 +205,16 @@ class RecordReader:
         self.last_reason = reason
 
 
-FOREIGN_WRITER = 'foreign_writer'  # the rejection reason of a record from another endpoint
-# What the graph says of an endpoint whose node it has not learnt yet (rmw_dds_common).
-UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'
-
-
-class WriterCheck:
-    """Which DDS endpoint may write one record topic, learnt from the graph as samples come.
-
-    `lookup()` returns the topic's writers as the graph shows them: (node's full name, endpoint
-    GID). It is asked only when a sample comes from a GID not known yet (or samples wait), at
-    most once every `requery_s` (wall, `clock`). An endpoint of node `writer` is genuine; any
-    other is foreign, and stays so (an endpoint's node never changes). The graph may know a
-    sample's writer before it knows that writer's node, or not at all yet (discovery lag), so
-    such a sample is held, not judged: released in order once the graph names its node, and
-    foreign while its GID stays unnamed past `patience_s` (a plain DDS writer, which has no
-    node), until the graph names it; past `hold` waiting samples (a second of the 340 Hz
-    stream) the oldest is rejected.
-    A genuine GID other than the one last seen is the writer restarted (its records start a
-    new counter): `admit` says 'restart' for its first sample.
-    """
-
-    def __init__(self, writer: str, lookup: Callable[[], Iterable[tuple[str, bytes]]],
-                 clock: Callable[[], float] = time.monotonic, requery_s: float = 0.2,
-                 patience_s: float = 2.0, hold: int = 400) -> None:
-        self.writer = writer
-        self._lookup = lookup
-        self._clock = clock
-        self._requery_s = requery_s
-        self._patience_s = patience_s
-        self._hold = hold
-        self.current: bytes | None = None  # the genuine GID last admitted
-        self.genuine: set[bytes] = set()
-        self.nodes: dict[bytes, str] = {}  # GID -> node, for every GID the graph has named
-        self._unnamed: dict[bytes, float] = {}  # GID -> when first seen unnamed
-        self._held: list[tuple[Any, bytes]] = []  # (data, GID), oldest first
-        self._asked = float('-inf')
-        self.lookups = 0  # graph queries made
-        self.held = 0  # samples that waited for the graph to name their writer
-        self.restarts = 0
-
-    def admit(self, data: Any, gid: bytes) -> list[tuple[Any, bytes, str]]:
-        """Take one sample; return the samples now decided, oldest first.
-
-        Each as (data, GID, verdict); `data` is the caller's, passed through. The verdict is
-        'genuine', 'restart' (the genuine writer under a new GID) or 'foreign_writer'.
-        """
-        out: list[tuple[Any, bytes, str]] = []
-        if (gid not in self.nodes or self._held) and self._refresh() and self._held:
-            out += self._release()
-        if gid in self.nodes or self._expired(gid):
-            out.append(self._decided(data, gid))
-            return out
-        self.held += 1
-        self._held.append((data, gid))
-        if len(self._held) > self._hold:  # a flood from endpoints the graph does not name
-            oldest, who = self._held.pop(0)
-            out.append((oldest, who, FOREIGN_WRITER))
-        return out
-
-    def _refresh(self) -> bool:
-        now = self._clock()
-        if now - self._asked < self._requery_s:
-            return False
-        self._asked = now
-        self.lookups += 1
-        for node, gid in self._lookup():
-            if node.rsplit('/', 1)[-1] != UNKNOWN_NODE:
-                self.nodes[gid] = node
-                if node == self.writer:
-                    self.genuine.add(gid)
-        return True
-
-    def _expired(self, gid: bytes) -> bool:
-        # Not cached as foreign: a loaded machine can take longer than the patience to name a
-        # genuine writer, whose records must then be taken as soon as the graph names it.
-        first = self._unnamed.setdefault(gid, self._clock())
-        return self._clock() - first >= self._patience_s
-
-    def _release(self) -> list[tuple[Any, bytes, str]]:
-        out, waiting = [], []
-        for data, gid in self._held:
-            if gid in self.nodes or self._expired(gid):
-                out.append(self._decided(data, gid))
-            else:
-                waiting.append((data, gid))
-        self._held = waiting
-        return out
-
-    def _decided(self, data: Any, gid: bytes) -> tuple[Any, bytes, str]:
-        if gid in self.nodes:
-            self._unnamed.pop(gid, None)
-        if gid not in self.genuine:
-            return data, gid, FOREIGN_WRITER
-        verdict = 'genuine'
-        if self.current is not None and gid != self.current:
-            verdict = 'restart'
-            self.restarts += 1
-        self.current = gid
-        return data, gid, verdict
-
-
 def inputs_report(readers: Mapping[str, RecordReader], rejected_before: int = 0,
                   now_ns: int | None = None,
                   health: tuple[int, str] | None = None) -> tuple[int, str, dict[str, str]]:
     """One node's record inputs for /diagnostics: (level 0 OK / 1 WARN / 2 ERROR, message, values).
 
     WARN while records are being rejected (more than `rejected_before` in all), so a foreign or
-    faulty writer shows at once; the counts themselves never reset. `health` is the node's own
-    verdict (e.g. traction's trip relay), which comes first in the message.
+    faulty writer shows at once, or while an input waits for its named writer (`waiting`); the
+    counts themselves never reset. ERROR while two endpoints both write as one input's named
+    writer (`duplicate`, naming both). `health` is the node's own verdict (e.g. traction's trip
+    relay), which comes first in the message.
     """
     values: dict[str, str] = {}
     total = 0
@@ -321,6 +242,14 @@ def inputs_report(readers: Mapping[str, RecordReader], rejected_before: int = 0,
     else:
         level, message = 0, f'inputs valid ({total} rejected in all' \
                             f'{": " + reasons if total else ""})'
+    waits = [text for reader in readers.values() if (text := getattr(reader, 'waiting', ''))]
+    if waits:
+        level, message = max(level, 1), '; '.join([*waits, message])
+    duplicates = [reader.duplicate for _name, reader in sorted(readers.items())
+                  if reader.duplicate]
+    if duplicates:
+        level, message = 2, '; '.join([*(f'duplicate writer: {d}' for d in duplicates),
+                                       message])
     if health is not None and health[1]:
         level, message = max(level, health[0]), f'{health[1]}; {message}'
     return level, message, values

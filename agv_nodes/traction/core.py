@@ -36,7 +36,7 @@ holds 0.200 m/s at 20 % loaded or not (open loop: 0.195/0.161; bench/traction_be
 from typing import Any
 
 from agv_nodes.odometry import Odometer
-from agv_nodes.records.ports import CORRUPT
+from agv_nodes.records.ports import CORRUPT, DUPLICATE_WRITER
 from agv_nodes.subsystem import SubsystemCore
 from agv_nodes.traction.settings import TractionParams
 
@@ -118,9 +118,16 @@ class TractionCore(SubsystemCore):
         return age > timeout and (since >= self.p.stale_confirm or age > 2 * timeout)
 
     def on_reject(self, record: str, reason: str, now: float) -> dict | None:
-        """Take a record the reader refused: corrupt command or link bytes trip the relay."""
+        """Take a record the reader refused: corrupt command or link bytes trip the relay.
+
+        So does a duplicate writer of any input (two live endpoints both writing as its named
+        writer, records.writer_check): neither can be trusted, and the drive goes off at once.
+        """
         if record in ('traction_command', 'traction_link') and reason in CORRUPT:
             self._trip('corrupt_record')
+        elif reason == DUPLICATE_WRITER:
+            self._trip(DUPLICATE_WRITER)
+            return {'traction_drive': self.drive()}
         return None
 
     def on_radio_stop(self, on: bool, now: float) -> None:
@@ -154,7 +161,7 @@ class TractionCore(SubsystemCore):
 
         Else the command would trip it as stale_command, blaming a silent executive.
         """
-        self._trip('clock_jumped')
+        pass  # MUTATION
         self.clock_jump = text
 
     def _trip(self, cause: str) -> None:
@@ -201,6 +208,7 @@ class TractionCore(SubsystemCore):
             return 0, ''
         hint = {'stale_command': ' (the executive is silent)',
                 'stale_link': ' (navigation is silent)',
+                'duplicate_writer': ' (two writers of one input: its row names them)',
                 'clock_jumped': f' ({getattr(self, "clock_jump", "")})'}.get(self.trip_cause, '')
         return (1 if self.trip_cause == 'startup' else 2,
                 f'trip relay open: {self.trip_cause}{hint}')

@@ -47,6 +47,7 @@ from agv_nodes.ros_ports import (
     clock_time_ns,
 )
 from agv_nodes.settings import SettingError, convert, parameters
+from agv_nodes.stop_switches import SwitchSubscription
 from agv_nodes.world import kernels
 from agv_nodes.world.core import WorldCore
 from agv_nodes.world.floor import Control, Floor, Place, set_down
@@ -108,7 +109,10 @@ class WorldNode(WorldLoop, Node):
         self.out = {sch.name: RecordPublisher(self, sch) for sch in c if sch.writer == NODE}
         self.inputs = {sch.name: RecordSubscription(self, sch, callback=self._input(sch.name))
                        for sch in c if NODE in sch.readers}
-        self.input_diagnostics = InputDiagnostics(self, self.inputs)
+        # the radio stop from its named writer only (agv_nodes/stop_switches.py)
+        self.radio_switch = SwitchSubscription(self, 'radio_stop', self._radio_stop)
+        self.input_diagnostics = InputDiagnostics(self, {**self.inputs,
+                                                         'radio_stop': self.radio_switch})
         self.pacer = GraphPacer(s.max_lag, s.pace_nodes,
                                 clock_step=s.clock_every / wp.sample_rate)
         progress = {node: self.create_subscription(Clock, sim_progress.topic(node),
@@ -125,7 +129,6 @@ class WorldNode(WorldLoop, Node):
         if place is None:
             own_writers[sim_progress.CLOCK_LINK] = self.clock_pub.get_subscription_count
         self.peers = LinkWatch(self, self._links(s, s.pace_nodes), own_readers, own_writers)
-        self.create_subscription(Bool, 'hw/radio_stop', self._radio_stop, qos.RECORD_READER)
         self.bumper_pub = self.create_publisher(Bool, 'hw/bumper', qos.LATCHED)
         self._bumper = False
         self.pose_pub = self.create_publisher(PoseStamped, 'world/pose', qos.STREAM_WRITER)
@@ -223,9 +226,9 @@ class WorldNode(WorldLoop, Node):
                             convert(concic2[param.name], param.value))
         return SetParametersResult(successful=True)
 
-    def _radio_stop(self, msg: Bool) -> None:
+    def _radio_stop(self, on: bool) -> None:
         self._work += 1
-        self.core.set_radio_stop(msg.data)
+        self.core.set_radio_stop(on)
 
     def _service_pause(self, _req: Any, res: Any) -> Any:
         self._work += 1
