@@ -44,7 +44,8 @@ class Task:
     then: str = 'stay'
     conveyor: str = 'first'
     load_name: str = ''
-    task_id: int = 0
+    task_id: int = 0  # comms_status's 8-bit id of the task (communications.core.record_id)
+    number: int = 0  # the task's number in the report lines (1, 2, 3, ... without end)
     # a tape leg: decision and wait per scripted junction, what unscripted ones do, dm of travel
     junctions: dict[int, tuple[str, int]] = field(default_factory=dict)
     unscripted: str = 'straight'
