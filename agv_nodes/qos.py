@@ -39,6 +39,10 @@ LINKS_READER = _keep_last(100, latched=True)
 PROGRESS = _keep_last(5)
 # /diagnostics, reports, ground-truth streams: reliable, volatile.
 EVENTS = _keep_last(50)
+# comms/task's reader and comms/report's writer: more of a burst of tasks reaches communications,
+# each queued or refused with its own line (of a burst of 400, 347 never arrived with 50, 124-135
+# with 256: test_task_flood_dds.py); what is lost is counted (docs/tasks.md, "Limits").
+TASKS = _keep_last(256)
 
 
 def writer_qos(schema: RecordSchema) -> QoSProfile:
