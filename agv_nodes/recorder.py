@@ -14,6 +14,13 @@ footer (CommittedFile), and metadata.yaml is rewritten every few seconds, so a S
 recorder leaves a bag that rosbags and mcap read up to its last second (a power cut may lose
 what the operating system had not yet written out: there is no fsync).
 
+A full disk (any OSError writing the bag: ENOSPC, or `space_limit` reached, which raises the
+same) stops the recording, not the recorder: the bag file is put back as its last commit left
+it (bag_file.CommittedFile), the error is logged, and /diagnostics says why (row
+`agv[/ns]/recorder/bag`, ERROR) until the end. The recorder goes on taking what the graph sends,
+counted as not recorded, so that nothing the truck's nodes see changes: the launcher ends a run
+whose node dies, and a reader that stopped taking would be another reader than the one matched.
+
 Polling (`poll_period`, default 20 ms of wall time): the recorder's subscriptions sit in a
 callback group the executor never waits on, and a steady timer takes everything queued on
 every topic at once. A callback per message cost the recorder ~45 % of a core at real time
@@ -32,9 +39,12 @@ import sys
 import time
 from typing import Any
 
+from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import CallbackGroup
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosbags.interfaces import Qos
 from rosbags.rosbag2 import StoragePlugin, Writer
@@ -47,7 +57,7 @@ from agv_nodes.bag_file import CommittedFile, to_bag_qos
 from agv_nodes.node_process import spin_main
 from agv_nodes.params import declare, parameter_error, refuse_unknown
 from agv_nodes.rclpy_internals import drop_clock_reader, take_all
-from agv_nodes.ros_ports import LINKS_TOPIC, clock_time_ns
+from agv_nodes.ros_ports import LINKS_TOPIC, clock_time_ns, diagnostic_status
 from agv_nodes.sent_time import SentTimeline
 from agv_nodes.settings import settings_class
 from agv_nodes.sim_progress import CLOCK_LINK
@@ -100,6 +110,7 @@ class Recorder(Node):
         self.max_size = s.max_bag_size
         self.all_namespaces = s.all_namespaces
         self.poll_period = s.poll_period
+        self.space_limit = s.space_limit
         if self.bag_path.exists():
             raise parameter_error(self, 'bag', s.bag, 'exists already (a bag is never '
                                   'overwritten)')
@@ -113,6 +124,11 @@ class Recorder(Node):
         self._offered: dict[str, list[Qos]] = {}
         self.bytes = 0
         self.paths: list[Path] = []
+        self.written = 0  # messages written to the bag (committed at the next checkpoint)
+        self.committed = 0  # messages in the bag file as its last commit left it
+        self.unrecorded = 0  # messages taken after recording stopped
+        self.stopped = ''  # why recording stopped ('' while it runs)
+        self._closed = False
         self.timeline = SentTimeline(keep=10.0)
         self.hold = 2.0  # s of wall time a message may wait for the /clock samples that place it
         self._held: list[tuple[int, str, bytes, int]] = []  # (sent ns, topic, raw, held since)
@@ -121,7 +137,11 @@ class Recorder(Node):
         self._clock_msg = Clock()  # re-filled from each /clock sample's CDR
         # metadata.yaml as last written: (topics, checkpoints since, the text rosbags made)
         self._metadata: tuple[int, int, str] = (0, 0, '')
-        self._open()
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos.EVENTS)
+        try:
+            self._open()
+        except OSError as exc:
+            self._stop(exc)
         # 'recorder clock' on graph/links once /clock is matched: the world does not move
         # before (its wait list has 'recorder:clock'), so the bag has every /clock sample
         self._links = self.create_publisher(String, LINKS_TOPIC, qos.LATCHED)
@@ -130,6 +150,8 @@ class Recorder(Node):
         if self.poll_period:
             self.create_timer(self.poll_period, self.poll, clock=self._wall_clock())
         self.create_timer(CHECKPOINT, self.checkpoint, clock=self._wall_clock())
+        self.create_timer(1.0, self.diagnostics, clock=self._wall_clock())
+        self.add_on_set_parameters_callback(self._set_space_limit)
         self._discover()
 
     def _wall_clock(self):
@@ -140,15 +162,15 @@ class Recorder(Node):
     def _open(self) -> None:
         path = self.bag_path if self.part == 0 else \
             self.bag_path.with_name(f'{self.bag_path.name}_{self.part}')
+        self.paths.append(path)
         self.writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
         self.writer.set_custom_data('recorded_by', 'agv_nodes recorder')
         self.writer.open()
-        self.paths.append(path)
         self.connections = {}
         self.bytes = 0
         storage = getattr(self.writer, 'storage', None)
         if hasattr(storage, 'bio') and hasattr(storage, 'close_chunk'):
-            storage.bio = CommittedFile(storage.bio)
+            storage.bio = CommittedFile(storage.bio, self.space_limit)
             self.checkpoint(force=True)
         else:  # another rosbags: the bag is readable only once closed
             self.get_logger().warn('rosbags writer without checkpoints: a killed recorder '
@@ -161,8 +183,14 @@ class Recorder(Node):
         CommittedFile marked for a checkpoint: it writes the summary and footer, and the file
         stays open for more. For metadata.yaml the whole Writer.close() runs (METADATA_EVERY),
         and the metadata text it hands the storage is kept for the checkpoints between.
-        Nothing new since the last one: nothing to do.
+        Nothing new since the last one: nothing to do. A failed write stops the recording.
         """
+        try:
+            self._checkpoint(force)
+        except OSError as exc:
+            self._stop(exc)
+
+    def _checkpoint(self, force: bool) -> None:
         storage = getattr(self.writer, 'storage', None)
         bag_file = getattr(storage, 'bio', None)
         if not isinstance(bag_file, CommittedFile):
@@ -188,6 +216,49 @@ class Recorder(Node):
         else:
             self._metadata = (topics, self._metadata[1] + 1, self._metadata[2])
             storage.close(self.writer.version, self._metadata[2])
+        self.committed = self.written
+
+    def _stop(self, exc: OSError) -> None:
+        """Stop recording after a failed write: say why, keep the bag as last committed."""
+        storage = getattr(self.writer, 'storage', None)
+        bag_file = getattr(storage, 'bio', None)
+        self.writer = None
+        path = self.paths[-1] if self.paths else self.bag_path
+        try:
+            if isinstance(bag_file, CommittedFile):
+                bag_file.abandon()
+            (path / 'metadata.yaml.tmp').unlink(missing_ok=True)  # a partial one: room freed
+        except OSError:
+            pass
+        self.stopped = (f'recording stopped: {exc.strerror or exc} writing {path}; the bag '
+                        f'reads to its last commit ({self.committed} messages in all); the truck '
+                        'runs on')
+        self.get_logger().error(self.stopped)
+        self.diagnostics()
+
+    def _set_space_limit(self, params: list[Parameter]) -> SetParametersResult:
+        # the descriptor's range has checked it; the other parameters are read-only
+        for p in params:
+            if p.name == 'space_limit':
+                self.space_limit = int(p.value)
+                bag_file = getattr(getattr(self.writer, 'storage', None), 'bio', None)
+                if isinstance(bag_file, CommittedFile):
+                    bag_file.space_limit = self.space_limit
+        return SetParametersResult(successful=True)
+
+    def diagnostics(self) -> None:
+        """Publish the recording's state on /diagnostics (ERROR once it has stopped)."""
+        values = {'messages written': str(self.written),
+                  'messages committed': str(self.committed),
+                  'messages not recorded': str(self.unrecorded),
+                  'bag': ', '.join(map(str, self.paths)), 'space_limit': str(self.space_limit)}
+        level, message = (2, self.stopped) if self.stopped else \
+            (0, f'recording: {self.written} messages')
+        name = self.get_name()
+        msg = DiagnosticArray(status=[diagnostic_status(self, f'{name}/bag', level, message,
+                                                        name, values)])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._diag_pub.publish(msg)
 
     def _wanted(self, topic: str) -> bool:
         if topic in SKIP:
@@ -322,17 +393,22 @@ class Recorder(Node):
         self._held = keep
 
     def _write(self, topic: str, raw: bytes, stamp: int | None = None) -> None:
+        if self.writer is not None and self.max_size and self.bytes > self.max_size:
+            try:
+                self.writer.close()
+                self.part += 1
+                self._open()
+            except OSError as exc:
+                self._stop(exc)
         if self.writer is None:
+            self.unrecorded += bool(self.stopped)
             return
-        if self.max_size and self.bytes > self.max_size:
-            self.writer.close()
-            self.part += 1
-            self._open()
         if stamp is None:
             stamp = self.get_clock().now().nanoseconds
         self.writer.write(self._connection(topic), stamp, raw)
         self.bytes += len(raw)
         self.counts[topic] += 1
+        self.written += 1
 
     def close(self) -> None:
         """Write the metadata and close the bag (idempotent)."""
@@ -343,11 +419,21 @@ class Recorder(Node):
                 pass
             self._release(final=True)
         if self.writer is not None:
-            self.writer.close()
+            try:
+                self.writer.close()
+                self.committed = self.written
+            except OSError as exc:
+                self._stop(exc)
             self.writer = None
-            total = sum(self.counts.values())
-            # print, not the logger: at shutdown the context (and /rosout) may be gone
-            print(f'bag closed: {total} messages on {len(self.counts)} topics in '
+        if self._closed:
+            return
+        self._closed = True
+        # print, not the logger: at shutdown the context (and /rosout) may be gone
+        if self.stopped:
+            print(f'bag closed early: {self.stopped}; {self.unrecorded} messages taken after '
+                  'were not recorded', flush=True)
+        else:
+            print(f'bag closed: {self.written} messages on {len(self.counts)} topics in '
                   f'{", ".join(map(str, self.paths))}', flush=True)
 
     def finish(self) -> None:
