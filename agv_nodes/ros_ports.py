@@ -329,6 +329,10 @@ class InputDiagnostics:
         else:
             node.create_timer(period, self.publish)
 
+    def add(self, name: str, port: Any) -> None:
+        """Show one more input (a CheckedInput, or a reader a subclass makes after the core's)."""
+        self._readers = {**self._readers, name: port}
+
     def publish(self) -> None:
         """Send the current counts."""
         level, message, values = inputs_report(

@@ -344,6 +344,8 @@ def settings_from_file(cls: type, path: Path | str, node: str,
 # names each record's: the radio receiver's driver (in the tests, the probe's node of that name,
 # test/graph_probe.py) and the world's bumper. record_writers names another, as for a record.
 SWITCH_WRITERS = {'radio_stop': 'radio_receiver', 'bumper': 'world'}
+# The cameras' frames (route following steers the CONCIC-II by them), from the world's cameras.
+FRAME_WRITERS = {'camera_front': 'world', 'camera_rear': 'world'}
 _GID_HEX = re.compile(r'gid:(?:[0-9a-fA-F]{2}){1,16}')
 
 
@@ -362,7 +364,7 @@ class ProcessSettings:
         """Make the checks `build` needs beyond each field's own: record_writers' entries."""
         from agv_nodes.records import codec  # the schemas, only when a node is built
 
-        names = {s.name for s in codec()} | set(SWITCH_WRITERS)
+        names = {s.name for s in codec()} | set(SWITCH_WRITERS) | set(FRAME_WRITERS)
         for entry in self.record_writers:  # type: ignore[attr-defined]
             record, sep, node = entry.partition('=')
             gid = node.startswith('gid:')
@@ -370,8 +372,8 @@ class ProcessSettings:
                     or (gid and not _GID_HEX.fullmatch(node)):
                 return [('record_writers', list(self.record_writers),  # type: ignore[attr-defined]
                          f'entry {entry!r} is not record=node or record=gid:<hex, up to 16 '
-                         'bytes> with a record of msg_schemas/ or a switch '
-                         f'({", ".join(SWITCH_WRITERS)})')]
+                         'bytes> with a record of msg_schemas/ or another input '
+                         f'({", ".join([*SWITCH_WRITERS, *FRAME_WRITERS])})')]
         return []
 
 

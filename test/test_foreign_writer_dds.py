@@ -247,3 +247,71 @@ def test_a_driver_swap_names_the_writer_a_reader_takes(tmp_path, fault_table):
         stand_in.destroy_node()
         g.close()
 
+
+
+def bool_publisher(g: GraphProbe, topic: str):
+    """Return a writer of `topic` on the probe's own node (fault_probe: not the named writer)."""
+    from std_msgs.msg import Bool
+
+    from agv_nodes import qos
+
+    return g.node.create_publisher(Bool, topic, qos.RECORD_WRITER)
+
+
+@pytest.mark.timeout(420)
+def test_a_foreign_radio_stop_stops_but_a_foreign_release_is_refused(tmp_path, fault_table):
+    """hw/radio_stop's named writer is radio_receiver (settings.SWITCH_WRITERS).
+
+    The probe's own node writes it too, and is foreign: its `true` stops the truck all the same
+    (counted foreign_stop_taken), its `false` is refused (counted foreign_writer) and the radio
+    stop holds until radio_receiver's `false`. traction_status's radio_stop flag is traction's
+    radio input (PIO1-A bit 4), the world's inputs row counts what the world took.
+    """
+    from std_msgs.msg import Bool
+
+    from agv_nodes.ros_ports import RecordSubscription
+
+    c = codec()
+    g = GraphProbe(tmp_path / 'logs')
+    try:
+        statuses: list[tuple[float, dict]] = []
+        RecordSubscription(g.node, c['traction_status'],
+                           callback=lambda f: statuses.append((g.time, f)))
+        foreign = bool_publisher(g, 'hw/radio_stop')
+        g.start_task(TASK)
+        speed = g.speed
+        g.spin_until(lambda: foreign.get_subscription_count() >= 2, 60,
+                     'traction and the world matching the foreign radio stop')
+        at = g.at_exact_time(lambda: foreign.publish(Bool(data=True)))
+        g.spin_until(lambda: reasons(g, 'traction', 'radio_stop').get('foreign_stop_taken'),
+                     60, 'traction counting the foreign stop')
+        cut = g.drive_off_ms(at, 0.2)
+        g.stays_at_rest()
+        assert statuses[-1][1]['radio_stop'] == 1, statuses[-1]
+        g.report_with('FAILED: radio stop (traction)')
+        foreign.publish(Bool(data=False))  # the release, from the wrong writer
+        g.spin_until(lambda: reasons(g, 'traction', 'radio_stop').get('foreign_writer'), 60,
+                     'traction counting the foreign release')
+        refused_at = g.time
+        g.spin_until(lambda: g.time > refused_at + 2.0, 60, 'two sim seconds')
+        held = [f['radio_stop'] for t, f in statuses if t >= refused_at - 0.5]
+        assert held and set(held) == {1}, held  # never released
+        g.spin_until(lambda: reasons(g, 'world', 'radio_stop') == {
+            'foreign_stop_taken': 1, 'foreign_writer': 1}, 30, "the world's counts")
+        g.radio_stop(False)  # radio_receiver: the named writer releases it
+        g.spin_until(lambda: statuses[-1][1]['radio_stop'] == 0, 30,
+                     "radio_receiver's release")
+        counted = reasons(g, 'traction', 'radio_stop')
+        assert counted == {'foreign_stop_taken': 1, 'foreign_writer': 1}, counted
+        row = g.inputs['traction']
+        assert '/fault_probe' in row['radio_stop last rejection'], row
+        assert row['radio_stop writer'].startswith('/radio_receiver ('), row
+        g.stays_at_rest(what='the truck to stay stopped after the release')
+        print(f'foreign stop at {at:.2f} s, {speed:.2f} m/s: drive off {cut} ms; {counted}')
+        fault_table.add('a foreign writer on hw/radio_stop: true while cruising, then false',
+                        'its stop taken (fail-safe), its release refused; both counted and '
+                        'named; only radio_receiver releases',
+                        f'at {speed:.2f} m/s: drive off {cut} ms after; radio stop held '
+                        f'2 s after the foreign false; traction {counted}')
+    finally:
+        g.close()

@@ -14,6 +14,7 @@ from agv_nodes.records import codec
 from agv_nodes.records.ports import (
     DUPLICATE_WRITER,
     FOREIGN_WRITER,
+    CheckedInput,
     RecordReader,
     SwitchInput,
     WriterCheck,
@@ -327,3 +328,16 @@ def test_duplicate_radio_receivers_cannot_release_and_are_an_error():
     assert radio.take(False, SECOND, 5) == []
     assert radio.rejects[DUPLICATE_WRITER] == 2 and radio.duplicate
     assert inputs_report({'radio_stop': radio})[0] == 2
+
+
+def test_a_camera_frame_from_another_endpoint_is_refused_and_named():
+    """hw/camera/<name> (route following steers by it): only the named writer's frames."""
+    g = Graph(('/world', GENUINE), ('/intruder', OTHER))
+    frames = CheckedInput('camera_front', g.check('/world'))
+    assert frames.take(b'frame 1', GENUINE, 1) == [b'frame 1']
+    assert frames.take(b'forged', OTHER, 2) == []
+    assert frames.accepted == 1 and frames.rejects == {FOREIGN_WRITER: 1}
+    assert frames.last_error == (f'camera_front: from /intruder ({OTHER.hex()}), not the '
+                                 'writer /world')
+    assert inputs_report({'camera_front': frames})[2]['camera_front writer'] == \
+        f'/world ({GENUINE.hex()})'

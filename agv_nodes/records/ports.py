@@ -32,6 +32,7 @@ from agv_nodes.records.writer_check import (
     FOREIGN_WRITER,
     GID_PREFIX,
     UNKNOWN_NODE,
+    CheckedInput,
     SwitchInput,
     WriterCheck,
     gid_writer,
@@ -39,7 +40,8 @@ from agv_nodes.records.writer_check import (
 )
 
 __all__ = ['CORRUPT', 'DUPLICATE_WRITER', 'FOREIGN_WRITER', 'GID_PREFIX', 'UNKNOWN_NODE',
-           'RecordReader', 'RecordWriter', 'SwitchInput', 'WriterCheck', 'gid_writer',
+           'CheckedInput', 'RecordReader', 'RecordWriter', 'SwitchInput', 'WriterCheck',
+           'gid_writer',
            'inputs_report', 'node_name']
 
 

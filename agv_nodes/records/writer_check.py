@@ -191,7 +191,62 @@ class WriterCheck:
 FOREIGN_STOP = 'foreign_stop_taken'  # a stop (true) from another endpoint: acted on, counted
 
 
-class SwitchInput:
+class CheckedInput:
+    """A stream that is no record (a camera's frames) taken through a WriterCheck.
+
+    The named writer's samples are acted on; any other's (foreign, or either of two live
+    writers) are refused, counted by reason and the last one named. Read by inputs_report like
+    a RecordReader.
+    """
+
+    lost = 0  # no counters on such a stream
+
+    def __init__(self, name: str, check: WriterCheck) -> None:
+        self.name = name
+        self.check = check
+        self.accepted = 0
+        self.rejects: Counter[str] = Counter()
+        self.last_error = ''
+        self.last_reason = ''
+        self.stamp_ns: int | None = None
+        self.duplicate = ''
+        self.waiting = ''
+
+    @property
+    def rejected(self) -> int:
+        """Samples refused (and, for a switch, stops taken from other endpoints)."""
+        return sum(self.rejects.values())
+
+    def age_s(self, now_ns: int) -> float:
+        """Seconds since the last sample acted on (inf if none yet)."""
+        return float('inf') if self.stamp_ns is None else (now_ns - self.stamp_ns) * 1e-9
+
+    def identity(self) -> str:
+        """Say whose input this is (its /diagnostics `writer` value)."""
+        current = self.check.current
+        return f'{self.check.writer} ({current.hex() if current else "not heard yet"})'
+
+    def take(self, data: Any, gid: bytes, now_ns: int) -> list[Any]:
+        """Judge one sample from `gid`; return the samples to act on, oldest first."""
+        out = []
+        for sample, who, verdict in self.check.admit(data, gid):
+            self.duplicate = self.check.duplicate_text(self.name)
+            if verdict in ('genuine', 'restart'):
+                self.accepted += 1
+                self.stamp_ns = now_ns
+                out.append(sample)
+            else:
+                self._refused(verdict, who, f'{self.name}: from {self.check.name(who)} '
+                              f'({who.hex()}), not the writer {self.check.writer}')
+        return out
+
+    def _refused(self, reason: str, who: bytes, text: str) -> None:
+        self.rejects[reason] += 1
+        self.last_reason = reason
+        self.last_error = text
+
+
+class SwitchInput(CheckedInput):
     """A stop switch (hw/radio_stop, hw/bumper: true = stop) taken through a WriterCheck.
 
     The named writer's value is acted on. From any other endpoint (foreign, or one of two that
@@ -202,35 +257,11 @@ class SwitchInput:
     the last foreign sample named, the writer, and ERROR while a duplicate stands.
     """
 
-    lost = 0  # no counters on a switch
-
     def __init__(self, name: str, check: WriterCheck) -> None:
-        self.name = name
-        self.check = check
-        self.accepted = 0
-        self.rejects: Counter[str] = Counter()
-        self.last_error = ''
-        self.last_reason = ''
-        self.stamp_ns: int | None = None
+        super().__init__(name, check)
         self.value: bool | None = None  # the value last acted on
-        self.duplicate = ''
-        self.waiting = ''
         self._seq = 0  # samples taken
         self._last_stop = 0  # the last `true` acted on (its sample number)
-
-    @property
-    def rejected(self) -> int:
-        """Samples from other endpoints (stops taken and releases refused)."""
-        return sum(self.rejects.values())
-
-    def age_s(self, now_ns: int) -> float:
-        """Seconds since the last sample acted on (inf if none yet)."""
-        return float('inf') if self.stamp_ns is None else (now_ns - self.stamp_ns) * 1e-9
-
-    def identity(self) -> str:
-        """Say whose switch this is (its /diagnostics `writer` value)."""
-        current = self.check.current
-        return f'{self.check.writer} ({current.hex() if current else "not heard yet"})'
 
     def take(self, on: bool, gid: bytes, now_ns: int) -> list[bool]:
         """Judge one sample from `gid`; return the values to act on, oldest first.
@@ -253,12 +284,9 @@ class SwitchInput:
                     self.value, self.stamp_ns = False, now_ns
                     out.append(False)
                 continue
-            reason = FOREIGN_STOP if value else verdict
-            self.rejects[reason] += 1
-            self.last_reason = reason
-            self.last_error = (f'{self.name}: {str(value).lower()} from '
-                               f'{self.check.name(who)} ({who.hex()}), not the writer '
-                               f'{self.check.writer}: '
-                               + ('taken (a stop is never refused)' if value else
-                                  'refused (only the writer releases a stop)'))
+            self._refused(FOREIGN_STOP if value else verdict, who,
+                          f'{self.name}: {str(value).lower()} from {self.check.name(who)} '
+                          f'({who.hex()}), not the writer {self.check.writer}: '
+                          + ('taken (a stop is never refused)' if value else
+                             'refused (only the writer releases a stop)'))
         return out
