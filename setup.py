@@ -50,6 +50,7 @@ setup(
             'communications = agv_nodes.communications.node:main',
             'dispatcher = agv_nodes.fleet.dispatcher_node:main',
             'executive = agv_nodes.executive.node:main',
+            'live_view = agv_nodes.view.live:main',
             'load_handling = agv_nodes.load_handling.node:main',
             'navigation = agv_nodes.navigation.node:main',
             'position_sensor = agv_nodes.position_sensor.node:main',

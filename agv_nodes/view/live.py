@@ -1,0 +1,289 @@
+"""live_view: watch a running graph in Foxglove, and the trucks' odometry and frames in ROS.
+
+One process beside the graph (`agv-launch --foxglove`, or `ros2 run agv_nodes live_view`
+against any running graph). It serves a Foxglove WebSocket (foxglove-sdk) on 127.0.0.1 with:
+
+- `/scene`: the floor (wires and tape, marker cards, stations) and each truck's body with its
+  marker lens or camera windows (agv_nodes.view.scene), re-sent every `scene_period`;
+- `/tf`: the frames `map -> odom -> base_link -> marker_lens | camera_front | camera_rear` of
+  each truck (its own prefixed with its namespace in a fleet);
+- `[/<ns>]/decoded/<record topic>`: every record decoded, with the reader's verdict
+  (agv_nodes.view.decoded, JSON with its schema from msg_schemas/);
+- `[/<ns>]/hw/camera/front|rear`: the binary camera frames; `[/<ns>]/reports`: the task
+  reports and the world's events as log lines; `[/<ns>]/odom`, `[/<ns>]/world/odom`: the
+  odometry below.
+
+In ROS it publishes, for each truck, `odom` (nav_msgs/Odometry, frame `odom`): the pose the
+truck's own wheel odometry gives (agv_nodes.view.odometry), with `odom` tied to `map` at the
+world's pose when the first wheel record came; and `world/odom`: the world's ground truth
+(frame `map`), beside it. Where tf2_msgs can be imported (a ROS install) it also publishes the
+frames on `/tf`; the recorder writes them into bags either way (rosbags knows the type).
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import sys
+from typing import Any
+
+import foxglove
+from foxglove.channels import (
+    FrameTransformsChannel,
+    LogChannel,
+    RawImageChannel,
+    SceneUpdateChannel,
+)
+from foxglove.messages import FrameTransforms, Log, LogLevel, RawImage, SceneUpdate
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from sensor_msgs.msg import Image
+from std_msgs.msg import String, UInt8MultiArray
+
+from agv_nodes import qos
+from agv_nodes.node_process import spin_main
+from agv_nodes.params import declare, parameter_error, refuse_unknown
+from agv_nodes.records import codec
+from agv_nodes.records.ports import RecordReader
+from agv_nodes.ros_ports import record_bytes
+from agv_nodes.settings import settings_class
+from agv_nodes.view.decoded import decoded, decoded_topic, json_schema
+from agv_nodes.view.odometry import PlanarPose, WheelDeadReckoning
+from agv_nodes.view.scene import (
+    TruckShape,
+    floor_entities,
+    frame,
+    sensor_frames,
+    stamp,
+    transform,
+    truck_entities,
+)
+from agv_nodes.world.layout import LayoutError, layout_path, load_layout
+from agv_nodes.world.settings import WorldParams
+
+
+@settings_class
+class LiveViewSettings:
+    """The live view's parameters."""
+
+
+def truck_shape(vehicle: str, lens_lateral: float, world: WorldParams) -> TruckShape:
+    """Return what the scene draws of the layout's vehicle, from the world's parameters."""
+    if vehicle == 'concic2':
+        c = world.concic2
+        return TruckShape('concic2', 2.0 * c.camera_distance, c.wheel_span + 0.1, 0.0,
+                          0.0, c.camera_distance)
+    e = world.electruk
+    return TruckShape('electruk', e.wheelbase + e.front_overhang + e.rear_overhang, e.width,
+                      e.wheelbase, lens_lateral, 0.0)
+
+
+def _tf_message_type() -> Any:
+    """Return tf2_msgs/TFMessage where it can be imported (a ROS install), else None."""
+    try:
+        return importlib.import_module('tf2_msgs.msg').TFMessage
+    except ImportError:
+        return None
+
+
+class TruckView:
+    """One truck's subscriptions and channels (its namespace `ns`)."""
+
+    def __init__(self, view: LiveView, ns: str, shape: TruckShape, track: float) -> None:
+        self.view, self.ns, self.shape = view, ns.strip('/'), shape
+        self.prefix = f'/{self.ns}' if self.ns else ''
+        self.odometry = WheelDeadReckoning(track)
+        self.anchor: PlanarPose | None = None  # map -> odom: the world's pose at the first wheel
+        self.truth: PlanarPose | None = None
+        self.records = 0
+        node = view.node
+        self.odom_pub = node.create_publisher(Odometry, f'{self.prefix}/odom', qos.EVENTS)
+        self.truth_pub = node.create_publisher(Odometry, f'{self.prefix}/world/odom', qos.EVENTS)
+        self.reports = LogChannel(f'{self.prefix}/reports')
+        self.images = {name: RawImageChannel(f'{self.prefix}/hw/camera/{name}')
+                       for name in ('front', 'rear')}
+        self.channels: dict[str, tuple[RecordReader, foxglove.Channel]] = {}
+        for schema in codec():
+            reader = RecordReader(schema, 'e2e' if schema.protected else 'none')
+            channel = foxglove.Channel(decoded_topic(schema, self.ns), schema=json_schema(schema),
+                                       message_encoding='json')
+            self.channels[schema.name] = (reader, channel)
+            node.create_subscription(
+                UInt8MultiArray, f'{self.prefix}/{schema.topic.lstrip("/")}',
+                lambda raw, name=schema.name: self.on_record(name, raw),
+                qos.reader_qos(schema), raw=True)
+        node.create_subscription(PoseStamped, f'{self.prefix}/world/pose', self.on_pose,
+                                 qos.STREAM_READER)
+        node.create_subscription(String, f'{self.prefix}/comms/report',
+                                 lambda m: self.log(LogLevel.Info, 'comms/report', m.data),
+                                 qos.EVENTS)
+        for name in self.images:
+            node.create_subscription(Image, f'{self.prefix}/hw/camera/{name}',
+                                     lambda m, name=name: self.on_image(name, m),
+                                     qos.STREAM_READER)
+
+    def now(self) -> float:
+        """Return the graph's time (sim time under /clock), s."""
+        return self.view.node.get_clock().now().nanoseconds * 1e-9
+
+    def log(self, level: LogLevel, name: str, text: str) -> None:
+        """Send one log line to the viewer."""
+        t = self.now()
+        self.reports.log(Log(timestamp=stamp(t), level=level, message=text, name=name),
+                         log_time=round(t * 1e9))
+
+    def on_record(self, name: str, raw: bytes) -> None:
+        """Decode one record for the viewer; wheel odometry also moves `odom`."""
+        reader, channel = self.channels[name]
+        t = self.now()
+        message = decoded(reader, record_bytes(raw), round(t * 1e9))
+        channel.log(message, log_time=round(t * 1e9))
+        self.records += 1
+        if name == 'wheel_odometry' and message['verdict'] == 'accepted':
+            self.on_wheels(message, t)
+        elif name == 'world_event' and message['verdict'] == 'accepted':
+            self.log(LogLevel.Info, 'world/events', ' '.join(
+                f'{k}={v}' for k, v in message.items() if k not in ('raw', 'verdict')))
+
+    def on_wheels(self, fields: dict[str, Any], t: float) -> None:
+        """Dead-reckon and publish `odom`, the frames, and the truth beside them."""
+        if self.anchor is None:
+            if self.truth is None:
+                return  # odom is tied to map where the world says the truck stands
+            self.anchor = PlanarPose(self.truth.x, self.truth.y, self.truth.heading)
+        p = self.odometry.update(fields)
+        self.odom_pub.publish(odometry_message(p, t, frame(self.ns, 'odom'),
+                                               frame(self.ns, 'base_link')))
+        a = self.anchor
+        transforms = [transform(t, 'map', frame(self.ns, 'odom'), a.x, a.y, a.heading),
+                      transform(t, frame(self.ns, 'odom'), frame(self.ns, 'base_link'),
+                                p.x, p.y, p.heading)]
+        transforms += [transform(t, frame(self.ns, 'base_link'), frame(self.ns, name), x, y, h)
+                       for name, x, y, h in sensor_frames(self.shape)]
+        self.view.send_transforms(transforms, t)
+
+    def on_pose(self, msg: PoseStamped) -> None:
+        """Take the world's ground truth; publish it as Odometry in `map`."""
+        q = msg.pose.orientation
+        heading = 2.0 * math.atan2(q.z, q.w)
+        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        before = self.truth
+        self.truth = PlanarPose(msg.pose.position.x, msg.pose.position.y, heading)
+        if before is not None:
+            dt = t - self._truth_t
+            if dt > 0:
+                self.truth.speed = math.hypot(self.truth.x - before.x,
+                                              self.truth.y - before.y) / dt
+        self._truth_t = t
+        self.truth_pub.publish(odometry_message(self.truth, t, 'map',
+                                                frame(self.ns, 'base_link')))
+
+    _truth_t = 0.0
+
+    def on_image(self, name: str, msg: Image) -> None:
+        """Forward a camera frame."""
+        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        self.images[name].log(RawImage(
+            timestamp=stamp(t), frame_id=frame(self.ns, f'camera_{name}'), width=msg.width,
+            height=msg.height, encoding=msg.encoding, step=msg.step, data=bytes(msg.data)),
+            log_time=round(t * 1e9))
+
+
+def odometry_message(p: PlanarPose, t: float, parent: str, child: str) -> Odometry:
+    """Return nav_msgs/Odometry of pose `p` in `parent` (twist in `child`)."""
+    msg = Odometry()
+    sec = math.floor(t)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = sec, min(round((t - sec) * 1e9),
+                                                              999_999_999)
+    msg.header.frame_id, msg.child_frame_id = parent, child
+    msg.pose.pose.position.x, msg.pose.pose.position.y = p.x, p.y
+    msg.pose.pose.orientation.z = math.sin(p.heading / 2.0)
+    msg.pose.pose.orientation.w = math.cos(p.heading / 2.0)
+    msg.twist.twist.linear.x, msg.twist.twist.angular.z = p.speed, p.yaw_rate
+    return msg
+
+
+class LiveView:
+    """The node, the Foxglove server and one TruckView per truck."""
+
+    def __init__(self, node: Node) -> None:
+        self.node = node
+        s = declare(node, LiveViewSettings)
+        refuse_unknown(node)
+        try:
+            self.layout = load_layout(layout_path(s.layout))
+        except (LayoutError, OSError) as exc:
+            raise parameter_error(node, 'layout', s.layout, str(exc)) from None
+        world = WorldParams()
+        shape = truck_shape(self.layout.vehicle, self.layout.sensor_lateral, world)
+        track = s.track or (world.concic2.wheel_span if shape.vehicle == 'concic2'
+                            else world.electruk.track)
+        self.server = foxglove.start_server(name='agv_nodes', host=s.host, port=s.port)
+        print(f'live_view: Foxglove WebSocket on ws://{s.host}:{self.server.port} '
+              f'(open it in Foxglove: Open connection, Foxglove WebSocket)', flush=True)
+        self.scene = SceneUpdateChannel('/scene')
+        self.tf = FrameTransformsChannel('/tf')
+        tf_type = _tf_message_type()
+        self.ros_tf = node.create_publisher(tf_type, '/tf', qos.EVENTS) if tf_type else None
+        self.trucks = [TruckView(self, ns, shape, track) for ns in s.trucks]
+        self._floor = floor_entities(self.layout)
+        node.create_timer(s.scene_period, self.send_scene)
+        self.send_scene()
+
+    def send_scene(self) -> None:
+        """Send the floor and the trucks (for viewers that joined since)."""
+        t = self.trucks[0].now() if self.trucks else 0.0
+        entities = list(self._floor)
+        for truck in self.trucks:
+            entities += truck_entities(truck.shape, truck.ns, t)
+        self.scene.log(SceneUpdate(entities=entities), log_time=round(t * 1e9))
+
+    def send_transforms(self, transforms: list, t: float) -> None:
+        """Send frames to the viewer, and to ROS's /tf where tf2_msgs exists."""
+        self.tf.log(FrameTransforms(transforms=transforms), log_time=round(t * 1e9))
+        if self.ros_tf is not None:
+            self.ros_tf.publish(ros_tf_message(self.ros_tf.msg_type, transforms))
+
+    def close(self) -> None:
+        """Stop the server."""
+        self.server.stop()
+
+
+def ros_tf_message(tf_type: Any, transforms: list) -> Any:
+    """Return a tf2_msgs/TFMessage of Foxglove FrameTransforms (a ROS install only)."""
+    from geometry_msgs.msg import TransformStamped
+
+    out = tf_type()
+    for f in transforms:
+        ts = TransformStamped()
+        ts.header.stamp.sec, ts.header.stamp.nanosec = f.timestamp.sec, f.timestamp.nsec
+        ts.header.frame_id, ts.child_frame_id = f.parent_frame_id, f.child_frame_id
+        ts.transform.translation.x = f.translation.x
+        ts.transform.translation.y = f.translation.y
+        ts.transform.rotation.z, ts.transform.rotation.w = f.rotation.z, f.rotation.w
+        out.transforms.append(ts)
+    return out
+
+
+class LiveViewNode(Node):
+    """The live view as a node (ros2 run agv_nodes live_view)."""
+
+    def __init__(self) -> None:
+        super().__init__('live_view')
+        self.view = LiveView(self)
+
+    def destroy_node(self) -> None:
+        """Stop the server with the node."""
+        self.view.close()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point: ros2 run agv_nodes live_view [--ros-args -p port:=8765 -p layout:=NAME]."""
+    return spin_main(LiveViewNode, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
+

@@ -1,0 +1,99 @@
+"""The live view's ROS-free parts: dead reckoning, the frames, the scene and decoded records.
+
+Expected values come from geometry (a wheel pair on a circle), the layout files and the record
+tables, and a decoded record is validated against its JSON schema by jsonschema.
+"""
+
+from __future__ import annotations
+
+import math
+
+import jsonschema
+import pytest
+
+from agv_nodes.package_share import config_dir
+from agv_nodes.records import codec
+from agv_nodes.records.ports import RecordReader, RecordWriter
+from agv_nodes.view.decoded import decoded, decoded_topic, json_schema
+from agv_nodes.view.odometry import WheelDeadReckoning
+from agv_nodes.view.scene import TruckShape, floor_entities, sensor_frames
+from agv_nodes.world.layout import load_layout
+
+TRACK = 0.8
+
+
+def counters(left: float, right: float, speed: float = 0.0) -> dict[str, int]:
+    """wheel_odometry fields for cumulative wheel travel (m), as the mm counters wrap."""
+    return {'left_distance': round(left * 1000) & 0xFFFF,
+            'right_distance': round(right * 1000) & 0xFFFF,
+            'left_speed': round(speed * 1000), 'right_speed': round(speed * 1000)}
+
+
+@pytest.mark.timeout(30)
+@pytest.mark.parametrize('radius', [2.5, -3.0, 1e9])
+def test_dead_reckoning_follows_a_circle(radius):
+    # The axle centre on a circle of `radius` (left +): after an arc of length s the wheels
+    # have run s (1 -+ track / 2R), the pose is (R sin a, R (1 - cos a)), heading a = s / R.
+    odo = WheelDeadReckoning(TRACK)
+    steps, length = 400, 40.0  # past the 65.5 m wrap of neither counter, 40 m of arc
+    for k in range(steps + 1):
+        s = length * k / steps
+        odo.update(counters(s * (1 - TRACK / 2 / radius), s * (1 + TRACK / 2 / radius)))
+    a = length / radius
+    p = odo.pose
+    assert p.x == pytest.approx(radius * math.sin(a), abs=0.01)
+    assert p.y == pytest.approx(radius * (1 - math.cos(a)), abs=0.01)
+    assert math.remainder(p.heading - a, 2 * math.pi) == pytest.approx(0.0, abs=0.002)
+
+
+@pytest.mark.timeout(30)
+def test_dead_reckoning_takes_the_counters_wrap():
+    odo = WheelDeadReckoning(TRACK)
+    for k in range(0, 200):  # 100 m straight: each counter wraps at 65.536 m
+        odo.update(counters(k * 0.5, k * 0.5))
+    assert odo.pose.x == pytest.approx(99.5, abs=1e-9) and odo.pose.heading == 0.0
+
+
+@pytest.mark.timeout(30)
+def test_the_truck_frames_sit_where_the_layout_puts_its_sensors():
+    lay = load_layout(config_dir() / 'layouts' / 'demo_1983.yaml')
+    shape = TruckShape('electruk', 1.8, 0.9, 1.2, lay.sensor_lateral, 0.0)
+    (lens,) = sensor_frames(shape)
+    assert lens == ('marker_lens', 1.2, -0.45, -math.pi / 2)  # right of the front axle
+    cams = sensor_frames(TruckShape('concic2', 1.3, 0.5, 0.0, 0.0, 0.64))
+    assert cams == [('camera_front', 0.64, 0.0, 0.0), ('camera_rear', -0.64, 0.0, math.pi)]
+
+
+@pytest.mark.timeout(30)
+@pytest.mark.parametrize('name', ['demo_1983', 'signs_1991'])
+def test_the_floor_scene_draws_every_path_and_card(name):
+    lay = load_layout(config_dir() / 'layouts' / f'{name}.yaml')
+    entities = floor_entities(lay)
+    assert len(entities) == len(lay.paths) + len(lay.markers) + len(
+        {m.station for m in lay.markers if m.station})
+
+
+@pytest.mark.timeout(30)
+def test_decoded_records_carry_fields_and_verdict_and_match_their_schema():
+    schema = codec()['traction_command']
+    writer, reader = RecordWriter(schema, 'e2e'), RecordReader(schema, 'e2e')
+    raw = writer.pack({'demand': 25})
+    message = decoded(reader, raw, 0)
+    jsonschema.validate(message, json_schema(schema))
+    assert message['verdict'] == 'accepted' and message['demand'] == 25
+    assert message['e2e_counter'] == raw[14] and message['raw'] == raw.hex()
+    again = decoded(reader, raw, 1)  # the same counter: not new data
+    assert again['verdict'] == 'repeated_counter' and again['demand'] == 25
+    bad = bytearray(writer.pack({'demand': 25}))
+    bad[1] ^= 0x40
+    broken = decoded(reader, bytes(bad), 2)
+    assert broken['verdict'] == 'bad_crc' and 'demand' not in broken
+    jsonschema.validate(broken, json_schema(schema))
+    assert decoded_topic(schema) == '/decoded/traction/command'
+    assert decoded_topic(schema, 'agv2') == '/agv2/decoded/traction/command'
+
+
+@pytest.mark.timeout(30)
+def test_every_records_schema_is_a_valid_json_schema():
+    for schema in codec():
+        jsonschema.Draft202012Validator.check_schema(json_schema(schema))
