@@ -17,13 +17,14 @@ import pytest
 from agv_nodes.harness import Harness, Link, submit, truck
 from agv_nodes.records.ports import RecordWriter
 from agv_nodes.route_following.drive_safety import DriveSafety, pal_fault
-from agv_nodes.route_following.settings import DriveSafetyParams
+from agv_nodes.route_following.settings import DriveSafetyParams, RouteParams
 from agv_nodes.world.safety_pal import SafetyPal
-from agv_nodes.world.settings import Concic2Params
+from agv_nodes.world.settings import Concic2Params, WorldParams
 
 pytestmark = pytest.mark.timeout(60)
 
-DT = 1.0 / 340.0  # s, one world sample
+DT = 1.0 / WorldParams().sample_rate  # s, one world sample (340 Hz)
+WATCHDOG = Concic2Params().watchdog  # s, the PAL's (test_hardware_cuts: the thesis's 60 ms)
 CRUISE = 0.47  # m/s, route following's camera_speed
 HEALTHY = {'state': 'ready', 'route_code': 2, 'estop': 0, 'watchdog': 0, 'over_voltage': 0,
            'controller_fault': 'none', 'encoder_fault': 'none', 'battery': 240, 'sample': 1}
@@ -85,7 +86,7 @@ def test_pal_watchdog_is_armed_by_the_first_command_and_latches():
     while pal.state == 'ready':
         now += DT
         pal.step(now)
-    assert 0.06 < now - last <= 0.06 + DT + 1e-9
+    assert WATCHDOG < now - last <= WATCHDOG + DT + 1e-9  # the first sample past it
     assert (pal.code, pal.watchdog) == (7, True)
     now = _run_pal(pal, now, 1.0, GO)  # commands again: still latched
     assert (pal.state, pal.powered) == ('fault', False)
@@ -206,10 +207,13 @@ def _inject(h: Harness, fault: str) -> None:
 # The motors off within: the PAL at once (E-stop, controller, DAC), its 60 ms watchdog, the
 # next drive_status (50 ms) and route following's next pass (10 ms) for the battery, and the
 # encoder check's encoder_time (0.3 s) after the count stops.
+STATUS_PERIOD = 1.0 / WorldParams().drive_status_rate
+ROUTE_PERIOD = RouteParams().period
+ENCODER_TIME = DriveSafetyParams().encoder_time
 MOTORS_OFF = {'estop': 2 * DT, 'controller': 2 * DT, 'over_voltage': 2 * DT,
-              'watchdog': 0.06 + 2 * DT, 'battery_low': 0.05 + 0.01 + 2 * DT,
-              'encoder_left': 0.3 + 0.01 + 0.01 + 2 * DT,
-              'encoder_right': 0.3 + 0.01 + 0.01 + 2 * DT}
+              'watchdog': WATCHDOG + 2 * DT, 'battery_low': STATUS_PERIOD + ROUTE_PERIOD + 2 * DT,
+              'encoder_left': ENCODER_TIME + 2 * ROUTE_PERIOD + 2 * DT,
+              'encoder_right': ENCODER_TIME + 2 * ROUTE_PERIOD + 2 * DT}
 WORDS = {'estop': 'estop', 'watchdog': 'watchdog', 'over_voltage': 'over voltage',
          'controller': 'controller', 'encoder_left': 'encoder left',
          'encoder_right': 'encoder right', 'battery_low': 'battery low'}

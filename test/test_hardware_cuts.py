@@ -89,6 +89,7 @@ class DriveBox:
 
     def __init__(self, world: WorldCore, duty: int, forward: bool) -> None:
         self.world, self.count = world, 0
+        self.sent = -1.0  # when the last record went (its count a new one)
         self.fields = {'armature_duty': duty, 'field_duty': 90, 'armature_enable': 1,
                        'field_enable': 1, 'field_forward': int(forward), 'contactor': 1,
                        'watchdog': 0}
@@ -98,6 +99,7 @@ class DriveBox:
         for _ in range(round(seconds / SAMPLE)):
             if w.sample % 3 == 0:  # 113 Hz: within the relay's monostable whatever the rate
                 self.count = (self.count + 1) & 0xFF
+                self.sent = w.time
                 w.on_record('traction_drive', {**self.fields, 'watchdog': self.count}, w.time)
             w.step()
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+from test_hardware_cuts import declared
 
 from agv_nodes.traction.core import TractionCore, TractionParams
 
@@ -29,12 +30,14 @@ class Bench:
         self.command = cmd()
         self.link: dict | None = None
         self.log: list[tuple[float, dict]] = []
+        self.sent = -1.0  # when the last command went
 
     def run(self, seconds: float, send: bool = True) -> None:
         end = self.t + seconds
         while self.t < end - 1e-9:
             if send and round(self.t / DT) % 5 == 0:  # commands every 50 ms
                 self.core.on_record('traction_command', self.command, self.t)
+                self.sent = self.t
                 if self.link is not None:
                     self.core.on_record('traction_link', self.link, self.t)
             out = self.core.tick(self.t)
@@ -88,10 +91,12 @@ def test_slew_from_rest_to_50_percent_follows_the_listing():
     assert duties == [16, 32, 48, 50]
     times = [t for t, _d in steps]
     # FLIP (INIT left the field reversed): 100 ms off + 100 ms build-up before the first 16 %,
-    # then a 200 ms runout after each limited step (the FLIP pass's own 16 % counts once).
-    assert times[1] - times[0] == pytest.approx(0.40, abs=0.02)  # runout + a repeated 16 step
-    assert times[2] - times[1] == pytest.approx(0.20, abs=0.02)
-    assert times[3] - times[2] == pytest.approx(0.20, abs=0.02)
+    # then a 200 ms runout after each limited step (the FLIP pass's own 16 % counts once),
+    # each wait ending on the first pass after it
+    runout = declared('traction', 'TractionParams')['runout_wait']
+    gaps = [later - earlier for earlier, later in zip(times, times[1:], strict=False)]
+    assert 2 * runout - 1e-9 <= gaps[0] <= 2 * runout + DT + 1e-9  # + a repeated 16 step
+    assert all(runout - 1e-9 <= gap <= runout + DT + 1e-9 for gap in gaps[1:]), gaps
 
 
 def test_listing_delays_option_halves_the_waits():
@@ -122,7 +127,9 @@ def test_reversal_disables_flips_the_field_and_re_enables():
     assert [d for d in signed if d < 0] == [-12, -16, -20]
     off = next(t for t, d, f in seq if f == 0)
     on = next(t for t, d, f in seq if d == -12)
-    assert on - off == pytest.approx(0.20, abs=0.02)  # 100 ms decay + 100 ms build-up
+    # 100 ms decay + 100 ms build-up, the next pass after them
+    wait = declared('traction', 'TractionParams')['field_wait']
+    assert 2 * wait - 1e-9 <= on - off <= 2 * wait + DT + 1e-9, on - off
 
 
 def test_emergency_stop_is_minus_5_percent_plug_braking():
@@ -291,14 +298,18 @@ def assert_tripped(b: Bench, cause: str) -> None:
 
 
 def test_stale_command_trips_within_command_timeout(fault_table):
+    """The contactor opens on the first pass after the command is command_timeout old."""
     b = running()
-    t0 = b.t
+    t0, last = b.t, b.sent
     b.run(0.5, send=False)
     trip_t = next(t for t, d in b.log if t >= t0 and d['contactor'] == 0)
-    assert trip_t - t0 <= 0.200 + 0.05 + DT  # last command <= 50 ms before t0
+    timeout = declared('traction', 'TractionParams')['command_timeout']
+    # both on the loop's 10 ms grid: the age that trips is the timeout or one pass more
+    assert timeout - 1e-9 <= trip_t - last <= timeout + DT + 1e-9, trip_t - last
     assert_tripped(b, 'stale_command')
     fault_table.add('traction: executive command stops (lock step)', 'contactor open, trip '
-                    'latched: stale_command', f'contactor open {trip_t - t0:.2f} s after')
+                    'latched: stale_command', f'contactor open {trip_t - last:.2f} s after the '
+                    'last command')
 
 
 def test_stale_confirm_waits_for_odometry_so_a_clock_jump_alone_does_not_trip():
