@@ -4,7 +4,8 @@
         [time_factor:=1.0] [record_integrity:=e2e] [world:=sim|none] [bag:=/path/new_bag]
         [params_file:=<file>] [layout:=<name>] [respawn:=false] [realtime:=0]
         [vda5050:=false] [mqtt_url:=mqtt://host:port] [serial_number:=<name>]
-        [trucks:=0] [set_down:=W2.2,W0.1] [external_master:=false]
+        [trucks:=0] [set_down:=W2.2,W0.1] [external_master:=false] [foxglove:=8765]
+        [rviz:=false]
 
 Nodes, executables and roles come from share/agv_nodes/config/graph.yaml, and each node's
 parameters from agv_nodes.graph.parameters.node_parameters - the same description and function
@@ -45,6 +46,8 @@ ARGUMENTS = {
     'trucks': ('0', 'a fleet: N trucks on one floor in namespaces /agv1../agvN (0: one truck)'),
     'set_down': ('', "a fleet's stop markers, one per truck, comma-separated (empty: parking)"),
     'external_master': ('false', "a fleet's bridges wait for a master of your own"),
+    'foxglove': ('', 'also start live_view: a Foxglove WebSocket on this port (empty: none)'),
+    'rviz': ('false', 'also start rviz2 with config/agv.rviz (rviz2 must be installed)'),
 }
 BROKER_PORT = 1883  # MQTT's own port: where a master control looks first
 
@@ -80,7 +83,8 @@ def _nodes(context):
                       mqtt_url=arg['mqtt_url'] or None, serial_number=arg['serial_number'],
                       trucks=int(arg['trucks']),
                       set_down=[m for m in arg['set_down'].split(',') if m],
-                      external_master=arg['external_master'] == 'true')
+                      external_master=arg['external_master'] == 'true',
+                      foxglove=int(arg['foxglove']) if arg['foxglove'] else None)
     check_realtime(options)
     graph = truck_graph(graph, options)
     check_vda5050(graph, options)
@@ -111,6 +115,10 @@ def _nodes(context):
                           spec.role == 'node',
                           prefix=(f'chrt -f {realtime_priority(spec, options)}'
                                   if realtime_priority(spec, options) else None)))
+    if arg['rviz'] == 'true':  # relative topics: in the (first) truck's namespace
+        actions.append(Node(package='rviz2', executable='rviz2', name='rviz2',
+                            namespace=options.namespace or ('/agv1' if options.trucks else ''),
+                            arguments=['-d', str(config_dir() / 'agv.rviz')], output='screen'))
     return actions
 
 

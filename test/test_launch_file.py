@@ -86,6 +86,7 @@ def nodes_from_launch_file(**overrides) -> list[Recorded]:
     ({'vda5050': 'true'}, Options(vda5050=True)),
     ({'vda5050': 'true', 'mqtt_url': 'mqtt://10.0.0.5', 'namespace': '/agv3'},
      Options(vda5050=True, mqtt_url='mqtt://10.0.0.5', namespace='/agv3')),
+    ({'foxglove': '9000'}, Options(foxglove=9000)),
 ])
 def test_launch_file_matches_agv_launch(launch_api, monkeypatch, overrides, options):
     """Same nodes, same parameters, the same priority.
@@ -478,3 +479,34 @@ def test_launch_file_starts_a_fleet_as_agv_launch_does(launch_api, monkeypatch):
                 assert params == node_parameters(graph, spec, own)
     finally:
         launch.stop()
+
+
+def test_rviz_argument_starts_rviz_with_the_shipped_configuration(launch_api):
+    nodes = nodes_from_launch_file(rviz='true')
+    (rviz,) = [n for n in nodes if n.kwargs.get('executable') == 'rviz2']
+    config = Path(rviz.kwargs['arguments'][1])
+    assert rviz.kwargs['arguments'][0] == '-d' and config.name == 'agv.rviz' and config.is_file()
+    assert not [n for n in nodes_from_launch_file() if n.kwargs.get('executable') == 'rviz2']
+
+
+def test_the_rviz_configuration_shows_what_the_graph_publishes_as_it_publishes_it():
+    """Each display's topic with the durability its publisher offers.
+
+    The latched floor is transient local, where RViz's default is volatile: a volatile display
+    would never see it. The QoS are the publishers' own (world/node.py, view/live.py).
+    """
+    from rclpy.qos import DurabilityPolicy
+
+    from agv_nodes import qos
+
+    config = yaml.safe_load((REPO / 'config' / 'agv.rviz').read_text())
+    manager = config['Visualization Manager']
+    assert manager['Global Options']['Fixed Frame'] == 'map'  # world/markers' frame
+    published = {'world/markers': qos.LATCHED, 'world/route': qos.LATCHED,
+                 'world/pose': qos.STREAM_WRITER, 'odom': qos.EVENTS,
+                 'hw/camera/front': qos.STREAM_WRITER}
+    shown = {d['Topic']['Value']: d['Topic'] for d in manager['Displays'] if 'Topic' in d}
+    assert set(shown) == set(published)
+    for topic, display in shown.items():
+        latched = published[topic].durability == DurabilityPolicy.TRANSIENT_LOCAL
+        assert (display['Durability Policy'] == 'Transient Local') is latched, topic

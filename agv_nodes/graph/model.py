@@ -6,7 +6,7 @@ from pathlib import Path
 from agv_nodes.package_share import config_dir, read_mapping
 
 NODE_KEYS = frozenset({'name', 'executable', 'module', 'role', 'realtime', 'trucks'})
-ROLES = ('node', 'world', 'recorder', 'bridge', 'master')
+ROLES = ('node', 'world', 'recorder', 'bridge', 'master', 'viewer')
 TRUCKS = ('electruk', 'concic2')  # the vehicles a layout names (agv_nodes/world/layout.py)
 
 
