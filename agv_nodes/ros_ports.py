@@ -131,8 +131,9 @@ def graph_writers(node: Node, topic: str) -> list[tuple[str, bytes]]:
 
 
 # Wall seconds an input may wait for its named writer before it says so: past a start-up of
-# the whole graph on a loaded machine, short enough to be read before anyone gives up.
-WRITER_PATIENCE_S = 5.0
+# the whole graph on a loaded machine (the world, started last, was seen 6 s after its readers
+# on the shared 2-core machine), short enough to be read before anyone gives up.
+WRITER_PATIENCE_S = 10.0
 
 
 class WriterWatch:

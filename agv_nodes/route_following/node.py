@@ -21,6 +21,7 @@ from visualization_msgs.msg import Marker
 from agv_nodes import qos
 from agv_nodes.core_node import CoreNode, spin_main
 from agv_nodes.route_following.core import RouteCore
+from agv_nodes.stop_switches import FrameSubscription
 from agv_nodes.track_geometry.osculating import Circle
 
 FRAME = 'odom'
@@ -67,9 +68,9 @@ class RouteFollowingNode(CoreNode):
 
     def __init__(self) -> None:
         super().__init__(RouteCore)
-        for camera in ('front', 'rear'):
-            self.create_subscription(Image, f'hw/camera/{camera}', self._frame(camera),
-                                     qos.STREAM_READER)
+        for camera in ('front', 'rear'):  # from the named writer only (world, or a driver)
+            frames = FrameSubscription(self, camera, qos.STREAM_READER, self._frame(camera))
+            self.input_diagnostics.add(frames.name, frames)
         if self.core.p.vehicle == 'concic2':  # the camera truck identifies its track
             # Pictures that change as the truck goes, as the world's pose is.
             self.track_pub = self.create_publisher(Path, 'route/identified_track',
