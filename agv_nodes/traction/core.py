@@ -161,7 +161,7 @@ class TractionCore(SubsystemCore):
 
         Else the command would trip it as stale_command, blaming a silent executive.
         """
-        pass  # MUTATION
+        self._trip('clock_jumped')
         self.clock_jump = text
 
     def _trip(self, cause: str) -> None:
