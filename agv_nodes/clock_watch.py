@@ -1,4 +1,9 @@
-"""ClockWatch: a node's word, on the wall clock, that sim time has stopped (the world is gone)."""
+"""ClockWatch: a node's word, on the wall clock, that sim time has stopped; and its /clock row.
+
+Besides the loss it says, in a `<node>/clock` row, what the node's /clock reader refused or found
+(core_node.ClockTimers): samples from a foreign writer (WARN while they come) and jumps of the
+genuine writer's clock (ERROR: `clock jumped` with the times from and to).
+"""
 
 import time
 from typing import Any
@@ -33,11 +38,13 @@ class ClockWatch:
         self._seen = 0.0  # the node's sim time at the last check
         self._since = self._checked = time.monotonic()
         self._accepted: dict[str, int] = {}
+        self._rejected_before = 0
         self._pub = node.create_publisher(DiagnosticArray, '/diagnostics', qos.EVENTS)
         node.create_timer(period, self.check, clock=RosClock(clock_type=ClockType.STEADY_TIME))
 
     def check(self) -> None:
         """Publish the loss if sim time has stood still for LOST_AFTER s of wall time."""
+        self._clock_row()
         node, readers = self._node, self._node.readers
         now, wall = node.ros_now_s(), time.monotonic()
         stalled = wall - self._checked > self.LOST_AFTER  # this process was frozen or starved
@@ -60,6 +67,36 @@ class ClockWatch:
                        f'{wall - self._since:.1f}', 'silent inputs': ', '.join(silent) or 'none'})
         name = node.get_name()
         msg = DiagnosticArray(status=[diagnostic_status(node, f'{name}/inputs', 2, message,
+                                                       name, values)])
+        msg.header.stamp = node.get_clock().now().to_msg()
+        self._pub.publish(msg)
+
+    def _clock_row(self) -> None:
+        """Publish `<node>/clock` once the reader has rejected a sample or seen a jump."""
+        timers = getattr(self._node, '_clock_timers', None)
+        if timers is None or not (timers.rejects or timers.rule.jumps):
+            return
+        rejected = sum(timers.rejects.values())
+        reasons = ', '.join(f'{k}={v}' for k, v in sorted(timers.rejects.items()))
+        jumps = timers.rule.jumps
+        if jumps:  # a fault: it stays said
+            level = 2
+            message = (f'{jumps[-1].text()} (/clock from {timers.writer}; {len(jumps)} '
+                       f'jump{"s" if len(jumps) > 1 else ""} in all)')
+        elif rejected > self._rejected_before:
+            level, message = 1, f'/clock from a foreign writer rejected: {timers.last_rejection}'
+        else:
+            level, message = 0, f'/clock from {timers.writer} only ({rejected} rejected in all)'
+        self._rejected_before = rejected
+        values = {'clock writer': timers.identity, 'accepted': str(timers.accepted),
+                  'rejected': str(rejected), 'rejects by reason': reasons or 'none',
+                  'last rejection': timers.last_rejection or 'none',
+                  'jumps': '; '.join(j.text() for j in jumps[-5:]) or 'none',
+                  'jump limit (s)': f'{timers.rule.limit_ns * 1e-9:g}',
+                  'writer time - node time (s)': f'{timers.rule.offset_ns * 1e-9:.3f}'}
+        node = self._node
+        name = node.get_name()
+        msg = DiagnosticArray(status=[diagnostic_status(node, f'{name}/clock', level, message,
                                                        name, values)])
         msg.header.stamp = node.get_clock().now().to_msg()
         self._pub.publish(msg)

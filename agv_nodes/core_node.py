@@ -8,6 +8,8 @@ feeds accepted records and rejections to the core, runs its timer on the ROS clo
 hw/radio_stop for cores that read it, logs the core's notes, and publishes what it returns.
 With `sim_progress` (a simulated world) it also says how far it has got (agv_nodes/sim_progress).
 Under sim time a wall-clock watch says on /diagnostics when /clock stops (agv_nodes/clock_watch).
+Under sim time with the EventsExecutor, /clock is taken from its one writer only (`clock_writer`),
+and a jump of that writer's clock is a fault the core is told of (agv_nodes/clock_jump.py).
 """
 
 from __future__ import annotations
@@ -22,18 +24,21 @@ from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 
 from agv_nodes import qos, sim_progress
+from agv_nodes.clock_jump import ClockJumpRule, Jump
 from agv_nodes.clock_watch import ClockWatch
 from agv_nodes.node_process import spin_main
 from agv_nodes.params import declare, parameter_error, refuse_unknown
-from agv_nodes.rclpy_internals import drop_clock_reader
+from agv_nodes.rclpy_internals import drop_clock_reader, writer_tagged_subscription
 from agv_nodes.records import codec
 from agv_nodes.records.carrier import clock_cdr
+from agv_nodes.records.ports import WriterCheck
 from agv_nodes.ros_ports import (
     InputDiagnostics,
     LinkAnnouncer,
     RecordPublisher,
     RecordSubscription,
     clock_time_ns,
+    full_name,
 )
 from agv_nodes.settings import NodeSettings
 from agv_nodes.stop_switches import switch_inputs
@@ -82,7 +87,9 @@ class CoreNode(Node):
         sim_time = self.get_parameter('use_sim_time').value
         progress = SimProgress(self) if self.node_settings.sim_progress and sim_time else None
         if self.executor_kind == 'events' and sim_time:
-            self._clock_timers = ClockTimers(self, progress)
+            self._clock_timers = ClockTimers(self, progress,
+                                             full_name(self, self.node_settings.clock_writer),
+                                             self.node_settings.clock_jump_limit, self._jumped)
         elif progress is not None:  # rclpy's timers: a /clock reader only for the progress
             self.create_subscription(Clock, '/clock',
                                      lambda raw: progress.handled(clock_time_ns(raw)),
@@ -175,6 +182,14 @@ class CoreNode(Node):
                 self.publish(handler(reader.schema.name, reader.last_reason, self.now_s()))
         return callback
 
+    def _jumped(self, jump: Jump) -> None:
+        """Say that the genuine /clock jumped and tell the core (the executive fails the task)."""
+        self.get_logger().error(f'{jump.text()} (/clock from {self._clock_timers.writer}): '
+                                'a fault of the clock, not of any input')
+        handler = getattr(self.core, 'on_clock_jump', None)
+        if handler is not None:
+            self.publish(handler(jump.text(), self.now_s()))
+
     def _tick(self) -> None:
         self.publish(self.core.tick(self.now_s()))
 
@@ -239,12 +254,28 @@ class ClockTimers:
     callbacks follow rclpy timer semantics under sim time: due every `period` s, at most once
     per /clock message, periods a jump passed over are skipped. After them, the node's
     progress (if it reports one) moves to this /clock.
+
+    /clock has one writer, the node `writer` (full name): each sample is taken with its
+    writer's GID (rclpy_internals.WriterTaggedSubscription) and judged by records.ports
+    WriterCheck, as a record reader's are. A sample from any other endpoint is rejected
+    (counted by reason in `rejects`, named in `last_rejection`) and never moves the node's time.
+    The genuine writer's samples go through the clock-jump rule (agv_nodes/clock_jump.py): a
+    jump is absorbed (the node's time runs on from where it stood) and `on_jump` is told.
+    `check_writer` False takes every sample (a test's stand-in node, which has no DDS handle).
     """
 
-    def __init__(self, node: Node, progress: SimProgress | None = None) -> None:
-        self.now_ns: int | None = None  # the latest /clock taken
+    def __init__(self, node: Node, progress: SimProgress | None = None, writer: str = '/world',
+                 jump_limit: float = 0.1, on_jump: Callable[[Jump], None] | None = None,
+                 check_writer: bool = True) -> None:
+        self.now_ns: int | None = None  # the node's time at the latest /clock taken
         self._timers: list[list[Any]] = []  # [period, next due (ns) or None, callback]
         self._progress = progress
+        self.writer = writer
+        self.rule = ClockJumpRule(jump_limit)
+        self._on_jump = on_jump
+        self.accepted = 0
+        self.rejects: dict[str, int] = {}  # reason -> samples rejected
+        self.last_rejection = ''
         # One /clock reader per node, not two: taking every sample twice cost an idle node
         # 3.9 % of a core against 2.7 % at 113 Hz (bench/rclpy_bench.py). This one sets the
         # node's ROS clock, so get_clock() is the same FIFO time.
@@ -252,20 +283,59 @@ class ClockTimers:
         # Taken serialized: at 116 Hz in every node, rclpy's conversion to a Clock message cost
         # more than the take itself (bench/rclpy_bench.py: 335 -> 237 us a message at 340 Hz).
         self._msg = Clock()  # one message, re-filled for the TimeSource
-        node.create_subscription(Clock, '/clock', self._on_clock, qos.CLOCK_READER, raw=True)
+        self._node = node
+        self.check = WriterCheck(writer, self._graph_writers)
+        self._current: bytes | None = None  # the genuine writer's GID: the hot path's test
+        self._tagged = writer_tagged_subscription(node, Clock, '/clock', qos.CLOCK_READER,
+                                                  self._on_sample) if check_writer else None
+        if self._tagged is None:  # no GID to be had (said on stderr): every sample is taken
+            node.create_subscription(Clock, '/clock', self._on_clock, qos.CLOCK_READER, raw=True)
 
     def add(self, period: float, callback: Callable[[], None]) -> None:
         """One more periodic callback."""
         self._timers.append([round(period * 1e9), None, callback])
 
-    def _on_clock(self, raw: bytes) -> None:
-        now = clock_time_ns(raw)
-        if now <= 0:
+    @property
+    def identity(self) -> str:
+        """Say whose /clock this node takes (its /diagnostics `clock writer` value)."""
+        if self._tagged is None:
+            return f'{self.writer} (not checked: no writer identity here)'
+        gid = self._current.hex() if self._current else 'not heard yet'
+        return f'{self.writer} ({gid})'
+
+    def _graph_writers(self) -> list[tuple[str, bytes]]:
+        return [(f'{i.node_namespace.rstrip("/")}/{i.node_name}', bytes(i.endpoint_gid))
+                for i in self._node.get_publishers_info_by_topic('/clock')]
+
+    def _on_sample(self, raw: bytes, gid: bytes | None, _stamp: int) -> None:
+        sequence = self._tagged.sequence  # type: ignore[union-attr]
+        if gid == self._current or gid is None:  # None: no GID to be had (check off)
+            self._on_clock(raw, sequence)
+            return
+        for (data, seq), who, verdict in self.check.admit((raw, sequence), gid):
+            if verdict not in ('genuine', 'restart'):  # foreign_writer, duplicate_writer
+                self.rejects[verdict] = self.rejects.get(verdict, 0) + 1
+                self.last_rejection = (f'/clock at {clock_time_ns(data) * 1e-9:.3f} s from '
+                                       f'{self.check.nodes.get(who, "?")} ({who.hex()}): '
+                                       f'{verdict}, not the writer {self.writer}')
+                continue
+            if verdict == 'restart':
+                self.rule.restart()  # a new process: its sequence numbers start afresh
+            self._current = who
+            self._on_clock(data, seq)
+
+    def _on_clock(self, raw: bytes, sequence: int = 0) -> None:
+        writer_ns = clock_time_ns(raw)
+        if writer_ns <= 0:
             return  # the world's clock has not started
+        self.accepted += 1
+        now = self.rule.take(writer_ns, sequence)
         self.now_ns = now
         if self._time_source is not None:
             self._msg.clock.sec, self._msg.clock.nanosec = divmod(now, 1_000_000_000)
             self._time_source.clock_callback(self._msg)
+        if self.rule.jump is not None and self._on_jump is not None:
+            self._on_jump(self.rule.jump)  # before any timer: the fault is the jump's
         for timer in self._timers:
             period, due, callback = timer
             if due is None or now < due - 10 * period:  # first tick, or sim time went back

@@ -288,6 +288,11 @@ class WriterTaggedSubscription:
                   f'in Jazzy (the GID names {name!r})')
         return False
 
+    @property
+    def sequence(self) -> int:
+        """The writer's publication sequence number of the message last taken (0: unknown)."""
+        return self._info.publication_sequence_number if self.layout_ok else 0
+
     def publisher_count(self) -> int:
         """Writers matched."""
         with self.handle:

@@ -32,6 +32,17 @@ class FaultSupervision:
         self._supervise(now)
         return self._commands(now) if self.mode == 'failed' else None
 
+    def on_clock_jump(self, text: str, now: float) -> dict[str, dict[str, Any]] | None:
+        """Fail the task on a jump of the genuine /clock (agv_nodes/clock_jump.py) and stop.
+
+        The clock's fault, named so: the node's time is held across the jump, so no status
+        looks stale for it. No task, nothing moves: /diagnostics says it (clock_watch).
+        """
+        if self.mode not in ('running', 'cruising'):
+            return None
+        self._fail(now, 'clock_jumped', 'world', text)
+        return self._commands(now)
+
     # (when, sub-system) of the last status record a duplicate writer sent (two live endpoints
     # both writing as one status's writer: records.writer_check), None before any
     duplicate: tuple[float, str] | None = None
@@ -94,6 +105,8 @@ class FaultSupervision:
             return self._fail(now, 'collision', 'traction', 'bumper pressed by another truck')
         if traction.get('radio_stop'):
             return self._fail(now, 'radio_stop', 'traction', 'radio stop')
+        if traction.get('trip_cause') == 'clock_jumped':  # traction took the jump first
+            return self._fail(now, 'clock_jumped', 'world', 'traction tripped on it')
         if traction.get('trip_cause') == 'duplicate_writer':  # two writers of its inputs
             return self._fail(now, 'duplicate_writer', 'traction',
                               'one of its inputs comes from two live writers (its inputs row)')

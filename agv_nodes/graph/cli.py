@@ -97,6 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         launch = Launch(options_from(args))
+        launch.claim()  # a graph already on its domain and namespace: refused, one line
     except GraphError as exc:
         print(f'agv-launch: {exc}', file=sys.stderr)
         return 2

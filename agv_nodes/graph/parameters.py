@@ -171,6 +171,8 @@ def node_parameters(graph: Graph, spec: NodeSpec, options: Options,
         # the simulation channel exists only with a simulated world on sim time: hardware
         # has no world to pace, and on wall time nothing holds the clock back
         out['sim_progress'] = options.world == 'sim' and options.use_sim_time
+        if options.trucks:  # the floor's world, in the root namespace, writes /clock
+            out['clock_writer'] = '/world'
         for record, fault in options.faults.items():
             if codec()[record].writer == spec.name:
                 out.update(fault_record=record, fault_loss=fault.get('loss', 0.0),

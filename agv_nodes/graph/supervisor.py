@@ -19,7 +19,6 @@ OFFLINE reaches the master control first.
 
 import atexit
 from dataclasses import replace
-import fcntl
 import os
 from pathlib import Path
 import shutil
@@ -32,6 +31,7 @@ import time
 from typing import TextIO
 
 from agv_nodes.discovery import use_localhost_discovery
+from agv_nodes.graph.claim import claim_domain, claim_graph
 from agv_nodes.graph.model import GraphError, NodeSpec, load_graph
 from agv_nodes.graph.parameters import (
     Options,
@@ -49,27 +49,6 @@ from agv_nodes.graph.parameters import (
 )
 
 CHILD = 'agv_nodes.graph.child'
-
-
-def claim_domain(explicit: int | None = None) -> tuple[int, TextIO | None]:
-    """Claim a ROS domain id for this graph: explicit, ROS_DOMAIN_ID, or a free one by lock."""
-    if explicit is None and os.environ.get('ROS_DOMAIN_ID'):
-        explicit = int(os.environ['ROS_DOMAIN_ID'])
-    if explicit is not None:
-        if not 1 <= explicit <= 232:
-            raise GraphError(f'domain id {explicit}: use 1-232 (never 0: other graphs on this '
-                             'host may be on it)')
-        return explicit, None
-    start = 1 + os.getpid() % 200
-    for i in range(232):
-        domain = 1 + (start + i - 1) % 232
-        handle = open(f'/tmp/agv_nodes_ros_domain_{domain}.lock', 'w')  # noqa: SIM115
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            return domain, handle
-        except OSError:
-            handle.close()
-    raise GraphError('no free ROS domain id 1-232 on this host')
 
 
 class ReadyFile:
@@ -110,6 +89,8 @@ class Launch:
         if not self.params.is_file():
             raise GraphError(f'parameter file {self.params} not found')
         self.domain, self._lock = claim_domain(options.domain_id)
+        self._graph_lock = None
+        self.claimed = False
         self.env = dict(os.environ, ROS_DOMAIN_ID=str(self.domain), PYTHONUNBUFFERED='1')
         use_localhost_discovery(self.env)
         self.procs: dict[str, subprocess.Popen] = {}  # by label (units())
@@ -217,8 +198,22 @@ class Launch:
         thread.start()
         self._threads.append(thread)
 
+    def claim(self) -> None:
+        """Claim this graph's domain and namespace (agv_nodes.graph.claim); once.
+
+        GraphError in one line when a graph already runs there. A domain chosen free is
+        claimed already (no other participant is on it).
+        """
+        if self.claimed:
+            return
+        if self._lock is None:
+            units = {('/' + ns.strip('/'), spec.name) for spec, ns in self._units.values()}
+            self._graph_lock = claim_graph(self.domain, self.o.namespace, units)
+        self.claimed = True
+
     def start(self) -> None:
-        """Start every node (recorder first, world last)."""
+        """Start every node (recorder first, world last), once claim() has found no graph."""
+        self.claim()
         if self.o.log_dir:
             self.o.log_dir.mkdir(parents=True, exist_ok=True)
             # Line-buffered: a log is readable while its node runs, not only after it ends.
@@ -320,6 +315,9 @@ class Launch:
         for log in self._logs.values():
             log.close()
         shutil.rmtree(self._overrides, ignore_errors=True)
+        if self._graph_lock is not None:  # the namespace is free again
+            self._graph_lock.close()
+            self._graph_lock = None
 
     def run(self, duration: float | None = None) -> int:
         """Start, wait for a signal, a dead node or the world's end, stop; exit status."""

@@ -221,6 +221,8 @@ class WorldNode(WorldLoop, Node):
                     core.sensor.p.ambient = float(param.value)
                 elif param.name == 'wire_powered':
                     core.wire_powered = bool(param.value)
+                elif param.name == 'clock_offset':  # /clock jumps by the change
+                    self.s.clock_offset = float(param.value)
                 elif param.name in concic2:
                     setattr(core.p.concic2, param.name.split('.', 1)[1],
                             convert(concic2[param.name], param.value))
@@ -273,7 +275,7 @@ class WorldNode(WorldLoop, Node):
         sample cost more than the bytes.
         """
         now = round(self.time * 1e9)
-        self.clock_pub.publish(clock_cdr(now))
+        self.clock_pub.publish(clock_cdr(now + round(self.s.clock_offset * 1e9)))
         if self._clock_feeds:
             msg = self._clock_msg
             msg.clock.sec, msg.clock.nanosec = divmod(now, 1_000_000_000)
