@@ -5,21 +5,22 @@ as `foreign_writer` first. So the session's probe node stands in as the named wr
 (`record_writers`) of every record a sub-system node reads, and the graph's own writers of
 those records become foreign there. The world is no CoreNode and keeps its schema writers, so
 on the three records it reads the probe is a foreign writer: those are the foreign part.
-Used by test/test_bad_input_dds.py and bench/fuzz_bench.py; the defects are test/record_fuzz.py's.
+Used by test/test_bad_input_dds.py and bench/fuzz_bench.py; the defects are test/record_fuzz.py's,
+and what each stand-in reader must do with each record is test/record_oracle.py's verdict (a
+model written apart from the codec and the reader, from msg_schemas/ and docs/records.md).
 """
 
 from __future__ import annotations
 
 from collections import Counter
-import copy
 import math
 import os
 import time
 from typing import Any
 
 from record_fuzz import Recipe, apply
+from record_oracle import ReaderOracle, Verdict, tables
 
-from agv_nodes.records.ports import RecordReader
 from agv_nodes.records.schema import RecordSchema
 
 STAND_IN = 'fuzz_writer'
@@ -59,11 +60,14 @@ def reasons_of(values: dict[str, str], record: str) -> Counter[str]:
 class FuzzSession:
     """Sends fuzzed records through a live graph as its stand-in writer; keeps what is due.
 
-    Each stand-in reader's verdict is computed in the session from the recipe and the
-    reader's state: a `RecordReader` model per record sees the same records in the same
-    order (the reference record, then every fuzzed one), and each recipe's reason is checked
-    against the defect it made. A fuzzed record the model would accept (a skipped counter that
-    happens to continue a resynchronisation run three long) is not sent. The graph's own
+    Each stand-in reader's verdict comes from the oracle (test/record_oracle.py, which knows
+    nothing of the code under test): one `ReaderOracle` per record sees the same records in the
+    same order as every stand-in reader of it (the reference record, then every fuzzed one),
+    and each codec recipe's reason is checked against the defect it made. Every record drawn
+    is sent, and counted as the oracle says: rejected by reason, or accepted (a skipped counter
+    that completes a resynchronisation run three long is a writer by the rules, so it is
+    taken, and the sequence recipes go on from it). An accepted record carries the content of
+    the last record taken, so taking it changes nothing the node acts on. The graph's own
     writers of these records are foreign at the stand-in readers, so `foreign_writer` there is
     theirs, not ours, and is left out of the exact comparison (it must merely be there).
     """
@@ -75,14 +79,17 @@ class FuzzSession:
         self.node, self.executor, self.integrity = node, executor, integrity
         self.schemas = {s.name: s for s in fuzzed_schemas()}
         self.sent: Counter[str] = Counter()
-        self.skipped: Counter[str] = Counter()  # fuzzed records the model would accept
+        self.fuzzed: Counter[str] = Counter()  # fuzzed records published, by record
+        self.published: Counter[str] = Counter()  # records published since the baseline
+        self.taken: Counter[str] = Counter()  # ... that the oracle says the readers accept
         self.by_recipe: Counter[tuple[str, str]] = Counter()  # (record, recipe kind)
         self.due: Counter[tuple[str, str, str]] = Counter()  # (reader, record, reason)
         self.accepted_due: Counter[tuple[str, str]] = Counter()
         self.inputs: dict[str, dict[str, str]] = {}  # node -> its latest inputs row
         self.rows: Counter[str] = Counter()  # inputs rows seen, by node
         self.baseline: dict[tuple[str, str], tuple[Counter[str], int]] = {}
-        self.models: dict[str, RecordReader] = {}
+        self.tables = tables()
+        self.models: dict[str, ReaderOracle] = {}
         self.reference: dict[str, bytes] = {}
         self.stand_in = True  # False: the probe is a foreign writer at every reader
         self.statuses: list[dict] = []  # traction's genuine status records
@@ -194,8 +201,8 @@ class FuzzSession:
                 continue
             raw = RecordWriter(schema, self.integrity).pack(
                 self.genuine[name].fields or schema.decode(schema.encode()))
-            model = RecordReader(schema, self.integrity)
-            assert model.accept(raw, 0) is not None
+            model = ReaderOracle(self.tables[name], self.integrity)
+            assert model.judge(raw).accepted, (name, raw.hex())
             self.models[name], self.reference[name] = model, raw
             for reader in self._stand_in_readers(name):
                 self.accepted_due[(reader, name)] += 1
@@ -206,44 +213,56 @@ class FuzzSession:
                 and not self.foreign(r)]
 
     # -- fuzzing ------------------------------------------------------------------------------
-    def send(self, name: str, recipe: Recipe) -> None:
-        """Send one fuzzed record on `name`'s topic and note what each reader must count."""
+    def send(self, name: str, recipe: Recipe) -> Verdict | None:
+        """Send one fuzzed record on `name`'s topic and note what each reader must count.
+
+        Return the oracle's verdict (None where every reader hears the probe as foreign).
+        """
         schema = self.schemas[name]
         base = self.reference.get(name) or self.genuine[name].raw
-        if name in MARKED and recipe.kind in SEQUENCE_KINDS and base:
-            base = schema.encode({**schema.decode(base), **MARKED[name]}, counter=base[14])
         data = apply(schema, recipe, base)
+        if name in MARKED and recipe.kind in SEQUENCE_KINDS and base:
+            marked = apply(schema, recipe, schema.encode(
+                {**schema.decode(base), **MARKED[name]}, counter=base[14]))
+            if not self._model(name).peek(marked).accepted:  # the oracle says it is refused
+                data = marked
         self.by_recipe[(name, recipe.kind)] += 1
-        self.send_raw(name, data, recipe.kind)
+        self.fuzzed[name] += 1
+        return self.send_raw(name, data, recipe.kind)
 
-    def send_raw(self, name: str, data: bytes, kind: str = '') -> None:
-        """Send `data` on `name`'s topic; the model says what each stand-in reader counts."""
-        reason = self._verdict(name, data, kind)
-        if reason is None:
-            self.skipped[name] += 1
-            return
+    def send_raw(self, name: str, data: bytes, kind: str = '') -> Verdict | None:
+        """Send `data` on `name`'s topic; the oracle says what each stand-in reader counts.
+
+        Return its verdict (None where every reader of the record hears the probe as foreign).
+        """
+        verdict = None
+        if self._stand_in_readers(name):
+            verdict = self._model(name).judge(data)
+            if kind in CODEC_REASONS:  # the defect the recipe made is the one the oracle names
+                assert verdict.reason == kind, (name, kind, verdict, data.hex())
+            if verdict.accepted:
+                self.taken[name] += kind != ''
+                if self.schemas[name].protected:
+                    self.reference[name] = data  # the sequence recipes go on from it
         for reader in self.schemas[name].readers:
             if self.foreign(reader):
                 self.due[(reader, name, 'foreign_writer')] += 1
+            elif reader in GRAPH_NODES and verdict.accepted:
+                self.accepted_due[(reader, name)] += 1
             elif reader in GRAPH_NODES:
-                self.due[(reader, name, reason)] += 1
+                self.due[(reader, name, verdict.reason)] += 1
         self._publish(name, data)
+        return verdict
 
-    def _verdict(self, name: str, data: bytes, kind: str) -> str | None:
-        schema = self.schemas[name]
-        model = self.models.get(name) or RecordReader(schema, self.integrity)
-        trial = copy.deepcopy(model)
-        if trial.accept(data, 0) is not None:
-            return None
-        self.models[name] = trial
-        reason = trial.last_reason
-        if kind in CODEC_REASONS:  # the defect the recipe made is the one the reader names
-            assert reason == kind, (name, kind, reason, data.hex())
-        return reason
+    def _model(self, name: str) -> ReaderOracle:
+        if name not in self.models:
+            self.models[name] = ReaderOracle(self.tables[name], self.integrity)
+        return self.models[name]
 
     def _publish(self, name: str, data: bytes) -> None:
         self.pubs[name].publish(_message_type()(data=data))
         self.sent[name] += 1
+        self.published[name] += bool(self.baseline)
 
     # -- what the graph counted ---------------------------------------------------------------
     def shortfall(self) -> dict[tuple[str, str], tuple[dict, dict]]:

@@ -1,10 +1,13 @@
 """Malformed records for the fuzz tests: hypothesis strategies of defects, applied per topic.
 
-Every recipe makes a record the receiving port must reject (wrong lengths, random
-bytes, bad CRC, repeated or skipped counters, spare bits set, out-of-range values). Recipes
-that need a live counter start from a record the reader has accepted (`genuine`).
-test/fuzz_session.py sends them through a live graph and keeps the exact count each reader must
-show (test/test_bad_input_dds.py, bench/fuzz_bench.py).
+Every recipe makes a defect (wrong lengths, random bytes, bad CRC, repeated or skipped
+counters, spare bits set, out-of-range values). Recipes that need a live counter start from
+the record the reader accepted last (`genuine`). What a reader must do with each is not
+decided here but by the oracle written apart from the codec and the reader
+(test/record_oracle.py): a skipped counter is refused, unless it completes a resynchronisation
+run, which the rules take as a writer. test/fuzz_session.py sends every recipe drawn through a
+live graph and keeps the exact count each reader must show (test/test_bad_input_dds.py,
+bench/fuzz_bench.py).
 
 What is left out, and why: 16 random bytes that happen to carry a valid CRC-8 (1 in 256) and a
 counter within 15 of the last genuine one are, by construction, a record E2E cannot tell from a
