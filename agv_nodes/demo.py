@@ -87,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
     tasks = list(quick if args.quick else programme)
     try:
         launch = Launch(Options(time_factor=args.time_factor, bag=out / 'bag', quiet=True,
-                                log_dir=out / 'logs', domain_id=args.domain_id, layout=layout))
+                                log_dir=out / 'logs', domain_id=args.domain_id, layout=layout,
+                                foxglove=args.foxglove))
     except GraphError as exc:
         print(f'agv-demo: {exc}', file=sys.stderr)
         return 2
@@ -277,6 +278,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--sim-limit', type=float, default=1500.0,
                     help='give up after this many simulated seconds')
     ap.add_argument('--no-report', action='store_true')
+    ap.add_argument('--foxglove', type=int, nargs='?', const=8765, default=None, metavar='PORT',
+                    help='watch it live: a Foxglove WebSocket on 127.0.0.1:PORT (default 8765; '
+                    'live_view, docs/architecture.md "Watching a run")')
     ap.add_argument('--fleet', type=int, default=0, metavar='N',
                     help='N 1983 trucks on one floor, directed by the dispatcher over VDA 5050 '
                     '(MQTT) through two loads going round (agv_nodes.fleet.fleet_demo)')

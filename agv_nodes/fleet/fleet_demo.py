@@ -111,7 +111,8 @@ def run(args: argparse.Namespace) -> int:
         launch = Launch(Options(time_factor=args.time_factor, bag=out / 'bag', quiet=True,
                                 log_dir=out / 'logs', domain_id=args.domain_id, layout=layout,
                                 trucks=args.fleet, vda5050=True, mqtt_url=args.mqtt_url,
-                                external_master=args.external_master))
+                                external_master=args.external_master,
+                                foxglove=getattr(args, 'foxglove', None)))
         loads = programme_loads(launch_layout(launch.graph, launch.o).stations, args.fleet)
     except (GraphError, ValueError) as exc:
         print(f'agv-demo: {exc}', file=sys.stderr)
