@@ -97,3 +97,32 @@ def test_decoded_records_carry_fields_and_verdict_and_match_their_schema():
 def test_every_records_schema_is_a_valid_json_schema():
     for schema in codec():
         jsonschema.Draft202012Validator.check_schema(json_schema(schema))
+
+
+@pytest.mark.timeout(30)
+def test_the_foxglove_layout_plots_fields_the_live_view_serves():
+    """config/foxglove/agv_layout.json names only what live_view serves.
+
+    Every topic is one of its channels, every plotted field one of its record's table.
+    """
+    import json
+
+    layout = json.loads((config_dir() / 'foxglove' / 'agv_layout.json').read_text())
+    by_topic = {decoded_topic(s): s for s in codec()}
+    channels = {*by_topic, '/scene', '/tf', '/reports', '/hw/camera/front', '/hw/camera/rear'}
+    paths = [p['value'] for c in layout['configById'].values() for p in c.get('paths', [])]
+    topics = [c['topicPath'] for c in layout['configById'].values() if 'topicPath' in c]
+    topics += [c['imageMode']['imageTopic'] for c in layout['configById'].values()
+               if 'imageMode' in c]
+    topics += list(layout['configById']['3D!floor']['topics'])
+    assert paths and topics
+    for path in paths:
+        topic, _, name = path.partition('.')
+        assert topic in by_topic and name in {f.name for f in by_topic[topic].fields}, path
+    assert set(topics) <= channels
+    panels = set(layout['configById'])
+
+    def leaves(node):
+        return {node} if isinstance(node, str) else leaves(node['first']) | leaves(node['second'])
+
+    assert leaves(layout['layout']) == panels
