@@ -68,6 +68,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--external-master', action='store_true',
                     help='with --trucks N --vda5050: no dispatcher; the bridges wait for a VDA '
                     '5050 master of your own (e.g. openTCS) on the broker')
+    ap.add_argument('--foxglove', type=int, nargs='?', const=8765, default=None, metavar='PORT',
+                    help='also start live_view: a Foxglove WebSocket on 127.0.0.1:PORT (default '
+                    '8765) with the floor, the trucks, their frames and decoded records')
     return ap
 
 
@@ -86,7 +89,8 @@ def options_from(args: argparse.Namespace) -> Options:
                       layout=args.layout, log_dir=args.log_dir, realtime=args.realtime,
                       vda5050=args.vda5050, mqtt_url=args.mqtt_url,
                       serial_number=args.serial_number, trucks=args.trucks,
-                      set_down=args.set_down, external_master=args.external_master)
+                      set_down=args.set_down, external_master=args.external_master,
+                      foxglove=args.foxglove)
     graph = truck_graph(load_graph(args.graph), options)
     options.faults = dict(parse_fault(text, graph) for text in args.fault)
     return options
@@ -110,6 +114,9 @@ def main(argv: list[str] | None = None) -> int:
         trucks = ', '.join(fleet_names(launch.o)) or serial_number(launch.o)
         print(f'agv-launch: VDA 5050 bridge {trucks} on MQTT broker '
               f'{launch.mqtt_url} ({where})', flush=True)
+    if args.foxglove is not None:
+        print(f'agv-launch: live view on ws://127.0.0.1:{args.foxglove} (Foxglove: Open '
+              'connection, Foxglove WebSocket)', flush=True)
     return launch.run(args.duration)
 
 

@@ -53,6 +53,7 @@ class Options:
     trucks: int = 0  # a fleet on one floor: N trucks in namespaces agv1..agvN (0: one truck)
     set_down: list[str] = field(default_factory=list)  # each truck's stop marker ([]: parking)
     external_master: bool = False  # a fleet's bridges wait for a master of the user's own
+    foxglove: int | None = None  # the live view's Foxglove WebSocket port (None: no live view)
 
 
 def record_readers(graph: Graph, world: bool, recording: bool) -> dict[str, int]:
@@ -195,6 +196,9 @@ def node_parameters(graph: Graph, spec: NodeSpec, options: Options,
         places = fleet_places(graph, options)
         out.update(layout=layout_name(graph, options), trucks=fleet_names(options),
                    positions=places, parking=places, mqtt_url=options.mqtt_url or '')
+    if spec.role == 'viewer':  # the live view draws the world's floor and every truck
+        out.update(port=int(options.foxglove or 0), layout=layout_name(graph, options),
+                   trucks=fleet_names(options) if options.trucks else [''])
     if spec.role == 'bridge':  # its orders name the markers of the layout the world runs
         out.update(layout=layout_name(graph, options), serial_number=serial_number(options),
                    mqtt_url=options.mqtt_url or '')
@@ -325,6 +329,7 @@ def launched(spec: NodeSpec, options: Options) -> bool:
     return not (spec.role == 'world' and options.world == 'none'
                 or spec.role == 'recorder' and options.bag is None
                 or spec.role == 'bridge' and not options.vda5050
+                or spec.role == 'viewer' and options.foxglove is None
                 or spec.role == 'master' and not (options.trucks and options.vda5050
                                                   and not options.external_master))
 
@@ -340,11 +345,11 @@ def launch_units(graph: Graph, options: Options) -> list[tuple[str, NodeSpec, st
     specs = [n for n in graph.nodes if launched(n, options)]
     if not options.trucks:
         return [(spec.name, spec, options.namespace) for spec in specs]
-    shared = ('recorder', 'master', 'world')
+    shared = ('recorder', 'master', 'world', 'viewer')
     return [(s.name, s, '') for s in specs if s.role == 'recorder'] + [
         (f'{truck}/{s.name}', s, f'/{truck}') for truck in fleet_names(options)
         for s in specs if s.role not in shared] + [
-        (s.name, s, '') for s in specs if s.role in ('master', 'world')]
+        (s.name, s, '') for s in specs if s.role in ('master', 'world', 'viewer')]
 
 
 def check_vda5050(graph: Graph, options: Options) -> None:
