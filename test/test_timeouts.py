@@ -63,9 +63,32 @@ def record_table_monostable() -> float:
     return int(found.group(1)) / 1000.0
 
 
+def record_period(record: str) -> float:
+    """Return a record's period as its record table gives it, s."""
+    text = (ROOT / 'msg_schemas' / f'{record}.yaml').read_text(encoding='utf-8')
+    return yaml.safe_load(text)['period_ms'] / 1000.0
+
+
 def within(elapsed: float, timeout: float, step: float) -> bool:
     """After the timeout, and no later than the next check one `step` on."""
     return timeout < elapsed <= timeout + step + EPS
+
+
+# Where a parameter file sets a timeout as so many of its writer's heartbeats, the record
+# table's period times that many: a default changed alone no longer says what its comment does.
+HEARTBEATS = [
+    ('traction', 'TractionParams', 'command_timeout', ['traction_command'], 3),
+    ('executive', 'ExecutiveParams', 'status_timeout',
+     ['navigation_status', 'traction_status', 'route_status', 'load_status', 'comms_status'], 3),
+    ('navigation', 'NavigationParams', 'sensor_timeout', ['position_sensor_status'], 5)]
+
+
+@pytest.mark.parametrize('package, section, name, records, beats', HEARTBEATS,
+                         ids=[h[2] for h in HEARTBEATS])
+def test_a_timeout_is_the_heartbeats_its_parameter_file_says(package, section, name, records,
+                                                             beats):
+    for record in records:
+        assert declared(package, section)[name] == pytest.approx(beats * record_period(record))
 
 
 # -- traction ------------------------------------------------------------------------------------
