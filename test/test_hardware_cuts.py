@@ -97,7 +97,7 @@ class DriveBox:
     def run(self, seconds: float) -> None:
         w = self.world
         for _ in range(round(seconds / SAMPLE)):
-            if w.sample % 3 == 0:  # 113 Hz: within the relay's monostable whatever the rate
+            if w.sample % 3 == 0:  # every 3rd sample, near traction's 100 Hz loop
                 self.count = (self.count + 1) & 0xFF
                 self.sent = w.time
                 w.on_record('traction_drive', {**self.fields, 'watchdog': self.count}, w.time)
