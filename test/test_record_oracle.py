@@ -68,6 +68,7 @@ def steps(max_delta: int) -> st.SearchStrategy[tuple]:
 
 STEPS = st.one_of(
     st.tuples(st.just('repeat'), st.integers(0, 9)),  # the k-th last record sent, again
+    st.tuples(st.just('again'), st.integers(0, 3)),  # the k-th last item given, whatever it was
     st.tuples(st.just('restart'), st.integers(0, 255)),  # a new writer from this counter
     st.tuples(st.just('told'), st.integers(0, 255)),  # ... and the reader is told of it
     st.tuples(st.just('flip'), st.integers(0, 16 * 255 - 1)),  # byte and mask of a corruption
@@ -105,6 +106,8 @@ def history(draw, table: Table, integrity: str, max_delta: int = E2E.max_delta) 
             counter = (counter + n) % 256
         elif op == 'repeat' and sent:
             out.append(('record', sent[-1 - n % len(sent)]))
+        elif op == 'again' and out:
+            out.append(out[-1 - n % len(out)])
         elif op in ('restart', 'told'):
             counter = n
             if op == 'told':
@@ -216,6 +219,8 @@ def stream(name: str, counters: list[int]) -> list:
     ([250, 10], ['accepted', 'wrong_sequence']),  # 16 ahead: a jump
     ([7, 6], ['accepted', 'wrong_sequence']),  # went back
     ([7, 248, 249, 250], ['accepted', 'wrong_sequence', 'wrong_sequence', 'wrong_sequence']),
+    ([7, 247, 247], ['accepted', 'wrong_sequence', 'repeated_counter']),  # 16 back: a jump
+    ([7, 247, 248], ['accepted', 'wrong_sequence', 'wrong_sequence']),  # 15 back ends no run
     ([7, 100, 101, 102, 103], ['accepted', 'wrong_sequence', 'resyncing', 'accepted',
                                'accepted']),
     ([7, 100, 8, 101, 102], ['accepted', 'wrong_sequence', 'accepted', 'wrong_sequence',
