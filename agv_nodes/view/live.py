@@ -49,12 +49,12 @@ from agv_nodes.records.ports import RecordReader
 from agv_nodes.ros_ports import record_bytes
 from agv_nodes.settings import settings_class
 from agv_nodes.view.decoded import decoded, decoded_topic, json_schema
-from agv_nodes.view.odometry import PlanarPose, WheelDeadReckoning
+from agv_nodes.view.frames import TruckFrames
+from agv_nodes.view.odometry import PlanarPose
 from agv_nodes.view.scene import (
     TruckShape,
     floor_entities,
     frame,
-    sensor_frames,
     stamp,
     transform,
     truck_entities,
@@ -93,9 +93,7 @@ class TruckView:
     def __init__(self, view: LiveView, ns: str, shape: TruckShape, track: float) -> None:
         self.view, self.ns, self.shape = view, ns.strip('/'), shape
         self.prefix = f'/{self.ns}' if self.ns else ''
-        self.odometry = WheelDeadReckoning(track)
-        self.anchor: PlanarPose | None = None  # map -> odom: the world's pose at the first wheel
-        self.truth: PlanarPose | None = None
+        self.frames = TruckFrames(ns, shape, track)
         self.records = 0
         node = view.node
         self.odom_pub = node.create_publisher(Odometry, f'{self.prefix}/odom', qos.EVENTS)
@@ -147,37 +145,26 @@ class TruckView:
                 f'{k}={v}' for k, v in message.items() if k not in ('raw', 'verdict')))
 
     def on_wheels(self, fields: dict[str, Any], t: float) -> None:
-        """Dead-reckon and publish `odom`, the frames, and the truth beside them."""
-        if self.anchor is None:
-            if self.truth is None:
-                return  # odom is tied to map where the world says the truck stands
-            self.anchor = PlanarPose(self.truth.x, self.truth.y, self.truth.heading)
-        p = self.odometry.update(fields)
-        self.odom_pub.publish(odometry_message(p, t, frame(self.ns, 'odom'),
-                                               frame(self.ns, 'base_link')))
-        a = self.anchor
-        transforms = [transform(t, 'map', frame(self.ns, 'odom'), a.x, a.y, a.heading),
-                      transform(t, frame(self.ns, 'odom'), frame(self.ns, 'base_link'),
-                                p.x, p.y, p.heading)]
-        transforms += [transform(t, frame(self.ns, 'base_link'), frame(self.ns, name), x, y, h)
-                       for name, x, y, h in sensor_frames(self.shape)]
-        self.view.send_transforms(transforms, t)
+        """Dead-reckon and publish `odom` and the frames."""
+        p = self.frames.on_wheels(fields)
+        if p is None:
+            return  # odom is tied to map where the world says the truck stands
+        self.odom_pub.publish(odometry_message(p, t, self.frames.name('odom'),
+                                               self.frames.name('base_link')))
+        self.view.send_transforms([transform(t, *f) for f in
+                                   self.frames.moving() + self.frames.fixed()], t)
 
     def on_pose(self, msg: PoseStamped) -> None:
         """Take the world's ground truth; publish it as Odometry in `map`."""
         q = msg.pose.orientation
-        heading = 2.0 * math.atan2(q.z, q.w)
         t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-        before = self.truth
-        self.truth = PlanarPose(msg.pose.position.x, msg.pose.position.y, heading)
-        if before is not None:
-            dt = t - self._truth_t
-            if dt > 0:
-                self.truth.speed = math.hypot(self.truth.x - before.x,
-                                              self.truth.y - before.y) / dt
+        before, before_t = self.frames.truth, self._truth_t
+        truth = self.frames.on_truth(msg.pose.position.x, msg.pose.position.y,
+                                     2.0 * math.atan2(q.z, q.w))
+        if before is not None and t > before_t:
+            truth.speed = math.hypot(truth.x - before.x, truth.y - before.y) / (t - before_t)
         self._truth_t = t
-        self.truth_pub.publish(odometry_message(self.truth, t, 'map',
-                                                frame(self.ns, 'base_link')))
+        self.truth_pub.publish(odometry_message(truth, t, 'map', self.frames.name('base_link')))
 
     _truth_t = 0.0
 
