@@ -100,7 +100,7 @@ def build_parser() -> argparse.ArgumentParser:
     """Build the agv-records argument parser."""
     p = argparse.ArgumentParser(prog='agv-records', description=__doc__.splitlines()[0])
     p.add_argument('--schemas', help='schema directory (default: the installed msg_schemas/)')
-    sub = p.add_subparsers(dest='command', required=True)
+    sub = p.add_subparsers(dest='command', required=True, metavar='COMMAND')
     sub.add_parser('list', help='every record: data_id, kind, topic, writer -> readers')
     show = sub.add_parser('show', help='the byte table of one record')
     show.add_argument('record')
