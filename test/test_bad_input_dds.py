@@ -163,6 +163,7 @@ def test_every_fuzzed_one_was_counted_exactly_and_never_acted_on(session, fault_
                     'resynchronised): counts exact, truck at rest')
 
 
+@pytest.mark.timeout(300)
 def test_a_run_of_jumped_counters_is_taken_as_the_oracle_says(session, fault_table):
     """Three records in a row past the window: refused, refused, then taken (a new writer).
 

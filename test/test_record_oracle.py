@@ -189,6 +189,7 @@ def test_the_reader_follows_the_counter_rules_for_any_window(name, data, max_del
     lock_step(name, 'e2e', items, max_delta, sync_records)
 
 
+@pytest.mark.timeout(300)
 def test_the_draws_reach_every_verdict():
     """The histories above do exercise each rule: every verdict occurs in a fixed sample."""
     seen: Counter = Counter()
@@ -212,6 +213,7 @@ def stream(name: str, counters: list[int]) -> list:
     return [('record', seal(table, body, c)) for c in counters]
 
 
+@pytest.mark.timeout(60)
 @pytest.mark.parametrize('counters, verdicts', [
     ([7, 7], ['accepted', 'repeated_counter']),
     ([7, 8, 8, 9], ['accepted', 'accepted', 'repeated_counter', 'accepted']),
@@ -235,6 +237,7 @@ def test_the_counter_rules_of_docs_records_md(counters, verdicts):
     lock_step('traction_command', 'e2e', stream('traction_command', counters))
 
 
+@pytest.mark.timeout(60)
 @pytest.mark.parametrize('name', PROTECTED)
 def test_what_the_writer_sends_the_oracle_takes(name):
     """The writer's records carry the counter (+1, wrapping) and the CRC of the docs."""
