@@ -70,6 +70,8 @@ class GraphProbe:
         self.errors: dict[str, str] = {}  # /diagnostics label -> message, level ERROR
         self.inputs: dict[str, dict[str, str]] = {}  # node -> its /diagnostics inputs values
         self.expected_dead: set[str] = set()
+        self._timeline = None  # SentTimeline once a record is watched for its send time
+        self._sent: dict[str, list] = {}  # watched record's unique name -> [sent, fields]
         n = self.node
         n.create_subscription(PoseStamped, 'world/pose', self._pose, qos.STREAM_READER)
         n.create_subscription(String, 'comms/report', lambda m: self.reports.append(m.data),
@@ -111,6 +113,63 @@ class GraphProbe:
                 self.errors[label] = st.message
             if label.endswith('/inputs'):
                 self.inputs[st.hardware_id] = {kv.key: kv.value for kv in st.values}
+
+    def watch_sent(self, record: str) -> list[list]:
+        """Keep each `record` the probe takes as [sim time it was sent at, fields], in order.
+
+        The send time is the world's sim time when the writer sent it, from its DDS source
+        timestamp against the world's /clock samples (agv_nodes/sent_time.py, as the executive
+        ages statuses): the latest clock sample sent before it, so exact to one clock step.
+        """
+        from rosgraph_msgs.msg import Clock
+
+        from agv_nodes import qos
+        from agv_nodes.records.codec import codec
+        from agv_nodes.ros_ports import RecordSubscription
+        from agv_nodes.sent_time import SentTimeline
+
+        if self._timeline is None:
+            self._timeline = SentTimeline()
+            self.node.create_subscription(Clock, '/clock', self._clock, qos.CLOCK_READER)
+        kept: list[list] = []
+        sub: list[RecordSubscription] = []
+
+        def take(fields: dict) -> None:
+            name = f'{record}#{len(self._sent)}'  # each its own: a later one must not replace it
+            kept.append([self._timeline.record(name, sub[0].sent_ns), fields])
+            self._sent[name] = kept[-1]
+        sub.append(RecordSubscription(self.node, codec()[record], 'e2e', take, sent_stamps=True))
+        self._subs.append(sub[0])
+        return kept
+
+    def _clock(self, msg, info: dict) -> None:
+        sim = msg.clock.sec + msg.clock.nanosec * 1e-9
+        for name, sent in self._timeline.clock(info.get('source_timestamp') or 0, sim):
+            self._sent[name][0] = sent  # sent after the sample it had: raised as they come
+
+    def last_sent_before(self, kept: list[list], t: float) -> float:
+        """Sim time the last of `kept` sent at or before `t` was sent at."""
+        before = [sent for sent, _fields in kept if sent <= t + 1e-9]
+        assert before, f'none sent before {t:.3f} s: {[round(k[0], 3) for k in kept[-5:]]}'
+        return before[-1]
+
+    def settings(self, node: str, cls: type) -> Any:
+        """Return the settings `node` runs with in this launch, as declared (not asked of it).
+
+        The class's declared defaults (agv_nodes/<node>/parameters.yaml), the launch's parameter
+        file over them (config/agv_demo.yaml), then what the launch sets on top: what the node
+        is told, so that a node not doing as told fails the test.
+        """
+        from agv_nodes.graph.parameters import override_parameters
+        from agv_nodes.settings import parameter_file_values, parameters, settings_from_file
+
+        spec = next(s for s in self.launch.specs() if s.name == node)
+        known = {p.name for p in parameters(cls)}
+        given = override_parameters(self.launch.graph, spec, self.launch.o)
+        _shared, own = parameter_file_values(self.launch.params, node)
+        return settings_from_file(cls, self.launch.params, node,
+                                  {k: v for k, v in given.items() if k in known},
+                                  also_known=frozenset(own) - known)
 
     def accepted(self) -> dict[str, dict[str, int]]:
         """Node -> record -> records accepted, from the latest /diagnostics inputs rows."""

@@ -22,11 +22,15 @@ must not start the truck: only a new task may. What stops the truck differs:
   the report itself, so /diagnostics names it.
 
 Speed is measured from /world/pose (the world's ground truth), in simulated time
-(test/graph_probe.py). The 200 ms budget sets the demo graph's watchdogs (config/agv_demo.yaml).
+(test/graph_probe.py). The 200 ms budget sets the demo graph's watchdogs (config/agv_demo.yaml);
+each case also bounds the time from the silent node's last record to the drive going off by the
+timeout that guards it plus the passes and samples between, every term the declared value the
+graph runs with (silence_bound): a watchdog slower than declared fails the case.
 """
 
 from __future__ import annotations
 
+import math
 import signal
 
 from graph_probe import GraphProbe
@@ -36,14 +40,71 @@ import pytest
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
 DRIVE_OFF_WITHIN = 0.200  # simulated s from the kill to the drive no longer pushing
-# Traction itself silent: the world's trip relay drops 200 ms after the last retrigger it
-# received (thesis B.2.1's monostable), seen at the next 340 Hz sample. A retrigger traction
-# sent just before the kill can reach the world after it: the paced world runs at most
-# max_lag (10 ms, config/agv_demo.yaml) ahead of a node's records, so it is stamped at most
-# that late (on a loaded machine a little over 0.2 s). world_event stamps are whole
-# milliseconds.
-MAX_LAG = 0.010
-RELAY_DROPS_WITHIN = 0.200 + MAX_LAG + 1 / 340 + 0.001
+# The record whose last send starts each victim's chain to the drive: the one its watchdog ages.
+WATCHED = {'executive': 'traction_command', 'traction': 'traction_drive',
+           'position_sensor': 'position_sensor_status', 'route_following': 'route_status',
+           'navigation': 'navigation_status', 'load_handling': 'load_status',
+           'communications': 'comms_status'}
+
+
+def silence_bound(g: GraphProbe, victim: str) -> tuple[float, float, str]:
+    """Sim s from the victim's last record to the drive off: at least, at worst, how made.
+
+    At least the timeout that watches it (no watchdog fires early), less, where the reader ages
+    the record from its arrival on its own clock, the most that clock may trail the world's
+    (max_lag and a step); at worst that timeout plus the passes and samples between.
+
+    Every term is what the launched graph declares (GraphProbe.settings). Node time moves in
+    /clock steps (clock_every / sample_rate), so a timer or an arrival is due at most a step
+    late; a record reaches the world at most max_lag after its writer's time, and the world acts
+    at its next sample.
+    """
+    from agv_nodes.executive.settings import ExecutiveParams
+    from agv_nodes.navigation.settings import NavigationParams
+    from agv_nodes.traction.settings import TractionParams
+    from agv_nodes.world.settings import WorldNodeSettings, WorldParams
+
+    tr, ex = g.settings('traction', TractionParams), g.settings('executive', ExecutiveParams)
+    nav, hw = g.settings('navigation', NavigationParams), g.settings('world', WorldParams)
+    node = g.settings('world', WorldNodeSettings)
+    step, sample = node.clock_every / hw.sample_rate, 1 / hw.sample_rate
+    world = node.max_lag + sample
+    trail = node.max_lag + step
+    if victim == 'traction':  # the trip relay's monostable: retriggers stop coming
+        return hw.drive_watchdog, hw.drive_watchdog + step + world, (
+            f'drive_watchdog {hw.drive_watchdog:g} + step + max_lag + sample')
+    if victim == 'executive':  # traction ages the command from its arrival, on its clock
+        worst = tr.command_timeout + step + tr.loop_period + step + world
+        return tr.command_timeout - trail, worst, (
+            f'command_timeout {tr.command_timeout:g} + step + loop_period + step + max_lag '
+            '+ sample')
+    # the executive supervises the status (aged from its send), its e-stop cuts the armature
+    # the moment it reaches traction
+    supervised = ex.status_timeout + ex.supervision_period + step + step + world
+    if victim == 'position_sensor':  # navigation's sensor watchdog, then its status
+        worst = nav.sensor_timeout + nav.period + step + step + supervised - ex.status_timeout
+        return nav.sensor_timeout - trail, worst, (
+            f'sensor_timeout {nav.sensor_timeout:g} + period + step + step + '
+            'supervision_period + step + step + max_lag + sample')
+    return ex.status_timeout, supervised, (
+        f'status_timeout {ex.status_timeout:g} + supervision_period + step + step + max_lag '
+        '+ sample')
+
+
+def estop_bound(g: GraphProbe) -> tuple[float, float]:
+    """Sim s from a silent sub-system's last status to the executive's e-stop record: (>, <=).
+
+    The executive ages a status from its send exactly as the probe does (the same /clock
+    samples, agv_nodes/sent_time.py), and checks every supervision_period on the clock's steps.
+    """
+    from agv_nodes.executive.settings import ExecutiveParams
+    from agv_nodes.world.settings import WorldNodeSettings, WorldParams
+
+    ex = g.settings('executive', ExecutiveParams)
+    step = g.settings('world', WorldNodeSettings).clock_every / g.settings(
+        'world', WorldParams).sample_rate
+    return ex.status_timeout, ex.status_timeout + ex.supervision_period + step
+
 
 CASES = [  # victim, at rest within (sim s), report on comms/report, /diagnostics row, words
     ('route_following', 3.0, 'FAILED: stale status (route)', 'route', 'old'),
@@ -60,6 +121,7 @@ CASES = [  # victim, at rest within (sim s), report on comms/report, /diagnostic
 ]
 
 
+@pytest.mark.timeout(180)  # ~25 s alone
 @pytest.mark.parametrize('sig', [signal.SIGKILL, signal.SIGSTOP], ids=['kill', 'stop'])
 @pytest.mark.parametrize('victim, stop_within, report, diag_row, diag_words', CASES,
                          ids=[c[0] for c in CASES])
@@ -68,26 +130,53 @@ def test_silent_node_ends_in_a_stop(tmp_path, victim, stop_within, report, diag_
     g = GraphProbe(tmp_path / 'logs')
     g.expected_dead.add(victim)
     proc = g.launch.procs
+    sent = g.watch_sent(WATCHED[victim])
+    commands = sent if victim == 'executive' else g.watch_sent('traction_command')
     try:
+        least, bound, terms = silence_bound(g, victim)
         g.start_task('stop at 2 second')
         speed = g.speed
         # The kill happens with the world paused, so its sim time is exact.
         killed_at = g.at_exact_time(lambda: proc[victim].send_signal(sig))
         at_rest = g.stays_at_rest() - killed_at
-        print(f'{victim} {sig.name} at {killed_at:.2f} s sim, {speed:.2f} m/s: drive off '
-              f'{g.drive_off_after(killed_at)} s, at rest {at_rest:.2f} s later; reports '
+        last = g.last_sent_before(sent, killed_at)
+        cut = g.drive_off_after(killed_at)
+        print(f'{victim} {sig.name} at {killed_at:.3f} s sim, {speed:.2f} m/s, its last '
+              f'{WATCHED[victim]} sent at {last:.4f} s: drive off {cut} s after the kill, at rest '
+              f'{at_rest:.2f} s later; bound {bound * 1000:.1f} ms ({terms}); reports '
               f'{g.reports}; diagnostics errors {g.errors}')
-        limit = RELAY_DROPS_WITHIN if victim == 'traction' else DRIVE_OFF_WITHIN
-        cut = g.drive_off_ms(killed_at, limit)
+        # world_event stamps are whole ms: the bounds are compared in them, rounded up. The
+        # trip relay's own 200 ms (thesis B.2.1) counts from the last retrigger, not the kill.
+        budget = None if victim == 'traction' else DRIVE_OFF_WITHIN
+        limit = min(budget or 1.0, bound + last - killed_at)
+        cut_ms = g.drive_off_ms(killed_at, math.ceil(limit * 1000) / 1000)
+        since_last = cut_ms / 1000 + killed_at - last
+        assert since_last > least - 0.0005, (
+            f'drive off {since_last * 1000:.1f} ms after the last {WATCHED[victim]}: its '
+            f'watchdog fired before its {least * 1000:.0f} ms')
         assert at_rest <= stop_within, f'{victim} {sig.name}: at rest only {at_rest:.2f} s after'
+        trip = seen = ''  # the named trip or e-stop: as expected, as seen
         if victim == 'executive':
             assert g.trips and g.trips[-1] == 'stale_command', g.trips
+            trip = seen = 'trip stale_command, '
+        elif victim != 'traction':  # the executive's e-stop (byte 2 = 00H) cut the drive
+            estop = [t for t, c in commands if t >= killed_at and not c['manual']
+                     and c['demand'] == 0]
+            assert estop and estop[0] <= killed_at + cut_ms / 1000, (estop, cut_ms)
+            trip = seen = 'the executive e-stops (00H), '
+            if victim != 'position_sensor':  # its own status went stale
+                after, within = estop_bound(g)
+                assert after < estop[0] - last <= within + 1e-6, (estop[0] - last, within)
+                trip = (f'the executive e-stops (00H) {after * 1000:.0f} < t <= '
+                        f'{within * 1000:.1f} ms after its last {WATCHED[victim]} '
+                        '(status_timeout + supervision_period + step), ')
+                seen = f'e-stop {(estop[0] - last) * 1000:.1f} ms after its last, '
         g.spin_until(lambda: diag_words in g.errors.get(diag_row, ''), 30,
                      f'/diagnostics naming {diag_row} ({diag_words!r}); have {g.errors}')
         if sig == signal.SIGSTOP:  # wakes up: its stale state must not move the truck
             proc[victim].send_signal(signal.SIGCONT)
         if victim == 'communications' and sig == signal.SIGKILL:
-            report = None
+            report = None  # a killed communications cannot carry its own report
         if report:
             g.report_with(report)
         if sig == signal.SIGSTOP:
@@ -97,11 +186,20 @@ def test_silent_node_ends_in_a_stop(tmp_path, victim, stop_within, report, diag_
             assert 'clock lost' not in g.errors.get(f'{victim}/inputs', ''), g.errors
         else:
             assert proc[victim].poll() == -signal.SIGKILL
+        cause = f'"{report}"' if report else 'no report (communications is the one killed)'
         fault_table.add(f'{sig.name} {victim} while cruising',
-                        f'drive off <= {limit:.3f} s (sim), at rest, cause reported, '
-                        f'{diag_row} ERROR in /diagnostics, no restart',
-                        f'at {speed:.2f} m/s: drive off after {cut / 1000:.3f} s, at rest after '
-                        f'{at_rest:.2f} s; {report or g.trips[-1:] or g.errors[diag_row]}')
+                        (f'drive off <= {budget * 1000:.0f} ms (sim) after the {sig.name} and '
+                         if budget else 'drive off ')
+                        + f'{least * 1000:.0f} < t <= {bound * 1000:.1f} ms after its last '
+                        f'{WATCHED[victim]} ({terms}), '
+                        f'at rest <= {stop_within:g} s, {trip}'
+                        f'{cause}, /diagnostics {diag_row} ERROR "{diag_words}"'
+                        + ('; after SIGCONT still at rest, no "clock lost"'
+                           if sig == signal.SIGSTOP else ''),
+                        f'at {speed:.2f} m/s: drive off {cut_ms} ms after, '
+                        f'{since_last * 1000:.1f} ms after its last {WATCHED[victim]}, at rest '
+                        f'{at_rest:.2f} s after; {seen}{cause}; /diagnostics {diag_row}: '
+                        f'"{g.errors[diag_row]}"')
     finally:
         if sig == signal.SIGSTOP and proc[victim].poll() is None:
             proc[victim].send_signal(signal.SIGCONT)  # so that it can shut down
