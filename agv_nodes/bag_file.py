@@ -76,7 +76,7 @@ class CommittedFile:
         limit = self.space_limit if limited else 0
         if limit and offset + len(data) > limit:
             # a full disk, as a write meets one: what fits is written, then ENOSPC
-            self._put(data[:max(0, limit - offset)], offset)
+            self._put(data[:max(0, limit - offset)], offset, limited=False)
             raise OSError(errno.ENOSPC, f'{os.strerror(errno.ENOSPC)} (space_limit {limit} '
                                         'bytes)')
         while data:
