@@ -595,7 +595,8 @@ def table(results: list[Result], command: str) -> str:
              'mutation in place (a missing test). The unmutated copy passed every named test '
              'first. Kernels: `c` the installed C extensions, `python` none (the Python code '
              'they stand in for runs), `build` the C rebuilt from the mutated source. Seconds: '
-             'wall time of the copy and the tests, on a 2-core machine shared with other work.',
+             'wall time of the copy and the tests (for DDS tests with the wait for '
+             f'`{DDS_LOCK}`), on a 2-core machine shared with other work.',
              '', '| id | what it breaks | where | kernels | caught by | verdict | s |',
              '|---|---|---|---|---|---|---|']
     for r in results:
