@@ -33,9 +33,9 @@ whose module docstring is the passage read for the sequence rules; no code of it
    - 1..max_delta: accepted; delta - 1 records counted lost;
    - 256 - max_delta..255: went back, `wrong_sequence`, and it never starts or continues a
      resynchronisation run;
-   - anything between is a jump: rejected, the reference kept. "It resynchronises only after
-     3 CRC-valid records in a row continue the jump": read (as records/e2e.py's docstring
-     says) as 3 records in all, the jump itself the first, each counter +1 on the one before;
+   - anything between is a jump: rejected, the reference kept. "It resynchronises on the 3rd
+     CRC-valid record of a run that jumps and continues itself": 3 records in all, the jump
+     itself the first, each counter +1 on the one before;
      the first is `wrong_sequence`, the middle ones `resyncing`, the third accepted as the
      new writer's first record (no records counted lost across the jump). "In a row" is read
      as in counter order, not arrival: records that come in between (corrupt, stale,
@@ -95,7 +95,8 @@ def protection_from_docs(path: Path = REPO / 'docs' / 'records.md') -> Protectio
     assert int(m[7]) == counter and crc == LENGTH, (m[0], 'the CRC covers bytes 1 to counter')
     lost = re.search(r'counts skipped counters \(up to (\d+)\) as lost\. A jump of more than '
                      r'(\d+) is rejected', text)
-    sync = re.search(r'resynchronises only after (\d+) CRC-valid records in a row', text)
+    sync = re.search(r'resynchronises on the (\d+)(?:st|nd|rd|th)\s+CRC-valid record of a run '
+                     r'that jumps and continues itself', text)
     assert lost and sync and lost[1] == lost[2], f'{path}: the counter rules no longer parse'
     return Protection(counter, crc, _hex(m[3]), _hex(m[4]), _hex(m[5]), _hex(m[6]),
                       int(lost[1]), int(sync[1]))

@@ -14,8 +14,9 @@ with `e2e` (default) byte 15 is a sequence counter (+1 per publish, 255 wraps to
 a CRC-8/SAE-J1850 (poly 1DH, init FFH, no reflection, xorout FFH; check("123456789") = 4BH)
 over the record's `data_id` followed by bytes 1-15. A receiver rejects a bad CRC, a repeated
 counter and one that went back, and counts skipped counters (up to 15) as lost. A jump of more
-than 15 is rejected without moving the receiver's reference; it resynchronises only after 3
-CRC-valid records in a row continue the jump (a restarted writer), or when told to.
+than 15 is rejected without moving the receiver's reference; it resynchronises on the 3rd
+CRC-valid record of a run that jumps and continues itself (+1 each: the jumping record counts
+as the first; records of other counters may come between), a restarted writer, or when told to.
 With `none` (a legacy peer sending plain thesis records) bytes 15-16 are spare (00H).
 Hardware-side and ground-truth records use all 16 bytes and carry no protection.
 
