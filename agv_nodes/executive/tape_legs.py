@@ -18,12 +18,15 @@ A reckon task is one dead-reckoning leg (App. F.9): route_command mode dead_reck
 task's trajectory; route following drives along it by odometry alone and the leg ends, as a tape
 leg with a length does, when its distance reaches the length.
 
-A leg with a length ends when route following's distance reaches it: route_command goes idle
-(motors off, the thesis's motor-off stop) and the leg is done once the distance has stood still
-for `leg_rest_time`. A leg without one ends where the tape ends: route following reports
-no_track (no track in absent_frames frames, motors off). no_track before a leg's length is a
-lost tape; no_branch (the decision is not on the sign) and lost (a turn that did not finish)
-fail the task.
+A leg with a length goes to route following in route_command `length` (dm): it slows to the
+thesis's parking speed near the end and cuts the motors so that the coast ends at the length
+(Rajagopalan 1991, 7.3.4; camera_mode.py). Once route following reports it parked (state
+idle) or its distance (cm) reaches the length, route_command goes idle (motors off: the thesis's
+motor-off stop, from cruise if route following does not park) and the leg is done once the
+distance has stood still for `leg_rest_time`.
+A leg without one ends where the tape ends: route following reports no_track (no track in
+absent_frames frames, motors off). no_track before a leg's length is a lost tape; no_branch
+(the decision is not on the sign) and lost (a turn that did not finish) fail the task.
 """
 
 from dataclasses import dataclass
@@ -69,7 +72,8 @@ class TapeLegs:
         self._still = None
         self.decision = self._decide(1)
         route = {**route, 'camera_law': self.task.get('camera_law', 'default'),
-                 'trajectory': int(task.get('trajectory', 0)) if kind == 'reckon' else 0}
+                 'trajectory': int(task.get('trajectory', 0)) if kind == 'reckon' else 0,
+                 'length': length_dm}
         return self._command(route, 'dead_reckoning' if kind == 'reckon' else 'camera',
                              'reverse' if reverse else 'forward')
 
@@ -115,9 +119,11 @@ class TapeLegs:
                                       f'no track after {distance / 100:.2f} m of '
                                       f'{self.length_cm / 100:.1f}'), route
                 self.phase = 'stopping'  # the tape's end: route following cut the motors
-            elif self.length_cm and distance >= self.length_cm:
+            elif self.length_cm and (distance >= self.length_cm or state == 'idle'):
+                # Route following parked (idle) at the length, or the distance reached it:
+                # motors off (a motor-off stop from cruise when it does not park, 7.3.4).
                 self.phase = 'stopping'
-                route = {**route, 'mode': 'idle'}  # motor-off stop (Rajagopalan 1991, 7.3.4)
+                route = {**route, 'mode': 'idle'}
             if self.phase == 'stopping':
                 self.log.append(f'leg {self.leg}: stopping after {distance / 100:.2f} m')
         if self.phase == 'stopping':

@@ -34,6 +34,14 @@ truck's pose, or with 0 the track identified last; no such trajectory stops it a
 (no_track). Every RECKON_PERIOD the identified track's law steers by the offsets the window
 would read of it (track_guidance.py), at dead_reckoning.speed; frames and road signs are not
 looked at. It goes on until the executive ends the leg (route_command idle at its length).
+
+A leg with a `length` (route_command, dm; either kind) parks there (Rajagopalan 1991, 7.3.4:
+motor off from 0.16 m/s, "the recommended speed for parking", stops in 5 mm): the speed asked
+for falls at turning.stop_deceleration to parking_speed parking_run before the motor-off point,
+and the motors are cut once the coast from the speed the wheels report (parking_distance at
+parking_speed, as the square of the speed) reaches the length: state idle, held until the next
+leg. From the 0.47 m/s cruise the coast alone would run 42 mm past it. parking_speed 0 leaves
+the stop to the executive, from cruise.
 """
 
 import math
@@ -51,7 +59,7 @@ from agv_nodes.subsystem import Notes
 from agv_nodes.track_geometry.fitting import Conic
 
 # motor-off stops that hold until the next leg (drive_fault: the safety supervisor's, 6.3.11)
-STOPS = ('no_track', 'no_branch', 'lost', 'drive_fault')
+STOPS = ('no_track', 'no_branch', 'lost', 'drive_fault', 'parked')
 # The longest camera cycle the thesis ran was 200 ms, with track identification (Rajagopalan
 # 1991, 8.4.3): a leading camera silent for absent_frames such cycles is no track, as
 # absent_frames empty frames are (a reverse leg without a rear camera stops at once).
@@ -80,6 +88,7 @@ class CameraMode:
         self.in_sign = False
         self.sign = {'left': 0, 'right': 0, 'straight': 0}
         self.leg, self.direction, self.junctions, self.travel = 0, 1, 0, 0.0
+        self.length = 0.0  # m of the leg, where it parks (0: none)
         # route_command's latest (junction, junction_number, junction_wait)
         self.decision: tuple[str, int, float] = ('straight', 0, 0.0)
         self._taken: tuple[str, float] = ('straight', 0.0)  # (junction, wait) at this sign
@@ -102,20 +111,23 @@ class CameraMode:
         trajectory = int(fields.get('trajectory', 0)) \
             if fields.get('mode') == 'dead_reckoning' else None
         self.begin_leg(leg, -1 if fields.get('direction') == 'reverse' else 1, now,
-                       fields.get('camera_law', 'default'), trajectory)
+                       fields.get('camera_law', 'default'), trajectory,
+                       int(fields.get('length', 0)) / 10.0)
         return True
 
     def begin_leg(self, leg: int, direction: int, now: float, law: str = 'default',
-                  trajectory: int | None = None) -> None:
+                  trajectory: int | None = None, length: float = 0.0) -> None:
         """Start a leg from where the vehicle is: counts from 0, the laws afresh.
 
-        `law`: its camera_law; `trajectory`: a dead-reckoning leg's (None: a camera leg).
+        `law`: its camera_law; `trajectory`: a dead-reckoning leg's (None: a camera leg);
+        `length`: m where it parks (0: none).
         """
         # The identified track and the pose are those the last leg left, until law.start.
         reckoning = None if trajectory is None else self._trajectory(trajectory, now)
         if trajectory is not None:
             direction = 1  # along the trajectory as it was stored
         self.leg, self.direction, self.junctions, self.travel = leg, direction, 0, 0.0
+        self.length = length
         self.state, self.turn.phase, self.motor_on = 'following', '', False
         self.wheels, self.in_sign, self._set_off_at, self._last_lead = (0.0, 0.0), False, None, now
         self.law.start(direction, law)
@@ -195,7 +207,7 @@ class CameraMode:
             self.turn.trace.saw(m.eps_d, self.odo)  # the plain tape's line, for the approach
         if self.turn.phase == 'approach':
             return  # the manoeuvre drives to the crossing (approach_steer: how it steers)
-        self.wheels = self.law.wheel_speeds(self._cruise(speed, view.time), theta)
+        self.wheels = self.law.wheel_speeds(self._cruise(self._parking(speed), view.time), theta)
 
     def _cruise(self, speed: float, now: float) -> float:
         """Return the speed to drive at: `speed`, or less while setting off from rest."""
@@ -212,6 +224,26 @@ class CameraMode:
             speed = min(speed, ramp)
         return speed
 
+    def _parking(self, speed: float) -> float:
+        """Return `speed`, or the parking profile's less toward a length (7.3.4)."""
+        p = self.p
+        if not (self.length and p.parking_speed > 0):
+            return speed
+        ahead = self.length - p.parking_distance - p.parking_run - self.travel
+        return min(speed, math.sqrt(p.parking_speed ** 2 + 2.0 * p.turning.stop_deceleration
+                                    * max(ahead, 0.0)))
+
+    def _park(self, now: float) -> bool:
+        """Cut the motors where the coast ends at the length; return True once parked."""
+        p = self.p
+        if not (self.length and p.parking_speed > 0) or self.turn.phase:
+            return False  # no length (or the executive's stop from cruise), or a manoeuvre's
+        coast = p.parking_distance * (self.speed / p.parking_speed) ** 2
+        if self.travel + coast < self.length:
+            return False
+        self._stop('parked', now)
+        return True
+
     def _reckon(self, now: float) -> None:
         """Steer a dead-reckoning leg along its curve, every RECKON_PERIOD."""
         if self._reckoned_at is not None and now - self._reckoned_at < RECKON_PERIOD - 1e-9:
@@ -223,8 +255,8 @@ class CameraMode:
             self._stop('no_track', now)
             return
         self.motor_on, self.steer, self.lateral = True, theta, self.law.track.offsets[0]
-        self.wheels = self.law.wheel_speeds(self._cruise(self.p.dead_reckoning.speed, now),
-                                            theta)
+        self.wheels = self.law.wheel_speeds(
+            self._cruise(self._parking(self.p.dead_reckoning.speed), now), theta)
 
     def drive_fault(self, now: float) -> None:
         """Stop for a drive fault the safety supervisor found (Rajagopalan 1991, 6.3.11)."""
@@ -233,8 +265,9 @@ class CameraMode:
     def _stop(self, state: str, now: float) -> None:
         """Motor-off stop, held until the next leg."""
         if self.state != state:
-            self.notes.add(now, f'leg {self.leg}: {state} after {self.travel:.2f} m, '
-                                f'{self.junctions} junction(s)', 'warn')
+            self.notes.add(now, f'leg {self.leg}: {state} after {self.travel:.3f} m, '
+                                f'{self.junctions} junction(s)',
+                           'info' if state == 'parked' else 'warn')
         self.state, self.motor_on, self.wheels, self.turn.phase = state, False, (0.0, 0.0), ''
 
     # -- junctions (Rajagopalan 1991, 4.3, App. F.6-F.7) ------------------------------------
@@ -289,6 +322,8 @@ class CameraMode:
         """Run the junction manoeuvre at the loop rate; stop when the leading camera is silent."""
         if self.state in STOPS or self.state == 'idle':
             return
+        if self._park(now):
+            return
         if self.reckoning is not None:
             self._reckon(now)
             return
@@ -315,7 +350,7 @@ class CameraMode:
         """Return the state route_status carries: `sign` while on a sign's tape."""
         if self.in_sign and self.state == 'following':
             return 'sign'
-        return self.state
+        return 'idle' if self.state == 'parked' else self.state  # motors off at the length
 
     def status(self) -> dict[str, Any]:
         """Return camera mode's route_status fields."""
