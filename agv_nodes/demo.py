@@ -4,7 +4,8 @@ Starts a truck's whole graph (one process per node over real DDS, sim time) with
 sends its demonstration programme on comms/task, shows the reports, stops the graph, writes the
 report and prints a summary table. `--truck electruk` (default): the 1983 tug in the demo_1983
 room, thesis 7.2 tasks 1-7 and the fig 3.1 transfer. `--truck concic2`: the 1991 camera truck on
-the signs_1991 tape, legs through every road sign with scripted turns and a reverse leg.
+the signs_1991 tape, legs through every road sign with scripted turns and a reverse leg;
+`--truck concic2 --layout FILE` on a tape layout of one's own, one leg to the tape's end.
 `--quick` runs the CI variant of either.
 """
 
@@ -25,6 +26,9 @@ from agv_nodes.sim_progress import CLOCK_LINK
 # truck -> (layout, programme, quick programme)
 TRUCKS = {'electruk': ('demo_1983', DEMO_PROGRAMME, DEMO_PROGRAMME[:2]),
           'concic2': ('signs_1991', CONCIC2_PROGRAMME, CONCIC2_QUICK)}
+# A tape layout of one's own has no programme written for it: a leg along the tape from where the
+# truck stands to the tape's end, straight on at every junction, is one any tape layout can run.
+OWN_TAPE_PROGRAMME = ('tape',)
 STATUS_REPLY = 'comms: status:'
 
 
@@ -79,12 +83,19 @@ def inputs_accepted(msg: Any) -> dict[str, dict[str, int]]:
     return out
 
 
+def programme(args: argparse.Namespace) -> tuple[str, list[str]]:
+    """Return the layout (a name or a file) and the tasks of the run `args` asks for."""
+    layout, tasks, quick = TRUCKS[args.truck]
+    if getattr(args, 'layout', None):  # a tape layout of one's own (main checked its vehicle)
+        layout, tasks, quick = args.layout, OWN_TAPE_PROGRAMME, OWN_TAPE_PROGRAMME
+    return layout, list(quick if args.quick else tasks)
+
+
 def run(args: argparse.Namespace) -> int:
     """Launch, drive the programme, stop, report; exit status."""
     out = Path(args.out or f'runs/demo-{time.strftime("%Y%m%d-%H%M%S")}')
     out.mkdir(parents=True, exist_ok=True)
-    layout, programme, quick = TRUCKS[args.truck]
-    tasks = list(quick if args.quick else programme)
+    layout, tasks = programme(args)
     try:
         launch = Launch(Options(time_factor=args.time_factor, bag=out / 'bag', quiet=True,
                                 log_dir=out / 'logs', domain_id=args.domain_id, layout=layout,
@@ -260,6 +271,21 @@ def print_summary(summary: dict, report: dict | None, out: Path) -> None:
         print(f'report: {out / "report" / "summary.md"} (plots: {out / "report"}/*.png)')
 
 
+def own_layout_problem(file: str, truck: str) -> str | None:
+    """Return why layout `file` is no room for `truck` (one line naming both), or None."""
+    from agv_nodes.world.layout import layout_path, load_layout
+    from agv_nodes.world.tape_layout import LayoutError
+
+    try:
+        vehicle = load_layout(layout_path(file)).vehicle
+    except (LayoutError, OSError) as exc:
+        return f'--layout {file}: {exc}'
+    if vehicle != truck:
+        return (f'--layout {file}: a layout for the {vehicle}, not the {truck} (--truck '
+                f'{truck} runs a tape layout; --fleet runs an electruk one)')
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of agv-demo."""
     ap = argparse.ArgumentParser(prog='agv-demo', description=__doc__.splitlines()[0])
@@ -290,15 +316,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--mqtt-url', help='with --fleet: a broker of your own, mqtt://host[:port] '
                     '(default: AGV_MQTT_URL, else one embedded in the launcher)')
     ap.add_argument('--layout', help='with --fleet: the floor (default demo_1983, room for '
-                    'three trucks; fleet_1983 parks eight)')
+                    'three trucks; fleet_1983 parks eight); with --truck concic2: a tape layout '
+                    "(name or file), one leg to the tape's end")
     ap.add_argument('--transfers', type=int, metavar='K',
                     help='with --fleet: transfers in the programme (default 8, --quick 2)')
     args = ap.parse_args(argv)
+    if args.layout and args.truck == 'concic2' and not args.fleet:
+        if problem := own_layout_problem(args.layout, 'concic2'):
+            print(f'agv-demo: {problem}', file=sys.stderr)
+            return 2
+        return run(args)
     if args.fleet or args.external_master or args.mqtt_url or args.transfers is not None \
             or args.layout:
         if not args.fleet:
             ap.error('--external-master, --mqtt-url, --transfers and --layout are for a fleet: '
-                     'add --fleet N')
+                     'add --fleet N (or --layout with --truck concic2: a tape layout)')
         if args.transfers is not None and args.transfers < 1:
             ap.error(f'--transfers {args.transfers}: at least 1')
         if args.truck != 'electruk':

@@ -90,6 +90,7 @@ def test_random_choices_follow_the_thesis_draw_and_repeat_with_the_seed() -> Non
 def test_a_leg_with_a_length_stops_at_it_and_is_done_at_rest() -> None:
     legs = TapeLegs(seed=1, rest_time=0.3)
     route = legs.start(parse_task('tape for 2.0 m').record(), 'tape', 20, {})
+    assert route['length'] == 20  # dm: route following parks there (test_parking_stops.py)
     outcome, route = legs.update(status(legs.leg, distance=150), route, 1.0)
     assert outcome.state == 'running' and route['mode'] == 'camera'
     outcome, route = legs.update(status(legs.leg, distance=200), route, 2.0)
@@ -98,6 +99,17 @@ def test_a_leg_with_a_length_stops_at_it_and_is_done_at_rest() -> None:
     outcome, route = legs.update(status(legs.leg, 'idle', distance=202), route, 2.3)
     assert outcome.state == 'running'
     outcome, route = legs.update(status(legs.leg, 'idle', distance=202), route, 2.45)
+    assert outcome.state == 'done'
+
+
+def test_a_leg_route_following_parked_short_of_the_centimetre_is_done_at_rest() -> None:
+    """Parked (idle) 5 mm short of 2.0 m, the distance may read 199 cm: the leg still ends."""
+    legs = TapeLegs(seed=1, rest_time=0.3)
+    route = legs.start(parse_task('tape for 2.0 m').record(), 'tape', 20, {})
+    outcome, route = legs.update(status(legs.leg, 'idle', distance=199), route, 1.0)
+    assert route['mode'] == 'idle' and legs.phase == 'stopping'
+    for t in (1.1, 1.45):
+        outcome, route = legs.update(status(legs.leg, 'idle', distance=199), route, t)
     assert outcome.state == 'done'
 
 
@@ -184,3 +196,56 @@ def test_a_decision_the_sign_lacks_fails_the_task_and_stops_the_truck() -> None:
     # 0.64 m ahead of the axle, saw the sign end without the left branch, within a metre.
     window_at = 0.5 + h.world.vehicle.state.distance + 0.64
     assert 9.0 < window_at < 10.0, window_at
+
+
+# -- a room of one's own: agv-demo --truck concic2 --layout FILE --------------------------------
+
+OWN_ROOM = """\
+layout: own_room
+description: two metres of straight tape
+vehicle: concic2
+kind: tape
+tapes:
+  - id: main
+    start: [0.0, 0.0, 0.0]
+    width: 0.058
+    segments:
+      - {straight: 2.0}
+start: {path: main, at: 0.7}
+"""
+
+
+@pytest.mark.timeout(120)
+def test_agv_demo_takes_a_tape_layout_file_and_its_programme_runs_there(tmp_path, monkeypatch):
+    from agv_nodes import demo
+    from agv_nodes.harness import submit, truck
+
+    room = tmp_path / 'own_room.yaml'
+    room.write_text(OWN_ROOM)
+    asked = []
+    monkeypatch.setattr(demo, 'run', lambda args: asked.append(demo.programme(args)) or 0)
+    assert demo.main(['--truck', 'concic2', '--layout', str(room)]) == 0
+    assert asked == [(str(room), ['tape'])]
+    # The programme on that floor in lock step: to the tape's end, completed.
+    h = truck(str(room), overrides={'world': {'concic2.model': 'kinematic'}})
+    h.run(0.5)
+    for text in asked[0][1]:
+        submit(h, text)
+    ex = h.cores['executive']
+    assert h.run(60.0, until=lambda: ex.mode in ('idle', 'failed') and ex.report['state']
+                 in ('completed', 'failed'))
+    assert ex.report['state'] == 'completed', ex.report
+
+
+@pytest.mark.timeout(30)
+def test_agv_demo_refuses_an_electruk_layout_for_the_camera_truck(capsys, monkeypatch) -> None:
+    from agv_nodes import demo
+    from agv_nodes.world.layout import layout_path
+
+    monkeypatch.setattr(demo, 'run', lambda args: pytest.fail('ran'))
+    room = str(layout_path('demo_1983'))
+    assert demo.main(['--truck', 'concic2', '--layout', room]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and room in err[0] and 'electruk' in err[0] and 'concic2' in err[0], err
+    with pytest.raises(SystemExit):  # the 1983 truck takes a layout only as a fleet's floor
+        demo.main(['--layout', room])
