@@ -16,12 +16,14 @@ the processes around them, one at a time, each on the whole graph (config/graph.
 
 from __future__ import annotations
 
+import math
 import signal
 import statistics
 import time
 
 from graph_probe import CRUISE, STOP_TOLERANCE_MM, GraphProbe
 import pytest
+from test_kill_dds import silence_bound
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
@@ -248,12 +250,17 @@ def test_respawned_node_rejoins_and_the_truck_waits_for_a_new_task(tmp_path, fau
     statuses: list[float] = []
     RecordSubscription(g.node, codec()['navigation_status'], 'e2e',
                        lambda _fields: statuses.append(g.time))
+    sent = g.watch_sent('navigation_status')
     try:
+        _least, worst, terms = silence_bound(g, victim)
         g.start_task('stop at 2 second')
         first = proc[victim]
         killed_at = g.at_exact_time(lambda: first.send_signal(signal.SIGKILL))
         at_rest = g.stays_at_rest() - killed_at
-        cut = g.drive_off_ms(killed_at, DRIVE_OFF_WITHIN)
+        last = g.last_sent_before(sent, killed_at)
+        # the stale status's chain at worst (a respawn back in time is named sooner)
+        limit = min(DRIVE_OFF_WITHIN, worst + last - killed_at)
+        cut = g.drive_off_ms(killed_at, math.ceil(limit * 1000) / 1000)
         # The world waits up to lag_patience (real) for the dead node: a respawn back within
         # it finds sim time where it was killed, and the executive fails the task on the new
         # writer rather than on the silence. Either way it is navigation that failed.
@@ -278,9 +285,14 @@ def test_respawned_node_rejoins_and_the_truck_waits_for_a_new_task(tmp_path, fau
         print(f'{victim} SIGKILL at {killed_at:.2f} s: drive off {cut} ms, respawned, its '
               f'inputs row back {rejoined - back:.2f} s sim later; reports {g.reports}')
         fault_table.add(f'SIGKILL {victim} while cruising, agv-launch --respawn',
-                        f'drive off <= {DRIVE_OFF_WITHIN:.3f} s (sim), the node respawns and '
+                        f'drive off <= {DRIVE_OFF_WITHIN:.3f} s (sim) after the kill and <= '
+                        f'{worst * 1000:.1f} ms after its last navigation_status ({terms}), '
+                        '"FAILED: stale status (navigation)" or "FAILED: restarted '
+                        '(navigation)", the node respawns and '
                         'its records flow again, the truck moves only on a new task',
-                        f'drive off after {cut / 1000:.3f} s ({failed.split(": ", 1)[-1]}); '
+                        f'drive off after {cut / 1000:.3f} s, '
+                        f'{(cut / 1000 + killed_at - last) * 1000:.1f} ms after its last '
+                        f'navigation_status ({failed.split(": ", 1)[-1]}); '
                         'respawned, at rest 5 s after rejoining; the new task completed')
     finally:
         g.close()
