@@ -12,6 +12,7 @@ import json
 import os
 from pathlib import Path
 import sys
+import tempfile
 
 from hypothesis import HealthCheck, settings
 import pytest
@@ -118,10 +119,10 @@ def pytest_runtest_setup(item) -> None:
 # -- the fault table: every fault test that passes adds its row ---------------------------------
 # A test's rows wait until its teardown has passed too, then join the session's table. Each
 # session writes its own results file outside the repository (tests never write tracked files),
-# under its basetemp unless `AGV_FAULT_RESULTS` names one, and says where at the end; a partial
-# run cannot overwrite another's. `python test/fault_table.py --results FILE` turns a full run's
-# rows into docs/faults.md.
-FAULT_ROWS_FILE = 'fault_rows.json'
+# named with its pid in the temporary directory unless `AGV_FAULT_RESULTS` names one (not under
+# basetemp: pytest deletes all but the last three sessions' of those, other users' included),
+# and says where at the end; a partial run cannot overwrite another's. `python
+# test/fault_table.py --results FILE` turns a full run's rows into docs/faults.md.
 
 
 class FaultTable:
@@ -164,10 +165,10 @@ def pytest_runtest_logreport(report) -> None:
 
 
 def fault_results(config) -> Path:
-    """Return the session's own results file (AGV_FAULT_RESULTS, else under its basetemp)."""
+    """Return the session's own results file (AGV_FAULT_RESULTS, else named with its pid)."""
     if 'AGV_FAULT_RESULTS' in os.environ:
         return Path(os.environ['AGV_FAULT_RESULTS'])
-    return config._tmp_path_factory.getbasetemp() / FAULT_ROWS_FILE
+    return Path(tempfile.gettempdir()) / f'agv_nodes_fault_rows.{os.getpid()}.json'
 
 
 def pytest_sessionfinish(session, exitstatus) -> None:

@@ -2,10 +2,10 @@
 
 The fault tests add a row each (fault, what must happen, what happened) when they pass, their
 teardown included; each test session writes its rows to a results file of its own outside the
-repository (test/conftest.py: under the session's basetemp, or `AGV_FAULT_RESULTS`) and names
-it in its summary line `fault table: N rows in FILE`. This command turns that run's rows into
-the table, saying which run it was: run it after a full `./agv.sh test` to refresh the
-committed docs/faults.md.
+repository (test/conftest.py: agv_nodes_fault_rows.PID.json in the temporary directory, or
+`AGV_FAULT_RESULTS`) and names it in its summary line `fault table: N rows in FILE`. This
+command turns that run's rows into the table, saying which run it was: run it after a full
+`./agv.sh test` to refresh the committed docs/faults.md.
 
 Run: .venv/bin/python test/fault_table.py --results FILE [--output docs/faults.md]
 """
