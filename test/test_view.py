@@ -126,3 +126,54 @@ def test_the_foxglove_layout_plots_fields_the_live_view_serves():
         return {node} if isinstance(node, str) else leaves(node['first']) | leaves(node['second'])
 
     assert leaves(layout['layout']) == panels
+
+
+@pytest.mark.timeout(60)
+def test_a_bags_decoded_records_and_frames_read_back_with_the_mcap_and_rosbags_libraries(
+        tmp_path):
+    import json
+
+    from mcap.reader import make_reader
+    from rosbags.typesys import Stores, get_typestore
+
+    from agv_nodes.records.carrier import uint8_array_cdr
+    from agv_nodes.view.bag_views import BagViews
+
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    shape = TruckShape('electruk', 1.8, 0.9, 1.2, 0.45, 0.0)
+    views = BagViews(tmp_path, shape, TRACK)
+    pose = ts.types['geometry_msgs/msg/PoseStamped']
+    header = ts.types['std_msgs/msg/Header']
+    stamp = ts.types['builtin_interfaces/msg/Time'](sec=0, nanosec=0)
+    point = ts.types['geometry_msgs/msg/Point'](x=2.0, y=1.0, z=0.0)
+    square = ts.types['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0, w=1.0)
+    start = pose(header=header(stamp=stamp, frame_id='map'),
+                 pose=ts.types['geometry_msgs/msg/Pose'](position=point, orientation=square))
+    added = views.take('/agv1/world/pose', bytes(ts.serialize_cdr(start, pose.__msgtype__)), 0)
+    (static_topic, static_type, static_raw), = added
+    assert static_topic == '/tf_static' and static_type == 'tf2_msgs/msg/TFMessage'
+    (lens,) = ts.deserialize_cdr(static_raw, static_type).transforms
+    assert (lens.header.frame_id, lens.child_frame_id) == ('agv1/base_link', 'agv1/marker_lens')
+    command = codec()['traction_command']
+    writer = RecordWriter(command, 'e2e')
+    wheels = RecordWriter(codec()['wheel_odometry'], 'none')
+    tf = []
+    for k in range(1, 11):  # one metre straight, 10 cm a record
+        views.take('/agv1/traction/command', uint8_array_cdr(writer.pack({'demand': 30})), k)
+        tf += views.take('/agv1/hw/wheel_odometry', uint8_array_cdr(wheels.pack(
+            counters(0.1 * k, 0.1 * k, 0.5))), k)
+    views.close()
+    last = ts.deserialize_cdr(tf[-1][2], tf[-1][1]).transforms
+    odom = {(t.header.frame_id, t.child_frame_id): t.transform.translation for t in last}
+    assert odom[('map', 'agv1/odom')].x == 2.0 and odom[('map', 'agv1/odom')].y == 1.0
+    assert odom[('agv1/odom', 'agv1/base_link')].x == pytest.approx(0.9)  # from the 1st record
+    with (tmp_path / 'decoded.mcap').open('rb') as f:
+        seen = {}
+        for schema, channel, message in make_reader(f).iter_messages():
+            assert schema.encoding == 'jsonschema' and channel.message_encoding == 'json'
+            seen.setdefault(channel.topic, []).append(json.loads(message.data))
+    assert set(seen) == {'/agv1/decoded/traction/command', '/agv1/decoded/hw/wheel_odometry'}
+    commands = seen['/agv1/decoded/traction/command']
+    assert len(commands) == 10 and {c['demand'] for c in commands} == {30}
+    assert all(c['verdict'] == 'accepted' for c in commands)
+    assert seen['/agv1/decoded/hw/wheel_odometry'][-1]['left_distance'] == 1000
