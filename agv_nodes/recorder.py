@@ -21,6 +21,11 @@ it (bag_file.CommittedFile), the error is logged, and /diagnostics says why (row
 counted as not recorded, so that nothing the truck's nodes see changes: the launcher ends a run
 whose node dies, and a reader that stopped taking would be another reader than the one matched.
 
+What a person reads (`views`, default on; agv_nodes/view/bag_views.py): every record the bag
+gets is also decoded, with its reader's verdict, as JSON into `decoded.mcap` in the bag's
+directory, and the trucks' frames, from the world's pose and the wheel odometry, go into the bag
+itself as `/tf` and `/tf_static` (tf2_msgs, which rosbags knows, so every bag has them).
+
 Polling (`poll_period`, default 20 ms of wall time): the recorder's subscriptions sit in a
 callback group the executor never waits on, and a steady timer takes everything queued on
 every topic at once. A callback per message cost the recorder ~45 % of a core at real time
@@ -129,6 +134,7 @@ class Recorder(Node):
         self.unrecorded = 0  # messages taken after recording stopped
         self.stopped = ''  # why recording stopped ('' while it runs)
         self._closed = False
+        self.views: Any = None  # decoded records and frames (`views`), once the bag is open
         self.timeline = SentTimeline(keep=10.0)
         self.hold = 2.0  # s of wall time a message may wait for the /clock samples that place it
         self._held: list[tuple[int, str, bytes, int]] = []  # (sent ns, topic, raw, held since)
@@ -142,6 +148,7 @@ class Recorder(Node):
             self._open()
         except OSError as exc:
             self._stop(exc)
+        self.views = self._views(s) if s.views and self.writer is not None else None
         # 'recorder clock' on graph/links once /clock is matched: the world does not move
         # before (its wait list has 'recorder:clock'), so the bag has every /clock sample
         self._links = self.create_publisher(String, LINKS_TOPIC, qos.LATCHED)
@@ -153,6 +160,21 @@ class Recorder(Node):
         self.create_timer(1.0, self.diagnostics, clock=self._wall_clock())
         self.add_on_set_parameters_callback(self._set_space_limit)
         self._discover()
+
+    def _views(self, s: Any) -> Any:
+        """Return the bag's decoded records and frames (agv_nodes/view/bag_views.py)."""
+        from agv_nodes.view.bag_views import BagViews
+        from agv_nodes.view.frames import track_of, truck_shape
+        from agv_nodes.world.layout import LayoutError, layout_path, load_layout
+        from agv_nodes.world.settings import WorldParams
+
+        try:
+            layout = load_layout(layout_path(s.layout))
+        except (LayoutError, OSError) as exc:
+            raise parameter_error(self, 'layout', s.layout, str(exc)) from None
+        world = WorldParams()
+        shape = truck_shape(layout.vehicle, layout.sensor_lateral, world)
+        return BagViews(self.bag_path, shape, track_of(shape, world), s.record_integrity)
 
     def _wall_clock(self):
         from rclpy.clock import Clock, ClockType
@@ -261,8 +283,8 @@ class Recorder(Node):
         self._diag_pub.publish(msg)
 
     def _wanted(self, topic: str) -> bool:
-        if topic in SKIP:
-            return False
+        if topic in SKIP or self.views is not None and topic in ('/tf', '/tf_static'):
+            return False  # with views, the bag's frames are the recorder's own
         if self.topics:
             return topic in self.topics or topic.lstrip('/') in self.topics
         ns = self.get_namespace().rstrip('/')
@@ -409,6 +431,27 @@ class Recorder(Node):
         self.bytes += len(raw)
         self.counts[topic] += 1
         self.written += 1
+        if self.views is not None:
+            self._write_views(topic, raw, stamp)
+
+    def _write_views(self, topic: str, raw: bytes, stamp: int) -> None:
+        """Decode a record into decoded.mcap; put the frames it moves into the bag."""
+        try:
+            added = self.views.take(topic, raw, stamp)
+        except OSError as exc:  # decoded.mcap's disk is full: the bag itself goes on
+            self.get_logger().error(f'decoded records stopped: {exc}')
+            self.views = None
+            return
+        for extra, type_name, data in added:
+            if extra not in self.types:
+                self.types[extra] = type_name
+                self._offered[extra] = [to_bag_qos(qos.LATCHED if extra == '/tf_static'
+                                                   else qos.EVENTS)]
+                self.counts.setdefault(extra, 0)
+            self.writer.write(self._connection(extra), stamp, data)
+            self.bytes += len(data)
+            self.counts[extra] += 1
+            self.written += 1
 
     def close(self) -> None:
         """Write the metadata and close the bag (idempotent)."""
@@ -425,6 +468,12 @@ class Recorder(Node):
             except OSError as exc:
                 self._stop(exc)
             self.writer = None
+        if self.views is not None:
+            try:
+                self.views.close()
+            except OSError as exc:
+                print(f'decoded records not finished: {exc}', flush=True)
+            self.views = None
         if self._closed:
             return
         self._closed = True

@@ -52,7 +52,7 @@ def test_a_plain_foxglove_client_finds_and_decodes_the_live_run(tmp_path):
 
     from agv_nodes import qos
 
-    g = GraphProbe(tmp_path / 'logs', foxglove=0)
+    g = GraphProbe(tmp_path / 'logs', foxglove=0, bag=tmp_path / 'bag')
     client = None
     try:
         port = served_port(tmp_path / 'logs' / 'live_view.log')
@@ -114,3 +114,30 @@ def test_a_plain_foxglove_client_finds_and_decodes_the_live_run(tmp_path):
         if client is not None:
             client.close()
         g.close()
+    bag_read_back(tmp_path / 'bag')
+
+
+def bag_read_back(bag: Path) -> None:
+    """Read the run's bag back: its decoded records (mcap) and its frames (rosbags)."""
+    import json
+
+    from mcap.reader import make_reader
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    with (bag / 'decoded.mcap').open('rb') as f:
+        verdicts: dict[str, set[str]] = {}
+        for schema, channel, message in make_reader(f).iter_messages():
+            assert schema.encoding == 'jsonschema' and channel.message_encoding == 'json'
+            verdicts.setdefault(channel.topic, set()).add(json.loads(message.data)['verdict'])
+    assert verdicts['/decoded/traction/command'] == {'accepted'}
+    assert verdicts['/decoded/hw/wheel_odometry'] == {'accepted'}
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    with Reader(bag) as reader:
+        tf = [c for c in reader.connections if c.topic in ('/tf', '/tf_static')]
+        assert {c.topic for c in tf} == {'/tf', '/tf_static'}
+        children = set()
+        for connection, _t, raw in reader.messages(connections=tf):
+            msg = typestore.deserialize_cdr(raw, connection.msgtype)
+            children |= {t.child_frame_id for t in msg.transforms}
+    assert children == {'odom', 'base_link', 'marker_lens'}

@@ -190,8 +190,9 @@ def node_parameters(graph: Graph, spec: NodeSpec, options: Options,
             out['ready_file'] = str(ready_file)
         if options.layout:
             out['layout'] = options.layout
-    if spec.role == 'recorder':
-        out['bag'] = str(options.bag)
+    if spec.role == 'recorder':  # its decoded records judged as the nodes judge them
+        out.update(bag=str(options.bag), layout=layout_name(graph, options),
+                   record_integrity=options.record_integrity)
     if spec.role == 'master':  # the fleet: where each truck is set down, and parks
         places = fleet_places(graph, options)
         out.update(layout=layout_name(graph, options), trucks=fleet_names(options),

@@ -29,8 +29,7 @@ from agv_nodes.records.carrier import uint8_array_data
 from agv_nodes.records.ports import RecordReader
 from agv_nodes.records.schema import RecordSchema
 from agv_nodes.view.decoded import decoded, decoded_topic, json_schema
-from agv_nodes.view.frames import Transform, TruckFrames
-from agv_nodes.view.scene import TruckShape
+from agv_nodes.view.frames import Transform, TruckFrames, TruckShape
 
 DECODED_FILE = 'decoded.mcap'
 TF_TYPE, POSE_TYPE = 'tf2_msgs/msg/TFMessage', 'geometry_msgs/msg/PoseStamped'

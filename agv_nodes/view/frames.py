@@ -9,12 +9,57 @@ the sensors' frames are fixed on the truck (agv_nodes.view.scene.sensor_frames).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+import math
 from typing import Any
 
 from agv_nodes.view.odometry import PlanarPose, WheelDeadReckoning
-from agv_nodes.view.scene import TruckShape, frame, sensor_frames
+from agv_nodes.world.settings import WorldParams
 
 Transform = tuple[str, str, float, float, float]  # parent, child, x, y, heading
+
+
+@dataclass(frozen=True)
+class TruckShape:
+    """What the scene draws of a truck, and where its sensors sit (m)."""
+
+    vehicle: str  # 'electruk' | 'concic2'
+    length: float
+    width: float
+    wheelbase: float  # axle to the front axle / front camera window
+    lens_lateral: float  # the marker lens right of the front axle centre
+    camera_distance: float
+
+
+def truck_shape(vehicle: str, lens_lateral: float, world: WorldParams) -> TruckShape:
+    """Return what a view draws of the layout's vehicle, from the world's parameters."""
+    if vehicle == 'concic2':
+        c = world.concic2
+        return TruckShape('concic2', 2.0 * c.camera_distance, c.wheel_span + 0.1, 0.0,
+                          0.0, c.camera_distance)
+    e = world.electruk
+    return TruckShape('electruk', e.wheelbase + e.front_overhang + e.rear_overhang, e.width,
+                      e.wheelbase, lens_lateral, 0.0)
+
+
+def track_of(shape: TruckShape, world: WorldParams) -> float:
+    """Return m between the driven wheels of the shape's vehicle."""
+    return world.concic2.wheel_span if shape.vehicle == 'concic2' else world.electruk.track
+
+
+def frame(ns: str, name: str) -> str:
+    """Return a truck's frame name (prefixed with its namespace in a fleet)."""
+    return f'{ns.strip("/")}/{name}' if ns.strip('/') else name
+
+
+def sensor_frames(shape: TruckShape) -> list[tuple[str, float, float, float]]:
+    """Return the truck's fixed frames in base_link: (name, x, y, heading)."""
+    if shape.vehicle == 'concic2':
+        d = shape.camera_distance
+        return [('camera_front', d, 0.0, 0.0), ('camera_rear', -d, 0.0, math.pi)]
+    return [('marker_lens', shape.wheelbase, -shape.lens_lateral, -math.pi / 2.0)]
+
+
 
 
 class TruckFrames:

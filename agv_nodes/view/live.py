@@ -49,16 +49,9 @@ from agv_nodes.records.ports import RecordReader
 from agv_nodes.ros_ports import record_bytes
 from agv_nodes.settings import settings_class
 from agv_nodes.view.decoded import decoded, decoded_topic, json_schema
-from agv_nodes.view.frames import TruckFrames
+from agv_nodes.view.frames import TruckFrames, TruckShape, frame, track_of, truck_shape
 from agv_nodes.view.odometry import PlanarPose
-from agv_nodes.view.scene import (
-    TruckShape,
-    floor_entities,
-    frame,
-    stamp,
-    transform,
-    truck_entities,
-)
+from agv_nodes.view.scene import floor_entities, stamp, transform, truck_entities
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
 from agv_nodes.world.settings import WorldParams
 
@@ -66,17 +59,6 @@ from agv_nodes.world.settings import WorldParams
 @settings_class
 class LiveViewSettings:
     """The live view's parameters."""
-
-
-def truck_shape(vehicle: str, lens_lateral: float, world: WorldParams) -> TruckShape:
-    """Return what the scene draws of the layout's vehicle, from the world's parameters."""
-    if vehicle == 'concic2':
-        c = world.concic2
-        return TruckShape('concic2', 2.0 * c.camera_distance, c.wheel_span + 0.1, 0.0,
-                          0.0, c.camera_distance)
-    e = world.electruk
-    return TruckShape('electruk', e.wheelbase + e.front_overhang + e.rear_overhang, e.width,
-                      e.wheelbase, lens_lateral, 0.0)
 
 
 def _tf_message_type() -> Any:
@@ -204,8 +186,7 @@ class LiveView:
             raise parameter_error(node, 'layout', s.layout, str(exc)) from None
         world = WorldParams()
         shape = truck_shape(self.layout.vehicle, self.layout.sensor_lateral, world)
-        track = s.track or (world.concic2.wheel_span if shape.vehicle == 'concic2'
-                            else world.electruk.track)
+        track = s.track or track_of(shape, world)
         self.server = foxglove.start_server(name='agv_nodes', host=s.host, port=s.port)
         print(f'live_view: Foxglove WebSocket on ws://{s.host}:{self.server.port} '
               f'(open it in Foxglove: Open connection, Foxglove WebSocket)', flush=True)

@@ -12,7 +12,6 @@ own frames with `<ns>/`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
 
 from foxglove.messages import (
@@ -31,6 +30,7 @@ from foxglove.messages import (
     Vector3,
 )
 
+from agv_nodes.view.frames import TruckShape, frame, sensor_frames
 from agv_nodes.world.layout import Layout, Marker
 
 WIRE = Color(r=0.9, g=0.6, b=0.1, a=1.0)
@@ -40,18 +40,6 @@ CARD = {'location': Color(r=0.2, g=0.5, b=1.0, a=1.0), 'stop': Color(r=1.0, g=0.
 BODY = Color(r=0.3, g=0.7, b=0.3, a=0.6)
 LENS = Color(r=1.0, g=0.9, b=0.0, a=1.0)
 CARD_HEIGHT = 0.08  # m: two rows of 40 mm elements (Baker 1983, 4.3)
-
-
-@dataclass(frozen=True)
-class TruckShape:
-    """What the scene draws of a truck, and where its sensors sit (m)."""
-
-    vehicle: str  # 'electruk' | 'concic2'
-    length: float
-    width: float
-    wheelbase: float  # axle to the front axle / front camera window
-    lens_lateral: float  # the marker lens right of the front axle centre
-    camera_distance: float
 
 
 def stamp(t: float) -> Timestamp:
@@ -75,19 +63,6 @@ def transform(t: float, parent: str, child: str, x: float, y: float,
     """Return the transform of `child` in `parent` at `t`."""
     return FrameTransform(timestamp=stamp(t), parent_frame_id=parent, child_frame_id=child,
                           translation=Vector3(x=x, y=y, z=0.0), rotation=yaw_quaternion(heading))
-
-
-def frame(ns: str, name: str) -> str:
-    """Return a truck's frame name (prefixed with its namespace in a fleet)."""
-    return f'{ns.strip("/")}/{name}' if ns.strip('/') else name
-
-
-def sensor_frames(shape: TruckShape) -> list[tuple[str, float, float, float]]:
-    """Return the truck's fixed frames in base_link: (name, x, y, heading)."""
-    if shape.vehicle == 'concic2':
-        d = shape.camera_distance
-        return [('camera_front', d, 0.0, 0.0), ('camera_rear', -d, 0.0, math.pi)]
-    return [('marker_lens', shape.wheelbase, -shape.lens_lateral, -math.pi / 2.0)]
 
 
 def floor_entities(layout: Layout, t: float = 0.0) -> list[SceneEntity]:
