@@ -288,3 +288,29 @@ def test_a_silent_leading_camera_is_no_track():
         t += 0.01
         route.tick(t)
     assert route.state == 'no_track' and not route.motor_on
+
+
+@pytest.mark.timeout(300)
+def test_a_reverse_leg_drives_straight_across_the_main_tape_it_reads_as_a_t(tmp_path):
+    """Up a P21's left branch to its end, then back: the rear window meets the main tape.
+
+    Across the end of the branch the main tape reads as a T (left and right, nothing straight
+    on); the reverse leg has no decision there, so it goes straight across and ends where the
+    tape does, the task completed, not `no branch`.
+    """
+    from agv_nodes.harness import submit
+    from agv_nodes.harness import truck as whole_truck
+
+    junction_layout(tmp_path, 'P21')  # writes tmp_path/junction_1991.yaml
+    h = whole_truck(str(tmp_path / 'junction_1991.yaml'),
+                    overrides={'world': {'concic2.model': 'kinematic', 'rear_camera': True}})
+    ex, s = h.cores['executive'], h.world.vehicle.state
+    h.run(0.5)
+    submit(h, 'tape junctions 1 left then reverse')
+    assert h.run(120.0, until=lambda: ex.report['state'] in ('completed', 'failed'))
+    assert ex.report['state'] == 'completed', ex.report
+    # The sign at x = 3 m, its left branch up +y: the rear window, L_c behind the axle going
+    # backwards, ended past the main tape (y = 0, 29 mm half width), the axle on the branch.
+    rear_y = s.y - L_C * math.sin(s.heading)
+    assert rear_y < -0.029 and abs(s.x - 3.0) < 0.03 and s.y > 0.0, (s.x, s.y, rear_y)
+    assert h.cores['route_following'].cam.junctions == 1  # the crossing met backwards

@@ -192,6 +192,11 @@ def test_a_decision_the_sign_lacks_fails_the_task_and_stops_the_truck() -> None:
     h.run(2.0)
     assert abs(h.world.vehicle.state.speed) < 1e-3 and not h.world.vehicle.enable
     assert comms.results[-1][1:] == ('failed', 'no_branch')
+    # The executive's line names the junction, the sign the window read, what it offers and the
+    # decision: tape_1991's second sign is a P22 (config/layouts/tape_1991.yaml).
+    assert any('FAILED no_branch (route): junction 2: sign P22 seen, offering right and '
+               'straight; the decision left is not on it' in text for text in ex.notes.texts()), \
+        ex.notes.texts()
     # Stopped just past the P22 (9 m along the tape, the truck set off 0.5 m along): the window,
     # 0.64 m ahead of the axle, saw the sign end without the left branch, within a metre.
     window_at = 0.5 + h.world.vehicle.state.distance + 0.64

@@ -99,7 +99,7 @@ class FaultSupervision:
             return self._fail(now, 'lost_wire', 'route',
                               f'guide-wire pickup not heard within {self.p.trip_grace:g} s')
         if route.get('state') == 'no_branch' and self.camera:
-            return self._fail(now, 'no_branch', 'route', 'the junction lacks the branch chosen')
+            return self._fail(now, 'no_branch', 'route', self.tape.no_branch(route))
         traction = self.status.get('traction') or {}
         if traction.get('bumper'):
             return self._fail(now, 'collision', 'traction', 'bumper pressed by another truck')

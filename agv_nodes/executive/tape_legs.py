@@ -45,6 +45,18 @@ class LegOutcome:
     detail: str = ''
 
 
+def no_branch_detail(status: dict[str, Any], decision: str) -> str:
+    """Return what a no_branch was: the junction, the sign seen, its branches, the decision."""
+    # Fig. 4.3's decoding, imported only on a failure: the executive otherwise runs without numpy.
+    from agv_nodes.route_following.camera_guidance import sign_name
+
+    flags = [int(status.get(f'sign_{way}', 0)) for way in ('left', 'right', 'straight')]
+    offered = [way for way, flag in zip(('left', 'right', 'straight'), flags, strict=True)
+               if flag] or ['none']
+    return (f'junction {status.get("junctions")}: sign {sign_name(*flags) or "unread"} seen, '
+            f'offering {" and ".join(offered)}; the decision {decision} is not on it')
+
+
 class TapeLegs:
     """See the module docstring: the legs of one tape task after another."""
 
@@ -56,6 +68,7 @@ class TapeLegs:
         self.length_cm = 0  # 0 = to the tape's end
         self.next_junction = 1
         self.decision = ('straight', 0)
+        self.decisions: dict[int, str] = {}  # junction number -> the decision offered for it
         self.phase = ''  # driving | stopping
         self._still: tuple[int, float] | None = None  # (distance, since) while stopping
         self.log: list[str] = []
@@ -69,7 +82,7 @@ class TapeLegs:
         self.task = {} if reverse else task
         self.leg = (self.leg + 1) & 0xFF or 1
         self.length_cm, self.next_junction, self.phase = length_dm * 10, 1, 'driving'
-        self._still = None
+        self._still, self.decisions = None, {}
         self.decision = self._decide(1)
         route = {**route, 'camera_law': self.task.get('camera_law', 'default'),
                  'trajectory': int(task.get('trajectory', 0)) if kind == 'reckon' else 0,
@@ -88,12 +101,18 @@ class TapeLegs:
             decision = ('left' if self.rng.randrange(1 << 15) % 2 == 0 else 'right') \
                 if turn else 'straight'
             self.log.append(f'junction {n}: random choice {decision}')
+        self.decisions[n] = decision
         return decision, int(wait)
 
     def _command(self, route: dict[str, Any], mode: str, direction: str) -> dict[str, Any]:
         return {**route, 'mode': mode, 'direction': direction, 'junction': self.decision[0],
                 'junction_number': self.next_junction, 'junction_wait': self.decision[1],
                 'leg': self.leg}
+
+    def no_branch(self, status: dict[str, Any]) -> str:
+        """Return a no_branch's detail: the junction, the sign seen, its branches, the decision."""
+        met = int(status.get('junctions', 0))
+        return no_branch_detail(status, self.decisions.get(met, self.decision[0]))
 
     def update(self, status: dict[str, Any], route: dict[str, Any],
                now: float) -> tuple[LegOutcome, dict[str, Any]]:
@@ -102,8 +121,7 @@ class TapeLegs:
             return LegOutcome('running'), route  # route following has not begun this leg yet
         state, distance = status.get('state'), int(status.get('distance', 0))
         if state == 'no_branch':
-            return LegOutcome('failed', 'no_branch', f'junction {status.get("junctions")}: '
-                              f'{self.decision[0]} is not on the sign'), route
+            return LegOutcome('failed', 'no_branch', self.no_branch(status)), route
         if state == 'lost':
             return LegOutcome('failed', 'lost_track', 'a junction turn did not finish'), route
         if self.phase == 'driving':

@@ -25,7 +25,10 @@ Otherwise junction_turn.py takes the branch, holding the junction's `junction_wa
 crossing (state waiting); a straight choice without a wait drives on. States while at a
 junction: sign (sighted, still on the tape), turning (the approach, spin and settle), waiting.
 Signs are met the same way in reverse, the rear camera reading them in the frame of travel: a
-reverse leg counts them and honours its decisions, left and right being those of travel.
+reverse leg counts them and honours its decisions, left and right being those of travel. A
+reverse leg's plain straight (no wait: the executive's reverse legs have no script) is no
+decision: a crossing met backwards, such as the main tape across the end of a branch the truck
+came up, read as a T, is driven straight across, and the leg ends where the tape does.
 
 A leg's law going forwards is route_command's camera_law (default: the parameter's). A
 dead-reckoning leg (route_command mode dead_reckoning, App. F.9) drives forwards without the
@@ -285,7 +288,8 @@ class CameraMode:
             if self._taken[0] != 'straight' and not self.turn.phase:
                 self._stop('no_branch', now)  # the sign is behind us without the chosen branch
         elif self.in_sign and m.validity is Validity.ABSENT and (
-                self._taken[0] == 'straight' or not self.turn.phase):
+                self._taken[0] == 'straight' or not self.turn.phase) \
+                and not (self.direction < 0 and self._taken == ('straight', 0.0)):
             self._stop('no_branch', now)  # the tape ends at the sign, the chosen branch unseen
 
     def _sighted(self, now: float) -> None:
