@@ -52,18 +52,24 @@ class FoxgloveClient:
             gone = set(msg['channelIds'])
             self.channels = {t: c for t, c in self.channels.items() if c['id'] not in gone}
 
+    def _next(self, deadline: float, missing: str) -> bytes | None:
+        """Return the next binary frame, taking text frames on the way (None: none yet)."""
+        left = deadline - time.monotonic()
+        assert left > 0, missing
+        try:
+            frame = self.ws.recv(timeout=left)
+        except TimeoutError:
+            return None
+        if isinstance(frame, str):
+            self._take_text(frame)
+            return None
+        return frame
+
     def wait_for_channels(self, topics: list[str], timeout: float) -> None:
         """Read until every topic in `topics` is advertised (AssertionError on timeout)."""
         deadline = time.monotonic() + timeout
         while not set(topics) <= set(self.channels):
-            left = deadline - time.monotonic()
-            assert left > 0, f'not advertised: {sorted(set(topics) - set(self.channels))}'
-            try:
-                frame = self.ws.recv(timeout=left)
-            except TimeoutError:
-                continue
-            if isinstance(frame, str):
-                self._take_text(frame)
+            self._next(deadline, f'not advertised: {sorted(set(topics) - set(self.channels))}')
 
     def subscribe(self, topics: list[str]) -> None:
         """Subscribe to the advertised channels of `topics`."""
@@ -81,16 +87,8 @@ class FoxgloveClient:
         got: dict[str, Any] = {}
         deadline = time.monotonic() + timeout
         while set(topics) - set(got):
-            left = deadline - time.monotonic()
-            assert left > 0, f'no message of {sorted(set(topics) - set(got))}'
-            try:
-                frame = self.ws.recv(timeout=left)
-            except TimeoutError:
-                continue
-            if isinstance(frame, str):
-                self._take_text(frame)
-                continue
-            if frame[0] != MESSAGE_DATA:
+            frame = self._next(deadline, f'no message of {sorted(set(topics) - set(got))}')
+            if frame is None or frame[0] != MESSAGE_DATA:
                 continue
             sub_id, _log_time = struct.unpack_from('<IQ', frame, 1)
             channel = self._subs.get(sub_id)

@@ -1,8 +1,9 @@
 """agv-records echo: a live record topic printed field by field, with each record's verdict.
 
 The expected values are what the writer was told to send (the field values on dds_peer's
-command line, the CRC the docs give, CRC-8/SAE-J1850), and the verdicts the documented rejection
-reasons of docs/records.md.
+command line, records packed from the byte tables and sealed with the CRC the docs give, as the
+stand-in executive packs them), and the verdicts the documented rejection reasons of
+docs/records.md.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import subprocess
 import sys
 
 import pytest
+from standin_executive import crc8_sae_j1850  # written from docs/records.md alone
 import yaml
 
 from agv_nodes.records import codec
@@ -22,16 +24,6 @@ from agv_nodes.records.ports import RecordReader
 
 HERE = Path(__file__).resolve().parent
 SENT = {'manual': 0, 'manual_speed': 0, 'reverse': 0, 'demand': 37, 'executive_priority': 1}
-
-
-def crc8_sae_j1850(data: bytes) -> int:
-    """CRC-8/SAE-J1850 (poly 1DH, init FFH, xorout FFH), written from its definition."""
-    crc = 0xFF
-    for byte in data:
-        crc ^= byte
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1D) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
-    return crc ^ 0xFF
 
 
 def packed(counter: int, demand: int = 37) -> bytes:
