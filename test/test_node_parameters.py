@@ -137,7 +137,8 @@ def test_shipped_parameter_file_is_valid_for_every_node(tmp_path):
     with EmbeddedBroker() as broker:
         _start_every_node(graph, {'recorder': ['-p', f'bag:={tmp_path / "bag"}'],
                                   'bridge': ['-p', f'mqtt_url:={broker.url}'],
-                                  'master': ['-p', f'mqtt_url:={broker.url}']})
+                                  'master': ['-p', f'mqtt_url:={broker.url}'],
+                                  'viewer': ['-p', 'port:=0']})
 
 
 def _start_every_node(graph, given: dict[str, list[str]]) -> None:
@@ -149,31 +150,37 @@ def _start_every_node(graph, given: dict[str, list[str]]) -> None:
     from rclpy.context import Context
 
     procs = []
-    for spec in graph.nodes:
-        extra = given.get(spec.role, [])
-        procs.append((spec.name, subprocess.Popen(
-            [str(BIN / spec.executable), '--ros-args', '--params-file', str(graph.parameters),
-             '-p', 'use_sim_time:=true', *extra], stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT, text=True)))
-    # up = its node is in the ROS graph (a fixed sleep interrupted a slow start-up)
-    context = Context()
-    rclpy.init(context=context, domain_id=int(os.environ['ROS_DOMAIN_ID']))
-    probe = rclpy.create_node('parameter_file_probe', context=context)
     try:
-        deadline = time.monotonic() + 90.0
-        while missing := {n for n, _ in procs} - set(probe.get_node_names()):
-            for name, proc in procs:
-                assert proc.poll() is None, f'{name} exited: {proc.stdout.read()}'
-            assert time.monotonic() < deadline, f'not up within 90 s: {sorted(missing)}'
-            time.sleep(0.1)
-    finally:
-        probe.destroy_node()
-        rclpy.shutdown(context=context)
-    for _name, proc in procs:
-        proc.send_signal(signal.SIGINT)
-    for name, proc in procs:
-        out, _ = proc.communicate(timeout=30)
-        assert proc.returncode == 0, f'{name}: {out[-2000:]}'
+        for spec in graph.nodes:
+            extra = given.get(spec.role, [])
+            procs.append((spec.name, subprocess.Popen(
+                [str(BIN / spec.executable), '--ros-args', '--params-file',
+                 str(graph.parameters), '-p', 'use_sim_time:=true', *extra],
+                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)))
+        # up = its node is in the ROS graph (a fixed sleep interrupted a slow start-up)
+        context = Context()
+        rclpy.init(context=context, domain_id=int(os.environ['ROS_DOMAIN_ID']))
+        probe = rclpy.create_node('parameter_file_probe', context=context)
+        try:
+            deadline = time.monotonic() + 90.0
+            while missing := {n for n, _ in procs} - set(probe.get_node_names()):
+                for name, proc in procs:
+                    assert proc.poll() is None, f'{name} exited: {proc.stdout.read()}'
+                assert time.monotonic() < deadline, f'not up within 90 s: {sorted(missing)}'
+                time.sleep(0.1)
+        finally:
+            probe.destroy_node()
+            rclpy.shutdown(context=context)
+        for _name, proc in procs:
+            proc.send_signal(signal.SIGINT)
+        for name, proc in procs:
+            out, _ = proc.communicate(timeout=30)
+            assert proc.returncode == 0, f'{name}: {out[-2000:]}'
+    finally:  # a failure midway leaves no node on the session's domain for the next tests
+        for _name, proc in procs:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait(10)
 
 
 _TEARDOWN = '''
