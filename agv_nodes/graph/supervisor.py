@@ -279,13 +279,13 @@ class Launch:
         return proc is not None and proc.poll() is not None
 
     def stop(self, timeout: float = 5.0) -> None:
-        """Shut the graph down in order: master, bridge, world, nodes, recorder (SIGINT, ...).
+        """Shut the graph down in order: viewer, master, bridge, world, nodes, recorder.
 
         Then the embedded MQTT broker, if the launcher runs one.
         """
         self.stopping = True
         self.moving.is_set()  # note a world that moved before its file goes with the directory
-        for group in ('master', 'bridge', 'world', 'node', 'recorder'):
+        for group in ('viewer', 'master', 'bridge', 'world', 'node', 'recorder'):
             names = [n for n in self.procs if self._units[n][0].role == group]
             for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 3.0),
                               (signal.SIGKILL, 3.0)):
