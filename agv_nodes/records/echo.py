@@ -21,7 +21,7 @@ import yaml
 
 from agv_nodes.records.codec import Codec
 from agv_nodes.records.ports import RecordReader
-from agv_nodes.records.schema import COUNTER_BYTE, RecordSchema
+from agv_nodes.records.schema import RecordSchema
 
 
 def find_schema(codec: Codec, name: str) -> RecordSchema:
@@ -40,23 +40,21 @@ def describe_record(reader: RecordReader, raw: bytes, now_ns: int,
     The reader judges it as a node's reader would, so its sequence rules see the records
     before it.
     """
+    from agv_nodes.view.decoded import decoded  # the live view's and the bags' judging
+
     schema = reader.schema
-    fields = reader.accept(raw, now_ns)
+    message = decoded(reader, raw, now_ns)
     lines = [f'record: {schema.name}  # {schema.topic}, {len(raw)} bytes: {raw.hex(" ")}']
     if writer:
         lines.append(f'writer: {writer}')
-    if fields is None:
-        lines.append(f'verdict: rejected {reader.last_reason}  # {reader.last_error}')
-        try:  # what the bytes say, if the codec can still read them (e.g. a repeated counter)
-            fields = schema.decode(raw, integrity='none' if reader.integrity == 'none'
-                                   else reader.integrity)
-        except Exception:  # noqa: BLE001 - the verdict above already says why
-            fields = None
-    else:
+    if message['verdict'] == 'accepted':
         lines.append('verdict: accepted')
-    if reader.integrity == 'e2e' and len(raw) >= COUNTER_BYTE:
-        lines.append(f'e2e_counter: {raw[COUNTER_BYTE - 1]}')
-    if fields is not None:
+    else:
+        lines.append(f'verdict: rejected {reader.last_reason}  # {reader.last_error}')
+    if 'e2e_counter' in message:
+        lines.append(f'e2e_counter: {message["e2e_counter"]}')
+    fields = {f.name: message[f.name] for f in schema.fields if f.name in message}
+    if fields:
         meaning = schema.describe(fields)
         for name, value in fields.items():
             shown = yaml.safe_dump({name: value}, default_flow_style=True).strip()[1:-1]
