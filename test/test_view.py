@@ -13,8 +13,8 @@ import pytest
 
 from agv_nodes.package_share import config_dir
 from agv_nodes.records import codec
+from agv_nodes.records.decoded import decoded, decoded_topic, json_schema
 from agv_nodes.records.ports import RecordReader, RecordWriter
-from agv_nodes.view.decoded import decoded, decoded_topic, json_schema
 from agv_nodes.view.frames import TruckShape, sensor_frames
 from agv_nodes.view.odometry import WheelDeadReckoning
 from agv_nodes.view.scene import floor_entities

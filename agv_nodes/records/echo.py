@@ -20,6 +20,7 @@ from typing import Any
 import yaml
 
 from agv_nodes.records.codec import Codec
+from agv_nodes.records.decoded import decoded
 from agv_nodes.records.ports import RecordReader
 from agv_nodes.records.schema import RecordSchema
 
@@ -40,8 +41,6 @@ def describe_record(reader: RecordReader, raw: bytes, now_ns: int,
     The reader judges it as a node's reader would, so its sequence rules see the records
     before it.
     """
-    from agv_nodes.view.decoded import decoded  # the live view's and the bags' judging
-
     schema = reader.schema
     message = decoded(reader, raw, now_ns)
     lines = [f'record: {schema.name}  # {schema.topic}, {len(raw)} bytes: {raw.hex(" ")}']

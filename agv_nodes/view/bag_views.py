@@ -3,7 +3,7 @@
 The recorder (agv_nodes/recorder.py) hands each message it writes to `BagViews.take`:
 
 - a record (a 16-byte topic of msg_schemas/, in any truck's namespace) is decoded as the live
-  view decodes it (agv_nodes.view.decoded: the fields by name, the reader's verdict, the E2E
+  view decodes it (agv_nodes.records.decoded: the fields by name, the reader's verdict, the E2E
   counter) and written as JSON, with the record's JSON schema, to `decoded.mcap` in the bag's
   directory, on `[/<ns>]/decoded/<record topic>` at the same time stamp. rosbag2's MCAP files
   carry CDR only, so the JSON channels live in a file of their own, which Foxglove and
@@ -26,9 +26,9 @@ from rosbags.typesys import Stores, get_typestore
 
 from agv_nodes.records import codec
 from agv_nodes.records.carrier import uint8_array_data
+from agv_nodes.records.decoded import decoded, decoded_topic, json_schema
 from agv_nodes.records.ports import RecordReader
 from agv_nodes.records.schema import RecordSchema
-from agv_nodes.view.decoded import decoded, decoded_topic, json_schema
 from agv_nodes.view.frames import Transform, TruckFrames, TruckShape
 
 DECODED_FILE = 'decoded.mcap'

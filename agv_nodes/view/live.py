@@ -8,7 +8,7 @@ against any running graph). It serves a Foxglove WebSocket (foxglove-sdk) on 127
 - `/tf`: the frames `map -> odom -> base_link -> marker_lens | camera_front | camera_rear` of
   each truck (its own prefixed with its namespace in a fleet);
 - `[/<ns>]/decoded/<record topic>`: every record decoded, with the reader's verdict
-  (agv_nodes.view.decoded, JSON with its schema from msg_schemas/);
+  (agv_nodes.records.decoded, JSON with its schema from msg_schemas/);
 - `[/<ns>]/hw/camera/front|rear`: the binary camera frames; `[/<ns>]/reports`: the task
   reports and the world's events as log lines; `[/<ns>]/odom`, `[/<ns>]/world/odom`: the
   odometry below.
@@ -45,10 +45,10 @@ from agv_nodes import qos
 from agv_nodes.node_process import spin_main
 from agv_nodes.params import declare, parameter_error, refuse_unknown
 from agv_nodes.records import codec
+from agv_nodes.records.decoded import decoded, decoded_topic, json_schema
 from agv_nodes.records.ports import RecordReader
 from agv_nodes.ros_ports import record_bytes
 from agv_nodes.settings import settings_class
-from agv_nodes.view.decoded import decoded, decoded_topic, json_schema
 from agv_nodes.view.frames import TruckFrames, TruckShape, frame, track_of, truck_shape
 from agv_nodes.view.odometry import PlanarPose
 from agv_nodes.view.scene import floor_entities, stamp, transform, truck_entities
