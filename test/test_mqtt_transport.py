@@ -1,16 +1,15 @@
 """The MQTT transport of the fleet interface: the embedded broker, MqttLink and broker_url.
 
-Everything runs against a real broker on 127.0.0.1 (amqtt in a thread, or as a process; a
-mosquitto when one is installed). Every wait is bounded and on an event or a queue, except the
-short ones checking that something does NOT arrive (and the poll of mosquitto's port).
+Everything runs against a real broker on 127.0.0.1: the embedded amqtt (in a thread, or as a
+process), the fallback these tests are about, and mosquitto (test/mqtt_broker.py). Every wait
+is bounded and on an event or a queue, except the short ones checking that something does NOT
+arrive.
 """
 
 from collections.abc import Callable, Iterator
-import os
 import queue
 import re
 import selectors
-import shutil
 import signal
 import socket
 import subprocess
@@ -18,12 +17,14 @@ import sys
 import threading
 import time
 
+import mqtt_broker
 import pytest
 
 from agv_nodes.mqtt.broker import ENV_URL, EmbeddedBroker, broker_url
 from agv_nodes.mqtt.client import LastWill, MqttLink
 
 pytestmark = [pytest.mark.wall_clock, pytest.mark.timeout(60)]
+mosquitto_url = mqtt_broker.mosquitto_url  # a private mosquitto for this module
 
 WAIT_S = 10.0  # an upper bound only: on a loaded 2-core machine, messages take milliseconds
 QUIET_S = 0.3  # how long a message that must not come is waited for
@@ -331,13 +332,14 @@ BAD_URLS = [
     ('', 'empty'),
     ('localhost:1883', 'not an mqtt:// URL'),
     ('http://localhost:1883', 'not an mqtt:// URL'),
-    ('mqtts://localhost:8883', 'TLS'),
+    ('wss://localhost:8883', 'not supported'),
     ('mqtt://localhost:99999', 'not a number 1-65535'),
     ('mqtt://localhost:port', 'not a number 1-65535'),
     ('mqtt://localhost:0', 'port 0'),
     ('mqtt://:1883', 'no host'),
     ('mqtt://localhost:1883/agv', 'path'),
-    ('mqtt://user:secret@localhost', 'password'),
+    ('mqtt://user:secret@localhost', 'password in the URL is refused'),
+    ('mqtts://user@localhost', 'user name or password in the URL'),
     (' mqtt://localhost', 'blanks'),
 ]
 
@@ -362,36 +364,9 @@ def test_broker_url_rejects_bad_urls_in_one_line(monkeypatch, source, value, pro
 
 # --- a real broker -----------------------------------------------------------------------------
 
-@pytest.fixture
-def mosquitto(tmp_path) -> Iterator[str]:
-    port = _free_port()
-    conf = tmp_path / 'mosquitto.conf'
-    conf.write_text(f'listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n')
-    # Debian puts it in /usr/sbin, which a user's PATH may lack; ./agv.sh test installs it
-    executable = shutil.which('mosquitto', path=f'{os.environ.get("PATH", "")}:/usr/sbin')
-    assert executable, ('mosquitto is not installed: ./agv.sh test installs it as root '
-                        '(apt-get), or install the Debian package mosquitto')
-    process = subprocess.Popen([executable, '-c', str(conf)], cwd=tmp_path,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + WAIT_S
-        while True:
-            try:
-                socket.create_connection(('127.0.0.1', port), timeout=1.0).close()
-                break
-            except OSError:
-                if time.monotonic() > deadline or process.poll() is not None:
-                    raise AssertionError(f'mosquitto did not listen on {port}') from None
-                time.sleep(0.05)
-        yield f'mqtt://127.0.0.1:{port}'
-    finally:
-        process.terminate()
-        process.wait(WAIT_S)
-
-
-def test_against_mosquitto(mosquitto, links, monkeypatch):
+def test_against_mosquitto(mosquitto_url, links, monkeypatch):
     """The exchange and the last will against mosquitto, chosen through an explicit URL."""
     monkeypatch.setenv(ENV_URL, 'mqtt://127.0.0.1:1')
-    url = broker_url(mosquitto)
+    url = broker_url(mosquitto_url)
     _exchange(url, links)
     _last_will(url, links)

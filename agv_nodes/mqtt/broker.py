@@ -12,10 +12,19 @@ from the listening socket in `Broker._servers` (a private attribute of amqtt 0.1
 amqtt fails here with a clear message, not later with a wrong port). `_shutdown` closes that
 listener and the client connections itself: amqtt's own shutdown could hang on Python 3.11
 while clients were sending.
+
+amqtt 0.12.1 sends retained messages wrongly: when a client connects it walks every topic filter
+any client subscribes to and sends the new client the retained messages matching them, at QoS 0
+(`Broker.client_connected`), and then again, at the granted QoS, when the client subscribes. A
+new subscriber thus got other topics' retained messages and each of its own twice (what
+test_mqtt_embedded.py shows on the unmodified broker). `_RetainFixBroker` sends retained
+messages only while it handles that client's own SUBSCRIBE (MQTT 3.1.1, 3.3.1.3: retained
+messages go to a new subscription), so each matching one goes once, at min(granted, stored) QoS.
 """
 
 import argparse
 import asyncio
+from contextvars import ContextVar
 import logging
 import os
 import signal
@@ -30,6 +39,35 @@ from agv_nodes.mqtt.client import ENV_URL, format_mqtt_url, parse_mqtt_url
 HOST = '127.0.0.1'
 _LISTENER = 'default'
 _log = logging.getLogger(__name__)
+# the session whose SUBSCRIBE the running asyncio task handles (each client has its own task)
+_subscribing: ContextVar[object | None] = ContextVar('subscribing', default=None)
+_PATCHED = ('_handle_subscription', '_publish_retained_messages_for_subscription')
+
+
+class _RetainFixBroker(Broker):
+    """amqtt's Broker sending retained messages only for the subscriber's own SUBSCRIBE."""
+
+    async def _handle_subscription(self, client_session: Any, handler: Any,
+                                   subscribe_waiter: Any) -> None:
+        token = _subscribing.set(client_session)
+        try:
+            await super()._handle_subscription(client_session, handler, subscribe_waiter)
+        finally:
+            _subscribing.reset(token)
+
+    async def _publish_retained_messages_for_subscription(self, subscription: tuple[str, int],
+                                                          session: Any) -> None:
+        if _subscribing.get() is not session:
+            return  # the pass at CONNECT over every client's filters: nothing was subscribed
+        await super()._publish_retained_messages_for_subscription(subscription, session)
+
+
+def _check_amqtt() -> None:
+    missing = [name for name in _PATCHED if not hasattr(Broker, name)]
+    if missing:
+        raise RuntimeError(f'amqtt has no Broker.{missing[0]} (changed with this amqtt '
+                           'version): the retained-message fix in agv_nodes.mqtt.broker '
+                           'needs updating')
 
 
 def broker_url(explicit: str | None) -> str | None:
@@ -81,13 +119,16 @@ class EmbeddedBroker:
     """
 
     def __init__(self, port: int = 0, start_timeout_s: float = 10.0,
-                 stop_timeout_s: float = 15.0, host: str = HOST) -> None:
+                 stop_timeout_s: float = 15.0, host: str = HOST,
+                 fix_retained: bool = True) -> None:
         """Listen on `host` and `port` (0: a free one).
 
         `host` 127.0.0.1 serves this machine only; an interface's address serves a fleet whose
-        trucks are on other hosts.
+        trucks are on other hosts. fix_retained=False runs amqtt as it is (for the test that
+        shows what the fix changes).
         """
         self.host = host
+        self.fix_retained = fix_retained
         self._requested_port = port
         self._start_timeout_s = start_timeout_s
         self._stop_timeout_s = stop_timeout_s
@@ -190,8 +231,9 @@ class EmbeddedBroker:
 
     async def _serve(self) -> None:
         self._stop_request = asyncio.Event()
-        broker = Broker(_broker_config(self.host, self._requested_port),
-                        loop=asyncio.get_running_loop())
+        _check_amqtt()
+        broker = (_RetainFixBroker if self.fix_retained else Broker)(
+            _broker_config(self.host, self._requested_port), loop=asyncio.get_running_loop())
         try:
             await broker.start()
         except Exception as exc:  # amqtt wraps a bind error in BrokerError

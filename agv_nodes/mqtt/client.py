@@ -4,7 +4,9 @@ A VDA 5050 bridge needs three things paho leaves to its user: subscriptions that
 reconnect (paho forgets them; the broker forgets them too under a clean session), a report of
 each gap in the connection (the master must see the truck go quiet, and the bridge must know
 when its subscriptions are live again), and numbers for diagnostics. `MqttLink` adds those and
-nothing else: MQTT 3.1.1, a clean session, no TLS, no credentials.
+nothing else: MQTT 3.1.1, a clean session; TLS when the URL is mqtts:// (`LinkSecurity`: the CA
+that signed the broker's certificate, optionally the client's certificate and key) and a user
+name with a password when given. Credentials never go into the URL (it is printed in logs).
 
 Threads: paho runs the network in its own thread (`loop_start`); every callback given to
 `MqttLink` (message callbacks, `on_connection`) runs on that thread, one at a time, and must not
@@ -16,61 +18,37 @@ logged and the network thread carries on (paho would otherwise let it end the th
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 import logging
+import re
 import socket
+import ssl
+import sys
 import threading
 import time
 from typing import Any
-from urllib.parse import urlsplit
 
-from paho.mqtt.client import Client, MQTTv311, topic_matches_sub
+from paho.mqtt.client import MQTT_LOG_ERR, Client, MQTTv311, topic_matches_sub
 from paho.mqtt.enums import CallbackAPIVersion, MQTTErrorCode
 
-DEFAULT_PORT = 1883
-ENV_URL = 'AGV_MQTT_URL'  # the broker a node or launch uses when none is named
-_URL_FORM = 'expected mqtt://host[:port]'
+from agv_nodes.mqtt.address import (  # the address helpers, importable from here as before
+    DEFAULT_PORT as DEFAULT_PORT,
+)
+from agv_nodes.mqtt.address import (
+    ENV_URL as ENV_URL,
+)
+from agv_nodes.mqtt.address import (
+    LinkSecurity,
+    parse_mqtt_url,
+    uses_tls,
+)
+from agv_nodes.mqtt.address import (
+    format_mqtt_url as format_mqtt_url,
+)
+
+_READ_FAILED = 'failed to receive on socket: '  # paho's log line for a failed read
 _log = logging.getLogger(__name__)
 
 MessageCallback = Callable[[str, bytes], None]
 ConnectionCallback = Callable[[bool], None]
-
-
-def parse_mqtt_url(url: str) -> tuple[str, int]:
-    """Return (host, port) of an mqtt://host[:port] URL; ValueError says what is wrong.
-
-    The port defaults to 1883. TLS (mqtts://) and credentials in the URL are refused rather than
-    half supported: the embedded broker and a local mosquitto need neither.
-    """
-    if not url.strip():
-        raise ValueError(f'empty; {_URL_FORM}')
-    if url != url.strip():
-        raise ValueError(f'leading or trailing blanks; {_URL_FORM}')
-    parts = urlsplit(url)
-    scheme = parts.scheme.lower()
-    if scheme in ('mqtts', 'ssl', 'tls', 'wss'):
-        raise ValueError(f'TLS ({scheme}://) is not supported; {_URL_FORM}')
-    if scheme != 'mqtt' or not url.lower().startswith('mqtt://'):
-        raise ValueError(f'not an mqtt:// URL; {_URL_FORM}')
-    if parts.username is not None or parts.password is not None:
-        raise ValueError('a user name or password in the URL is not supported')
-    if parts.path not in ('', '/') or parts.query or parts.fragment:
-        raise ValueError(f'unexpected path, query or fragment; {_URL_FORM}')
-    if not parts.hostname:
-        raise ValueError(f'no host; {_URL_FORM}')
-    try:
-        port = parts.port
-    except ValueError:
-        text = parts.netloc.rpartition(':')[2]
-        raise ValueError(f'port {text!r} is not a number 1-65535') from None
-    if port is None:
-        return parts.hostname, DEFAULT_PORT
-    if port == 0:
-        raise ValueError('port 0 is not a port one can connect to; give 1-65535')
-    return parts.hostname, port
-
-
-def format_mqtt_url(host: str, port: int) -> str:
-    """Return the canonical mqtt://host:port (IPv6 literals in brackets)."""
-    return f'mqtt://[{host}]:{port}' if ':' in host else f'mqtt://{host}:{port}'
 
 
 @dataclass(frozen=True)
@@ -133,10 +111,19 @@ class MqttLink:
 
     def __init__(self, url: str, client_id: str, will: LastWill | None = None,
                  reconnect_min_s: float = 1.0, reconnect_max_s: float = 30.0,
-                 keepalive_s: int = 30) -> None:
+                 keepalive_s: int = 30, security: LinkSecurity | None = None) -> None:
         self.url = url
         self.client_id = client_id
         self._host, self._port = parse_mqtt_url(url)
+        security = security or LinkSecurity()
+        self._tls = tls = uses_tls(url)
+        if security.tls_files and not tls:
+            raise ValueError(f'TLS files given for {url}: use an mqtts:// URL, or name none')
+        if bool(security.cert_file) != bool(security.key_file):
+            raise ValueError('a client certificate needs its key and a key its certificate: '
+                             'give both or neither')
+        if security.password and not security.username:
+            raise ValueError('a password without a user name')
         if not 0 < reconnect_min_s <= reconnect_max_s:
             raise ValueError(f'reconnect back-off: need 0 < min ({reconnect_min_s}) <= max '
                              f'({reconnect_max_s})')
@@ -149,6 +136,7 @@ class MqttLink:
         self._restore_mid: int | None = None
         self._sent: dict[int, bool | None] = {}  # SUBSCRIBE mid -> granted (None: no SUBACK yet)
         self._refusal: str | None = None
+        self._last_failure: str | None = None  # why the last connection attempt failed
         self._first_ready = threading.Event()
         self._network_thread: int | None = None
         self._down_since: float | None = None
@@ -161,11 +149,21 @@ class MqttLink:
                               client_id=client_id, clean_session=True, protocol=MQTTv311)
         # paho types these as int; fractions of a second work (they feed time.sleep)
         self._client.reconnect_delay_set(reconnect_min_s, reconnect_max_s)
+        if tls:
+            try:
+                self._client.tls_set(ca_certs=security.ca_file or None,
+                                     certfile=security.cert_file or None,
+                                     keyfile=security.key_file or None)
+            except (OSError, ssl.SSLError) as exc:  # a file missing or not PEM
+                raise ValueError(f'TLS files for {url}: {exc}') from None
+        if security.username:
+            self._client.username_pw_set(security.username, security.password or None)
         if will is not None:
             self._client.will_set(will.topic, will.payload, will.qos, will.retain)
         self._client.on_connect = self._on_connect
         self._client.on_disconnect = self._on_disconnect
         self._client.on_connect_fail = self._on_connect_fail
+        self._client.on_log = self._on_log
         self._client.on_subscribe = self._on_subscribe
         self._client.on_message = self._on_message
 
@@ -189,8 +187,10 @@ class MqttLink:
             return
         if not self._first_ready.wait(timeout):
             self._stop_network()
+            with self._lock:
+                why = self._last_failure or 'is it running?'
             raise TimeoutError(f'MQTT broker {self.url} did not accept client '
-                               f'{self.client_id!r} within {timeout:g} s (is it running?)')
+                               f'{self.client_id!r} within {timeout:g} s ({why})')
         with self._lock:
             refusal = self._refusal
         if refusal is not None:
@@ -335,6 +335,13 @@ class MqttLink:
                        properties: Any) -> None:
         with self._lock:
             was_ready = self._ready
+            # a TLS connection the broker ends before its CONNACK is its TLS refusal (a client
+            # certificate it requires and did not get, or does not trust)
+            refused = (not self._session_up and not self._ready and self._tls
+                       and self._last_failure is not None
+                       and self._last_failure.startswith('TLS'))
+            if refused:
+                self._refusal = self._last_failure
             self._session_up = self._ready = False
             self._restore_mid = None
             self._lock.notify_all()  # a subscribe() waiting for its SUBACK gives up
@@ -345,10 +352,41 @@ class MqttLink:
         if was_ready:
             _log.info('MQTT client %r lost %s: %s', self.client_id, self.url, reason_code)
             self._report(callbacks, False)
+        if refused:
+            self._first_ready.set()
+
+    def _on_log(self, client: Client, userdata: Any, level: int, text: str) -> None:
+        # paho reports a failed read (a TLS alert from the broker among them) only in its log
+        if level != MQTT_LOG_ERR or not text.startswith(_READ_FAILED):
+            return
+        why = _log_failure_text(text)
+        with self._lock:
+            if self._session_up:
+                return
+            new = why != self._last_failure
+            self._last_failure = why
+        if new:
+            _log.warning('MQTT broker %s: client %r cannot connect: %s', self.url,
+                         self.client_id, why)
 
     def _on_connect_fail(self, client: Client, userdata: Any) -> None:
+        # paho calls this inside its `except OSError`, so the exception is still at hand
+        error = sys.exc_info()[1]
+        why = _failure_text(error) if error is not None else 'connection failed'
         with self._lock:
             self._counts['failed_attempts'] += 1
+            new = why != self._last_failure
+            self._last_failure = why
+            # a TLS refusal (wrong CA, no client certificate) fails the same way each time:
+            # connect() need not wait out its timeout to say so
+            permanent = isinstance(error, ssl.SSLError) and not self._ready
+            if permanent:
+                self._refusal = why
+        if new:
+            _log.warning('MQTT broker %s: client %r cannot connect: %s', self.url,
+                         self.client_id, why)
+        if permanent:
+            self._first_ready.set()
 
     def _on_message(self, client: Client, userdata: Any, message: Any) -> None:
         topic = message.topic
@@ -368,3 +406,19 @@ class MqttLink:
                 callback(connected)
             except Exception:
                 _log.exception('MQTT on_connection callback failed')
+
+
+def _failure_text(error: BaseException) -> str:
+    """One line on why a connection failed (an SSL error's reason, not its errno tuple)."""
+    if isinstance(error, ssl.SSLCertVerificationError):
+        return f'TLS: the broker certificate is not trusted ({error.verify_message})'
+    if isinstance(error, ssl.SSLError):
+        return f'TLS: {error.reason or error}'
+    return str(error) or type(error).__name__
+
+
+def _log_failure_text(text: str) -> str:
+    """Return paho's `failed to receive on socket: [SSL: X] reason (_ssl.c:N)` as `TLS: reason`."""
+    text = text.removeprefix(_READ_FAILED)
+    match = re.fullmatch(r'\[SSL(?:: \w+)?\] (.*?)(?: \(_ssl\.c:\d+\))?', text)
+    return f'TLS: {match.group(1)}' if match else text
