@@ -6,6 +6,7 @@ password read from a file or an environment variable by the node that connects.
 """
 
 from dataclasses import dataclass, field
+import os
 from urllib.parse import urlsplit
 
 DEFAULT_PORT = 1883
@@ -79,3 +80,25 @@ class LinkSecurity:
     def tls_files(self) -> bool:
         """Return True when any TLS file is named."""
         return bool(self.ca_file or self.cert_file or self.key_file)
+
+
+ENV_PASSWORD = 'AGV_MQTT_PASSWORD'  # the password when no password file is named
+
+
+def read_password(password_file: str) -> str:
+    """Return the link's password: the first line of password_file, else AGV_MQTT_PASSWORD.
+
+    Never from argv (other users see a process's arguments) nor the URL (it is logged). No file
+    and no variable: '' (no password). ValueError names the file when it cannot be read or its
+    first line is empty.
+    """
+    if not password_file:
+        return os.environ.get(ENV_PASSWORD, '')
+    try:
+        with open(password_file, encoding='utf-8') as stream:
+            password = stream.readline().rstrip('\r\n')
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f'password file {password_file}: cannot read it ({exc})') from None
+    if not password:
+        raise ValueError(f'password file {password_file}: its first line is empty')
+    return password
