@@ -21,7 +21,7 @@ import mqtt_broker
 import pytest
 
 from agv_nodes.mqtt.broker import ENV_URL, EmbeddedBroker, broker_url
-from agv_nodes.mqtt.client import LastWill, MqttLink
+from agv_nodes.mqtt.client import LastWill, MqttLink, parse_mqtt_url
 
 pytestmark = [pytest.mark.wall_clock, pytest.mark.timeout(60)]
 mosquitto_url = mqtt_broker.mosquitto_url  # a private mosquitto for this module
@@ -114,7 +114,7 @@ def _exchange(url: str, links: Callable[..., MqttLink], **options: object) -> No
 
 _VICTIM = """
 import sys, time
-from agv_nodes.mqtt.client import LastWill, MqttLink
+from agv_nodes.mqtt.client import LastWill, MqttLink, parse_mqtt_url
 link = MqttLink(sys.argv[1], 'victim', will=LastWill('agv/victim/connection', b'BROKEN'))
 link.connect()
 link.publish('agv/victim/connection', b'ONLINE', qos=1)
@@ -286,10 +286,17 @@ def test_connect_to_no_broker_times_out_naming_it():
 
 
 @pytest.mark.parametrize('stop_signal', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
-def test_broker_runs_as_a_process(tmp_path, links, stop_signal):
-    """`python -m agv_nodes.mqtt.broker` prints one URL line, serves, exits 0 on a signal."""
-    process = subprocess.Popen([sys.executable, '-m', 'agv_nodes.mqtt.broker'], cwd=tmp_path,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+@pytest.mark.parametrize('which', [[], ['--embedded']], ids=['mosquitto', 'embedded'])
+def test_broker_runs_as_a_process(tmp_path, links, stop_signal, which):
+    """`python -m agv_nodes.mqtt.broker` prints one URL line, serves, exits 0 on a signal.
+
+    Without --embedded it runs mosquitto (installed here, as on CI).
+    """
+    if not which:
+        mqtt_broker.require_mosquitto()
+    process = subprocess.Popen([sys.executable, '-m', 'agv_nodes.mqtt.broker', *which],
+                               cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
     try:
         line = _read_line(process)
         assert URL_RE.fullmatch(line.rstrip('\n')), line
@@ -302,16 +309,28 @@ def test_broker_runs_as_a_process(tmp_path, links, stop_signal):
         process.kill()
         process.wait(WAIT_S)
     assert process.returncode == 0, err
-    assert out == ''  # the URL line was the only one
+    assert out == '' and err == ''  # the URL line was the only one
     assert list(tmp_path.iterdir()) == []  # nothing written where it ran
+    assert _refuses(url)  # mosquitto, a process of its own, ended with it
 
 
-def test_broker_process_on_a_busy_port_exits_1(broker):
-    """--port with a port in use: exit status 1 and the port on stderr."""
+def _refuses(url: str) -> bool:
+    host, port = parse_mqtt_url(url)
+    try:
+        socket.create_connection((host, port), timeout=1.0).close()
+    except OSError:
+        return True
+    return False
+
+
+@pytest.mark.parametrize('which', [[], ['--embedded']], ids=['mosquitto', 'embedded'])
+def test_broker_process_on_a_busy_port_exits_1(broker, which):
+    """--port with a port in use: exit status 1 and the port on stderr, in one line."""
     run = subprocess.run([sys.executable, '-m', 'agv_nodes.mqtt.broker', '--port',
-                          str(broker.port)], capture_output=True, text=True, timeout=WAIT_S * 3)
+                          str(broker.port), *which], capture_output=True, text=True,
+                         timeout=WAIT_S * 3)
     assert run.returncode == 1 and run.stdout == ''
-    assert f'127.0.0.1:{broker.port}' in run.stderr
+    assert f'127.0.0.1:{broker.port}' in run.stderr and run.stderr.count('\n') == 1, run.stderr
 
 
 # --- choosing the broker -----------------------------------------------------------------------

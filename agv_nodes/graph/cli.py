@@ -54,8 +54,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--vda5050', action='store_true',
                     help='also start the vda5050_bridge node: a VDA 5050 master drives the truck')
     ap.add_argument('--mqtt-url', metavar='URL',
-                    help="the bridge's MQTT broker, mqtt://host[:port] (default: AGV_MQTT_URL, "
-                    'else a broker the launcher runs itself, ending with it)')
+                    help="the bridge's MQTT broker, mqtt[s]://host[:port] (default: "
+                    'AGV_MQTT_URL, else mosquitto (amqtt where it is not installed) the '
+                    'launcher runs itself, ending with it)')
     ap.add_argument('--serial-number', default='', metavar='S',
                     help="the truck's VDA 5050 serialNumber (default: the namespace without "
                     'slashes, or agv1)')
@@ -109,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
           f'{len(launch.units())} processes'
           + (f', {args.trucks} trucks on one floor' if args.trucks else ''), flush=True)
     if launch.mqtt_url:
-        where = ('embedded, ends with agv-launch' if launch.broker else
+        where = (f'{launch.broker.name}; ends with agv-launch' if launch.broker else
                  'from --mqtt-url' if args.mqtt_url is not None else 'from AGV_MQTT_URL')
         trucks = ', '.join(fleet_names(launch.o)) or serial_number(launch.o)
         print(f'agv-launch: VDA 5050 bridge {trucks} on MQTT broker '

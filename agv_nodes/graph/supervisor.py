@@ -11,10 +11,11 @@ control hears the truck go OFFLINE while all of it still runs; the world, so tim
 last, so the bag sees the end); a node that dies ends the launch with a non-zero status (or is
 restarted, --respawn). Discovery is localhost-only, on a ROS domain of the graph's own (never 0).
 
-With --vda5050 and no broker named (--mqtt-url, AGV_MQTT_URL) the launcher runs an embedded MQTT
-broker in a thread of its own process: it ends with the launcher however that ends (a SIGKILL
-too, with no clean-up to forget), and a clean stop shuts it after the nodes, so the bridge's
-OFFLINE reaches the master control first.
+With --vda5050 and no broker named (--mqtt-url, AGV_MQTT_URL) the launcher runs a broker of its
+own: mosquitto through the child wrapper, else (not installed) amqtt in a thread of its own
+process. Either ends with the launcher however that ends (a SIGKILL too, with no clean-up to
+forget), and a clean stop shuts it after the nodes, so the bridge's OFFLINE reaches the master
+control first.
 """
 
 import atexit
@@ -105,7 +106,7 @@ class Launch:
         self.ready_file = self._overrides / 'world.ready'
         self.moving = ReadyFile(self.ready_file)
         self._units = {label: (spec, ns) for label, spec, ns in self.units()}
-        self.broker = None  # the embedded MQTT broker, when the launcher runs one
+        self.broker = None  # the MQTT broker the launcher runs, if it runs one
         if options.vda5050:
             self._start_broker()
 
@@ -124,10 +125,10 @@ class Launch:
         Started here, not in start(), so that its URL is a start-up fact the launcher prints
         with the others; last, so that no check can fail with a broker left running.
         """
-        from agv_nodes.mqtt.broker import EmbeddedBroker
+        from agv_nodes.mqtt.broker import local_broker  # mosquitto, else the embedded amqtt
 
         if self.mqtt_url is None:
-            self.broker = EmbeddedBroker()
+            self.broker = local_broker()
             try:
                 self.mqtt_url = self.broker.start()
             except RuntimeError as exc:

@@ -1,11 +1,12 @@
-"""The embedded MQTT broker (amqtt) the launcher starts when no real broker is given.
+"""The broker the launcher starts when none is given: mosquitto, else the embedded amqtt.
 
-A VDA 5050 master and the trucks' bridges meet at an MQTT broker. For a demo or a test there is
-none to hand, so the launcher starts amqtt on 127.0.0.1, on a port the system picks, anonymous,
-with nothing written to disk; with `--mqtt-url` or AGV_MQTT_URL it uses that broker instead
-(`broker_url`). `EmbeddedBroker` runs amqtt's asyncio broker in a thread of its own so that
-synchronous code (the launcher, tests) can start and stop it; `python -m agv_nodes.mqtt.broker`
-runs it as a process of its own and prints its URL.
+A VDA 5050 master and the trucks' bridges meet at an MQTT broker. With `--mqtt-url` or
+AGV_MQTT_URL the launcher uses that one (`broker_url`); else it starts its own on 127.0.0.1, on
+a free port, anonymous, with nothing written to disk (`local_broker`): mosquitto, what plants
+run, wherever it is installed (agv_nodes.mqtt.mosquitto), and amqtt only where it is not.
+`EmbeddedBroker` runs amqtt's asyncio broker in a thread of its own so that synchronous code
+(the launcher, tests) can start and stop it; `python -m agv_nodes.mqtt.broker` runs the local
+broker as a process of its own and prints its URL.
 
 amqtt binds port 0 like any asyncio server but does not report the port it got, so it is read
 from the listening socket in `Broker._servers` (a private attribute of amqtt 0.12; a changed
@@ -22,6 +23,8 @@ messages only while it handles that client's own SUBSCRIBE (MQTT 3.1.1, 3.3.1.3:
 messages go to a new subscription), so each matching one goes once, at min(granted, stored) QoS.
 """
 
+from __future__ import annotations
+
 import argparse
 import asyncio
 from contextvars import ContextVar
@@ -35,6 +38,7 @@ from typing import Any
 from amqtt.broker import Broker
 
 from agv_nodes.mqtt.client import ENV_URL, format_mqtt_url, parse_mqtt_url
+from agv_nodes.mqtt.mosquitto import Mosquitto, find_mosquitto
 
 HOST = '127.0.0.1'
 _LISTENER = 'default'
@@ -90,6 +94,20 @@ def broker_url(explicit: str | None) -> str | None:
     return format_mqtt_url(host, port)
 
 
+def local_broker(port: int = 0, host: str = HOST,
+                 embedded: bool = False) -> Mosquitto | EmbeddedBroker:
+    """Return a local broker to start: mosquitto when installed (and not `embedded`), else amqtt.
+
+    Its `name` says which, and for amqtt why (what the launcher prints in one line).
+    """
+    if not embedded and find_mosquitto() is not None:
+        return Mosquitto(host=host, port=port)
+    broker = EmbeddedBroker(port=port, host=host)
+    if not embedded:
+        broker.name = 'embedded amqtt: mosquitto is not installed'
+    return broker
+
+
 def _broker_config(host: str, port: int) -> dict[str, Any]:
     # Plugins listed explicitly replace amqtt's defaults (a $SYS publisher, event and packet
     # loggers); no persistence plugin either (amqtt's writes amqtt.db into the cwd). Anonymous
@@ -108,6 +126,15 @@ def _quiet_amqtt() -> None:
         logger = logging.getLogger(name)
         if logger.level == logging.NOTSET:
             logger.setLevel(logging.WARNING)
+    # a failed start (a port in use) comes back from start() as one line; amqtt's traceback of
+    # it would bury that line
+    broker_log = logging.getLogger('amqtt.broker')
+    if _drop_startup_traceback not in broker_log.filters:
+        broker_log.addFilter(_drop_startup_traceback)
+
+
+def _drop_startup_traceback(record: logging.LogRecord) -> bool:
+    return not str(record.msg).startswith('Broker startup failed')
 
 
 class EmbeddedBroker:
@@ -129,6 +156,7 @@ class EmbeddedBroker:
         """
         self.host = host
         self.fix_retained = fix_retained
+        self.name = 'embedded amqtt'
         self._requested_port = port
         self._start_timeout_s = start_timeout_s
         self._stop_timeout_s = stop_timeout_s
@@ -200,7 +228,7 @@ class EmbeddedBroker:
         self._thread = None
         self.port = None
 
-    def __enter__(self) -> 'EmbeddedBroker':
+    def __enter__(self) -> EmbeddedBroker:
         self.start()
         return self
 
@@ -293,16 +321,19 @@ def _bound_port(broker: Broker) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the embedded broker as a process: print its URL line, serve until SIGINT/SIGTERM."""
+    """Run the local broker as a process: print its URL line, serve until SIGINT/SIGTERM."""
     parser = argparse.ArgumentParser(
         prog='python -m agv_nodes.mqtt.broker',
-        description='MQTT broker (amqtt) on 127.0.0.1 for the trucks and a VDA 5050 master; '
-                    'prints mqtt://127.0.0.1:PORT when ready.')
+        description='MQTT broker on 127.0.0.1 for the trucks and a VDA 5050 master (mosquitto '
+                    'when installed, else the embedded amqtt); prints mqtt://127.0.0.1:PORT '
+                    'when ready.')
     parser.add_argument('--port', type=int, default=0,
                         help='port to listen on (default: a free one)')
     parser.add_argument('--host', default=HOST,
                         help='address to listen on (default 127.0.0.1: this machine only; an '
                         "interface's address for trucks on other hosts)")
+    parser.add_argument('--embedded', action='store_true',
+                        help='the embedded amqtt broker even where mosquitto is installed')
     args = parser.parse_args(argv)
     if not 0 <= args.port <= 65535:
         parser.error(f'--port {args.port}: give 0 (any free port) or 1-65535')
@@ -316,7 +347,9 @@ def main(argv: list[str] | None = None) -> int:
 
     signal.signal(signal.SIGINT, request_stop)
     signal.signal(signal.SIGTERM, request_stop)
-    broker = EmbeddedBroker(port=args.port, host=args.host)
+    broker = local_broker(port=args.port, host=args.host, embedded=args.embedded)
+    if isinstance(broker, EmbeddedBroker) and not args.embedded:
+        print(f'agv_nodes.mqtt.broker: {broker.name}', file=sys.stderr, flush=True)
     try:
         url = broker.start()
     except RuntimeError as exc:

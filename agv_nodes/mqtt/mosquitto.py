@@ -88,6 +88,7 @@ class Mosquitto:
                  executable: str | None = None) -> None:
         """Configure; nothing runs before `start()`. port 0: a free one."""
         self.host = host
+        self.name = 'mosquitto'
         self.tls = tls
         self._requested_port = port
         self._passwords = dict(passwords or {})
