@@ -33,7 +33,11 @@ from agv_nodes.settings import settings_class
 from agv_nodes.vda5050.bridge import INBOUND, BridgeCore, Outbox
 from agv_nodes.vda5050.codec import to_json
 from agv_nodes.vda5050.connection import ConnectionState
-from agv_nodes.vda5050.link_parameters import broker_parameter, graph_parameter
+from agv_nodes.vda5050.link_parameters import (
+    broker_parameter,
+    graph_parameter,
+    security_parameters,
+)
 from agv_nodes.vda5050.topics import TOPICS, topic
 from agv_nodes.vda5050.truck_factsheet import truck_factsheet
 
@@ -53,6 +57,7 @@ class BridgeNode(Node):
         s = declare(self, BridgeSettings)
         refuse_unknown(self)
         url = broker_parameter(self, s.mqtt_url)
+        security = security_parameters(self, s, url)
         graph = graph_parameter(self, s.layout)
         self.settings = s
         self.core = BridgeCore(
@@ -74,7 +79,8 @@ class BridgeNode(Node):
                                     interface=s.interface_name) for name in TOPICS}
         self.link = MqttLink(url, f'{s.manufacturer}_{s.serial_number}', LastWill(
             self._topics['connection'], to_json(will), qos=1, retain=True),
-            reconnect_min_s=min(1.0, s.reconnect_max), reconnect_max_s=s.reconnect_max)
+            reconnect_min_s=min(1.0, s.reconnect_max), reconnect_max_s=s.reconnect_max,
+            security=security)
         self.link.on_connection(self._connected.append)
         for name in INBOUND:
             self.link.subscribe(self._topics[name], TOPICS[name].qos,

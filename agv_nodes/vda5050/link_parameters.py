@@ -2,17 +2,28 @@
 
 The truck's bridge and the fleet's dispatcher both name a broker (`mqtt_url`, else the
 AGV_MQTT_URL environment variable) and a layout whose track graph their orders are drawn on; a
-bad value stops either at start-up with one line naming the parameter and value.
+bad value stops either at start-up with one line naming the parameter and value. A secured
+broker adds TLS files (`tls_ca`, `tls_cert`, `tls_key`, for an mqtts:// URL) and a user name
+(`username`) whose password comes from `password_file`, else the AGV_MQTT_PASSWORD environment
+variable: never from a parameter value, which `ros2 param get` and the launch's files show.
 """
 
 from __future__ import annotations
 
 import os
+from typing import Any
 
 from rclpy.node import Node
 
 from agv_nodes.fleet.track_graph import TrackGraph, track_graph
-from agv_nodes.mqtt.client import ENV_URL, parse_mqtt_url
+from agv_nodes.mqtt.address import (
+    ENV_PASSWORD,
+    ENV_URL,
+    LinkSecurity,
+    parse_mqtt_url,
+    read_password,
+    uses_tls,
+)
 from agv_nodes.params import parameter_error
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
 
@@ -28,6 +39,35 @@ def broker_parameter(node: Node, mqtt_url: str) -> str:
     except ValueError as exc:
         raise parameter_error(node, 'mqtt_url', url, str(exc)) from None
     return url
+
+
+def security_parameters(node: Node, settings: Any, url: str) -> LinkSecurity:
+    """Return the link's TLS files and credentials from `settings` (checked against `url`).
+
+    `settings` has tls_ca, tls_cert, tls_key, username and password_file (strings, '' unset).
+    """
+    files = {name: getattr(settings, name) for name in ('tls_ca', 'tls_cert', 'tls_key')}
+    for name, path in files.items():
+        if path and not uses_tls(url):
+            raise parameter_error(node, name, path, f'TLS files apply to mqtts:// only, and the '
+                                  f'broker is {url}: give an mqtts:// URL or no TLS files')
+        if path and not os.access(path, os.R_OK):
+            raise parameter_error(node, name, path, 'no such file, or not readable')
+    if bool(files['tls_cert']) != bool(files['tls_key']):
+        name = 'tls_key' if files['tls_cert'] else 'tls_cert'
+        raise parameter_error(node, name, files[name], 'a client certificate needs its key '
+                              '(tls_cert and tls_key): give both or neither')
+    username, password_file = settings.username, settings.password_file
+    try:
+        password = read_password(password_file)
+    except ValueError as exc:
+        raise parameter_error(node, 'password_file', password_file, str(exc)) from None
+    if password and not username:
+        source = 'password_file' if password_file else ENV_PASSWORD
+        raise parameter_error(node, 'username', username, f'a password is given ({source}) '
+                              'but no user name')
+    return LinkSecurity(ca_file=files['tls_ca'], cert_file=files['tls_cert'],
+                        key_file=files['tls_key'], username=username, password=password)
 
 
 def graph_parameter(node: Node, layout: str) -> TrackGraph:
