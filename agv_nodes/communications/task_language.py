@@ -3,8 +3,10 @@
 Syntax only, as communications passes tasks on without interpreting them (Baker 1983, 3.5.3):
 the 1983 tasks of 7.2 and fig 3.1, and the 1991 camera truck's tape legs with their junction
 scripts and law (Rajagopalan 1991, App. F.5-F.7) and its dead-reckoning legs along a stored
-trajectory (App. F.9). `at N [first|second]` is a modern addition: it tells a truck set down by
-hand (or by a fleet, VDA 5050 initPosition) at which stop marker it stands. A text that does
+trajectory (App. F.9), its manual mode driven from cmd_vel (App. F.4, `manual [for T s]`) and its
+camera calibration (App. F.3, `calibrate [front|rear]`). `at N [first|second]` is a modern
+addition: it tells a truck set down by hand (or by a fleet, VDA 5050 initPosition) at which stop
+marker it stands. A text that does
 not parse raises TaskError naming the column and the reason.
 """
 
@@ -124,7 +126,7 @@ def parse_task(text: str, locations: tuple[int, ...] = (0, 1, 2, 3)) -> Task:
     t = _Tokens(text)
     verb = t.peek()
     verbs = ('load', 'unload', 'wait', 'stop', 'srm', 'leave', 'at', 'pass', 'tape', 'reckon',
-             'abort', 'status')
+             'manual', 'calibrate', 'abort', 'status')
     if verb not in verbs:
         what = 'empty task' if verb is None else f'unknown task {verb!r}'
         raise TaskError(text, t.column(), f'{what} (expected one of {", ".join(verbs)})')
@@ -144,6 +146,17 @@ def parse_task(text: str, locations: tuple[int, ...] = (0, 1, 2, 3)) -> Task:
         task = _tape(t)
     elif verb == 'reckon':
         task = _reckon(t)
+    elif verb == 'manual':  # manual [for T s]: cmd_vel drives (App. F.4); no T: until an abort
+        task = Task(text, 'manual')
+        if t.peek() == 'for':
+            t.take()
+            task.dwell = t.number('seconds', 1, 255)
+            if t.peek() in ('s', 'sec', 'seconds'):
+                t.take()
+    elif verb == 'calibrate':  # calibrate [front|rear]: the camera read at rest (App. F.3)
+        task = Task(text, 'calibrate')
+        if t.peek() in ('front', 'rear'):
+            task.then = 'reverse' if t.take() == 'rear' else 'stay'
     elif verb == 'load' and t.peek() not in (None, 'at'):  # load A at B and take to C
         name = t.take()
         t.take('at')

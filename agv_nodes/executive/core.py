@@ -38,7 +38,7 @@ from agv_nodes.subsystem import SubsystemCore
 
 EXPLORE = 31  # a location identity no marker carries: "cruise and report every landmark"
 TAPE_STEPS = ('tape', 'tape_reverse', 'reckon')
-CAMERA_OPS = ('tape', 'reckon')  # the camera truck's tasks
+CAMERA_OPS = ('tape', 'reckon', 'manual', 'calibrate')  # the camera truck's tasks
 
 
 class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
@@ -245,6 +245,10 @@ class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
         elif step.kind in TAPE_STEPS:
             self.route = self.tape.start(self.task or {}, step.kind, step.value, self.route)
             self.phase = 'leg'
+        elif step.kind in ('manual', 'calibrate'):  # App. F.4, F.3: route following's modes
+            self.route = {**self.route, 'mode': 'manual' if step.kind == 'manual' else
+                          'calibration', 'direction': 'reverse' if step.value and
+                          step.kind == 'calibrate' else 'forward'}
 
     def _advance(self, now: float) -> None:
         step = self.step
@@ -330,6 +334,15 @@ class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
                 self._advance(now)
         elif step.kind == 'continue':
             if now - self.phase_time >= 0.5:
+                self._advance(now)
+        elif step.kind == 'manual':
+            if step.value and now - self.phase_time >= step.value:
+                self._advance(now)  # route_command idle: the motors off
+        elif step.kind == 'calibrate':  # done once route following has read its frames
+            state = (self.status.get('route') or {}).get('state')
+            if self.phase == 'start' and state == 'calibrating':
+                self.phase = 'calibrating'
+            elif self.phase == 'calibrating' and state == 'idle':
                 self._advance(now)
         elif step.kind in TAPE_STEPS:
             outcome, self.route = self.tape.update(self.status.get('route') or {}, self.route, now)

@@ -2,7 +2,9 @@
 
 A tape task (the camera truck, Rajagopalan 1991, App. F.6-F.7) is one or two legs: tape, then
 tape_reverse with `then reverse`; a reckon task (App. F.9) one leg, reckon
-(agv_nodes.executive.tape_legs runs them).
+(agv_nodes.executive.tape_legs runs them). A manual task (App. F.4) is one step, manual, for its
+dwell (0: until an abort); a calibrate task (App. F.3) one step, calibrate (value 1: the rear
+camera).
 """
 
 from dataclasses import dataclass
@@ -57,6 +59,13 @@ def itinerary(task: dict[str, Any]) -> list[Step]:
         along = f'stored trajectory {trajectory}' if trajectory else 'the identified track'
         return [Step('reckon', value=task['leg_distance'],
                      name=f'dead reckoning along {along}, {task["leg_distance"] / 10:.1f} m')]
+    elif op == 'manual':
+        return [Step('manual', value=task['dwell'], name='manual driving from cmd_vel, ' + (
+            f'{task["dwell"]} s' if task['dwell'] else 'until an abort'))]
+    elif op == 'calibrate':
+        rear = task['then'] == 'reverse'
+        return [Step('calibrate', value=int(rear),
+                     name=f'calibrate the {"rear" if rear else "front"} camera')]
     elif op == 'transfer':
         b, c = n, task['destination']
         steps += [Step('goto', b, 0, name=f'go to B = L{b}'),

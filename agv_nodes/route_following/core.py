@@ -19,6 +19,9 @@ wheel odometry, frames and its loop to CameraMode (agv_nodes.route_following.cam
 which says what the wheels do and what status reports.
 DriveSafety (drive_safety.py) checks the drive (Rajagopalan 1991, 6.3.11): on a fault camera
 mode stops, motor off, and route_status names it (`drive_fault`).
+Manual mode (route_command mode manual, App. F.4) drives the wheels from cmd_vel
+(manual_drive.py, the same fault stopping it); calibration mode (App. F.3) reads a camera at
+rest against the known tape (calibration.py).
 """
 
 import math
@@ -26,8 +29,10 @@ from typing import Any
 
 import numpy as np
 
+from agv_nodes.route_following.calibration import Calibration
 from agv_nodes.route_following.camera_mode import CameraMode
 from agv_nodes.route_following.drive_safety import DriveSafety
+from agv_nodes.route_following.manual_drive import ManualDrive
 from agv_nodes.route_following.settings import RouteParams
 from agv_nodes.route_following.track_guidance import TrackGuidance
 from agv_nodes.subsystem import SubsystemCore
@@ -87,12 +92,18 @@ class RouteCore(SubsystemCore):
         self._next_status, self._last_state = 0.0, ''
         self.cam = CameraMode(self.p, self.notes)
         self.safety = DriveSafety(self.p.drive_safety)
+        self.manual = ManualDrive(self.p, self.notes)
+        self.calibration = Calibration(self.p, self.notes)
 
     @property
     def state(self) -> str:
         """Return the state: camera mode's own in camera mode; unheard before the first sample."""
         if self.mode == 'camera':
             return self.cam.state
+        if self.mode == 'manual':
+            return 'manual' if self.safety.fault == 'none' else 'drive_fault'
+        if self.mode == 'calibration':
+            return 'calibrating' if self.calibration.running else 'idle'
         if self._wire_time is None and self.mode in ('follow_wire', 'srm'):
             # No pickup sample since start-up: the stream may not have reached this node yet
             # (the world only starting to move), so not lost, but nothing to steer by either.
@@ -115,13 +126,13 @@ class RouteCore(SubsystemCore):
 
     @property
     def motor_on(self) -> bool:
-        """Return whether camera mode drives the wheels."""
-        return self.cam.motor_on
+        """Return whether camera mode (or manual mode) drives the wheels."""
+        return self.manual.motor_on if self.mode == 'manual' else self.cam.motor_on
 
     @property
     def wheels(self) -> tuple[float, float]:
-        """Return the (left, right) rim speeds camera mode asks for, m/s."""
-        return self.cam.wheels
+        """Return the (left, right) rim speeds camera mode (or manual mode) asks for, m/s."""
+        return self.manual.wheels if self.mode == 'manual' else self.cam.wheels
 
     # -- inputs -----------------------------------------------------------------------------
     def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
@@ -135,7 +146,8 @@ class RouteCore(SubsystemCore):
             self.speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
             self._rim_speeds = (fields['left_speed'] / 1000.0, fields['right_speed'] / 1000.0)
             self.cam.odometry(fields)
-            self.safety.odometry(fields, self.wheels, self.motor_on and self.mode == 'camera', now)
+            self.safety.odometry(fields, self.wheels,
+                                 self.motor_on and self.mode in ('camera', 'manual'), now)
         elif record == 'drive_status':
             self.safety.drive_status(fields)
         return None
@@ -144,8 +156,8 @@ class RouteCore(SubsystemCore):
         # A dead-reckoning leg is one of camera mode's legs, without the camera (App. F.9).
         mode = 'camera' if fields['mode'] == 'dead_reckoning' else fields['mode']
         began = mode == 'camera' and self.cam.command(fields, now, self.mode != 'camera')
-        if began or mode != 'camera':  # a new leg, or out of camera mode: the software reloaded
-            self.safety.clear()
+        if began or (mode != 'camera' and mode != self.mode):
+            self.safety.clear()  # a new leg, or another mode: the software reloaded
         new_srm = mode == 'srm' and fields['manoeuvre'] != self.manoeuvre
         self.manoeuvre = fields['manoeuvre']
         if new_srm:
@@ -158,8 +170,15 @@ class RouteCore(SubsystemCore):
         if mode != 'srm' and mode != self.mode:
             if self.mode == 'camera':
                 self.cam.leave()
+            self.manual.leave(now)
+            self.calibration.stop()
             self.mode, self._integral, self._prev_lateral = mode, 0.0, None
-            self.state = {'idle': 'idle', 'follow_wire': 'following', 'camera': 'following'}[mode]
+            self.state = {'follow_wire': 'following', 'camera': 'following'}.get(mode, 'idle')
+            if mode == 'manual':
+                self.manual.enter(now)
+            elif mode == 'calibration':  # the camera leading that way (App. F.3)
+                self.calibration.begin('rear' if fields['direction'] == 'reverse' else 'front',
+                                       now)
             return self._outputs(now, force_status=True)
         return self._outputs(now, force_status=True) if began else None
 
@@ -258,7 +277,14 @@ class RouteCore(SubsystemCore):
         """Take a binary frame (1 = dark tape) from the front or the rear camera."""
         if self.mode == 'camera':
             self.cam.frame(frame, now, camera)
+        elif self.mode == 'calibration':
+            self.calibration.frame(frame, now, camera)
         return None  # the wheel speeds go out with the loop's steering_command
+
+    def on_twist(self, linear: tuple[float, float, float], angular: tuple[float, float, float],
+                 now: float) -> str:
+        """Take a cmd_vel Twist; return 'taken' or why it was refused (manual_drive.REFUSALS)."""
+        return self.manual.command(linear, angular, now, self.safety.fault)
 
     # -- outputs ----------------------------------------------------------------------------
     def tick(self, now: float) -> dict | None:
@@ -277,6 +303,7 @@ class RouteCore(SubsystemCore):
     def _outputs(self, now: float, force_status: bool = False) -> dict:
         if self.mode == 'camera' and self.safety.fault != 'none':
             self.cam.drive_fault(now)
+        self.manual.tick(now, self.safety.fault)  # the watchdog, and a fault stops it at once
         out: dict[str, dict[str, Any]] = {'steering_command': self.steering_command()}
         state = self.cam.reported_state() if self.mode == 'camera' else self.state
         if force_status or now >= self._next_status or state != self._last_state:
@@ -292,7 +319,8 @@ class RouteCore(SubsystemCore):
             # (Rajagopalan 1991, 6.3.11); each wheel on its own, as the drive's limit did before.
             top = self.p.drive_safety.full_speed
             left, right = (max(-top, min(top, v)) for v in self.wheels)
-            return {'mode': 'wheel_speeds', 'enable': int(self.motor_on and self.mode == 'camera'),
+            driving = self.motor_on and self.mode in ('camera', 'manual')
+            return {'mode': 'wheel_speeds', 'enable': int(driving),
                     'angle': 0, 'left_speed': int(round(left * 1000)),
                     'right_speed': int(round(right * 1000))}
         active = self.mode in ('follow_wire', 'srm') and self.state not in ('lost', 'unheard')
@@ -305,6 +333,10 @@ class RouteCore(SubsystemCore):
         if self.mode == 'camera':
             return {**self.cam.status(), 'manoeuvre': self.manoeuvre,
                     'drive_fault': self.safety.fault}
+        if self.mode == 'calibration' and (result := self.calibration.result) and result.normal:
+            # App. F.3's display: the track's position (mm) and orientation (deg) measured
+            self.lateral, self.steer = result.eps_d, result.eps_theta
+            self.signal = result.normal / result.frames
         return {
             'state': self.state,
             'lateral_error': int(max(-128, min(127, round(self.lateral * 1000)))),

@@ -5,14 +5,19 @@ With the feed-forward law (camera_law, or a leg's own) it also draws the identif
 steers by): route/identified_track, a nav_msgs/Path, and route/osculating_circle, a
 visualization_msgs/Marker line strip, both in the odometry frame the track was identified in
 (`odom`: the truck's pose integrated from wheel odometry, starting at the origin).
+
+The camera truck also takes geometry_msgs/Twist on `cmd_vel` (relative; teleop_twist_keyboard's
+topic), acted on only in manual mode (manual_drive.py); refused commands are counted by reason
+in /diagnostics as input `cmd_vel`.
 """
 
+from collections import Counter
 from collections.abc import Callable
 import math
 import sys
 
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Point, PoseStamped
+from geometry_msgs.msg import Point, PoseStamped, Twist
 from nav_msgs.msg import Path
 import numpy as np
 from sensor_msgs.msg import Image
@@ -63,6 +68,51 @@ def circle_marker(circle: Circle | None, stamp: Time) -> Marker:
     return msg
 
 
+class CmdVelInput:
+    """cmd_vel as /diagnostics shows an input: taken and refused by reason (inputs_report)."""
+
+    lost, duplicate, waiting = 0, '', ''
+
+    def __init__(self, node: 'RouteFollowingNode') -> None:
+        self.name, self.stamp_ns, self.last_error = 'cmd_vel', None, ''
+        self._node = node
+        self._core = node.core
+        # best effort: matches a reliable teleop writer and a best-effort one alike
+        node.create_subscription(Twist, 'cmd_vel', self._on_twist, qos.STREAM_READER)
+
+    @property
+    def accepted(self) -> int:
+        """Commands acted on."""
+        return self._core.manual.taken
+
+    @property
+    def rejects(self) -> Counter[str]:
+        """Commands refused, by reason."""
+        return self._core.manual.refused
+
+    @property
+    def rejected(self) -> int:
+        """Commands refused."""
+        return sum(self.rejects.values())
+
+    def age_s(self, now_ns: int) -> float:
+        """Seconds since the last command acted on (inf if none yet)."""
+        return float('inf') if self.stamp_ns is None else (now_ns - self.stamp_ns) * 1e-9
+
+    def identity(self) -> str:
+        """Say whose input this is: any writer (the ROS convention for cmd_vel)."""
+        return 'any (teleop)'
+
+    def _on_twist(self, msg: Twist) -> None:
+        now = self._node.now_s()
+        verdict = self._core.on_twist((msg.linear.x, msg.linear.y, msg.linear.z),
+                                      (msg.angular.x, msg.angular.y, msg.angular.z), now)
+        if verdict == 'taken':
+            self.stamp_ns = int(now * 1e9)
+        else:
+            self.last_error = f'cmd_vel refused: {verdict}'
+
+
 class RouteFollowingNode(CoreNode):
     """RouteCore on its ports, plus the two cameras' frames (dark tape)."""
 
@@ -72,6 +122,7 @@ class RouteFollowingNode(CoreNode):
             frames = FrameSubscription(self, camera, qos.STREAM_READER, self._frame(camera))
             self.input_diagnostics.add(frames.name, frames)
         if self.core.p.vehicle == 'concic2':  # the camera truck identifies its track
+            self.input_diagnostics.add('cmd_vel', CmdVelInput(self))
             # Pictures that change as the truck goes, as the world's pose is.
             self.track_pub = self.create_publisher(Path, 'route/identified_track',
                                                    qos.STREAM_WRITER)

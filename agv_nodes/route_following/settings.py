@@ -9,9 +9,9 @@ from agv_nodes.settings import settings_class
 # The track identification's groups: settings_class finds a nested group by name in this module.
 from agv_nodes.track_geometry.settings import FeedForwardParams, IdentificationParams
 
-__all__ = ['DeadReckoningParams', 'DriveSafetyParams', 'DualCameraParams', 'FeedForwardParams',
-           'IdentificationParams', 'ImageParams', 'RouteParams', 'SteeringParams',
-           'TurningParams', 'WireParams']
+__all__ = ['CalibrationParams', 'DeadReckoningParams', 'DriveSafetyParams', 'DualCameraParams',
+           'FeedForwardParams', 'IdentificationParams', 'ImageParams', 'ManualParams',
+           'RouteParams', 'SteeringParams', 'TurningParams', 'WireParams']
 
 
 @settings_class
@@ -59,6 +59,16 @@ class DriveSafetyParams:
 @settings_class
 class DeadReckoningParams:
     """Dead reckoning along a stored trajectory (Rajagopalan 1991, App. F.9; dead_reckoning.py)."""
+
+
+@settings_class
+class ManualParams:
+    """Manual driving from cmd_vel, its limits and watchdog (Rajagopalan 1991, App. F.4)."""
+
+
+@settings_class
+class CalibrationParams:
+    """Camera calibration against the known tape (Rajagopalan 1991, App. F.3; calibration.py)."""
 
 
 @settings_class
