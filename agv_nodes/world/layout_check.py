@@ -11,7 +11,9 @@ model and the position sensor's decoder, on the pass's lens poses (agv_nodes.wor
 a card is refused only when the simulated truck cannot read it, and one near that edge is
 marginal. On the belt rig the lens runs along the belt line itself; tape layouts (camera) have no
 marker check: their table lists each road sign and where its branches lead
-(agv_nodes.world.tape_layout). See docs/architecture.md, "Layout check".
+(agv_nodes.world.tape_layout), warns of bends tighter than the camera truck can follow and
+says what each crossing met by a reverse leg reads (agv_nodes.world.tape_check). See
+docs/architecture.md, "Layout check".
 """
 
 import math
@@ -27,6 +29,7 @@ from agv_nodes.world.layout_report import Passage, Report
 from agv_nodes.world.marker_sensor import axis_on_card, lens_position
 from agv_nodes.world.readability import Pose, expected_identity, readability
 from agv_nodes.world.settings import WorldParams
+from agv_nodes.world.tape_check import reverse_crossings, tight_bends
 from agv_nodes.world.tape_layout import branch_ends
 from agv_nodes.world.vehicles import Electruk
 
@@ -44,7 +47,8 @@ def check_layout(layout: Layout, world: WorldParams | None = None,
     passages = [Passage(m) for m in layout.markers]
     if layout.kind == 'tape':
         return Report(layout, passages, 'markers not checked: a camera-guided floor'
-                      if layout.markers else '', branch_ends(layout.signs, layout.paths))
+                      if layout.markers else '', branch_ends(layout.signs, layout.paths),
+                      tight_bends(layout, route), reverse_crossings(layout))
     if not layout.markers:
         return Report(layout, passages)
     if layout.kind == 'rig':

@@ -5,7 +5,9 @@
 
 check: exit 0: the simulated truck reads every marker as driven (a line on stderr for each one
 read with little to spare: marginal, with its margin); 1: one line per marker it cannot read
-(stderr), each saying how to go on. graph: the
+(stderr), each saying how to go on. On a tape floor (the camera truck), a line on stderr for
+each bend tighter than the truck can follow and for each crossing a reverse leg meets backing
+out of a sign's branch (what it reads there, where no decision and left and right go). graph: the
 track graph a VDA 5050 master plans on (agv_nodes/fleet/track_graph.py): its nodes and edges
 as a table, or as JSON to load into a master's plant model. Exit 2: a file that is no valid
 layout (or, for graph, one without a track graph). FILE may be a layout's name
@@ -53,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     for lay in layouts:
         report = check_layout(lay)
         print(report.table())
-        errors += report.errors() + report.warnings()
+        errors += report.errors() + report.warnings() + report.reverse
         failed = failed or bool(report.errors())
     for line in errors:
         print(line, file=sys.stderr)

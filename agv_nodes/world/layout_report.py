@@ -76,6 +76,8 @@ class Report:
     passages: list[Passage]
     note: str = ''
     signs: list[str] = field(default_factory=list)  # tape floors: each sign and its branches
+    bends: list[str] = field(default_factory=list)  # tape bends tighter than the truck follows
+    reverse: list[str] = field(default_factory=list)  # crossings met backing out of a branch
 
     def errors(self) -> list[str]:
         """Return one line per marker the simulated truck cannot read, saying how to go on."""
@@ -83,8 +85,11 @@ class Report:
                 if p.grade == 'unreadable']
 
     def warnings(self) -> list[str]:
-        """Return one line per marker read with little to spare (marginal), with its margin."""
-        return [self._line(p) for p in self.passages if p.grade == 'marginal']
+        """Return one line per marker read with little to spare (marginal), with its margin.
+
+        And one per tape bend tighter than the camera truck can follow.
+        """
+        return [self._line(p) for p in self.passages if p.grade == 'marginal'] + self.bends
 
     def _line(self, p: Passage) -> str:
         return (f'layout {self.layout.file}: {p.grade} marker {p.marker.name!r} at '
@@ -109,4 +114,7 @@ class Report:
         if self.signs:
             lines.append(f'{len(self.signs)} road signs (Rajagopalan 1991, 4.3):')
             lines += [f'  {line}' for line in self.signs]
+        if self.reverse:
+            lines.append(f'{len(self.reverse)} crossings met by a reverse leg backing out of a '
+                         'branch (a task script decides them; docs/tasks.md)')
         return '\n'.join(lines)
