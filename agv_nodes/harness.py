@@ -280,6 +280,10 @@ class Harness:
                     for m in self.members:
                         if hasattr(m.core, 'on_frame'):
                             self._publish(m, m.core.on_frame(frame, now, camera=camera))
+        if out.get('sonar') is not None:  # hw/sonar (sensor_msgs/Range in the graph)
+            for m in self.members:
+                if hasattr(m.core, 'on_sonar'):
+                    self._publish(m, m.core.on_sonar(out['sonar'], now))
         if now + 1e-12 >= self._timers_due:
             self._timers_due = fire_timers(self.members, self._publish, now)
         return out

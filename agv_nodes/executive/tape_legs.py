@@ -71,6 +71,7 @@ class TapeLegs:
         self.decisions: dict[int, str] = {}  # junction number -> the decision offered for it
         self.phase = ''  # driving | stopping
         self._still: tuple[int, float] | None = None  # (distance, since) while stopping
+        self.obstacle = False  # route following holds the leg for an obstacle (its sonar)
         self.log: list[str] = []
 
     def start(self, task: dict[str, Any], kind: str, length_dm: int,
@@ -120,6 +121,11 @@ class TapeLegs:
         if status.get('leg') != self.leg:
             return LegOutcome('running'), route  # route following has not begun this leg yet
         state, distance = status.get('state'), int(status.get('distance', 0))
+        if (state == 'obstacle') != self.obstacle:  # the sonar's stop and resume, reported
+            self.obstacle = state == 'obstacle'
+            self.log.append(f'leg {self.leg}: ' + (
+                f'Obstacle detected after {distance / 100:.2f} m: stopped until it is removed'
+                if self.obstacle else f'obstacle removed after {distance / 100:.2f} m: going on'))
         if state == 'no_branch':
             return LegOutcome('failed', 'no_branch', self.no_branch(status)), route
         if state == 'lost':

@@ -101,6 +101,7 @@ class CameraMode:
         self._rows = len(params.image.rows) or 64
         self.reckoning: Conic | None = None  # a dead-reckoning leg's curve, odometry frame
         self._reckoned_at: float | None = None  # sim time it last steered
+        self.held = False  # held at rest by the sonar (obstacle_stop.py)
 
     # -- inputs -----------------------------------------------------------------------------
     def command(self, fields: dict[str, Any], now: float, entering: bool) -> bool:
@@ -261,6 +262,16 @@ class CameraMode:
         self.wheels = self.law.wheel_speeds(
             self._cruise(self._parking(self.p.dead_reckoning.speed), now), theta)
 
+    def hold(self, on: bool) -> None:
+        """Hold a running leg at rest for the sonar, motor off; released, set off afresh.
+
+        Called each pass of the loop before the steering_command goes out, so no command
+        drives the wheels while `on`; the set-off ramp starts where the hold ends.
+        """
+        self.held = on and self.state not in STOPS and self.state != 'idle'
+        if self.held:
+            self.motor_on, self.wheels, self._set_off_at = False, (0.0, 0.0), None
+
     def drive_fault(self, now: float) -> None:
         """Stop for a drive fault the safety supervisor found (Rajagopalan 1991, 6.3.11)."""
         self._stop('drive_fault', now)
@@ -352,6 +363,8 @@ class CameraMode:
     # -- outputs ----------------------------------------------------------------------------
     def reported_state(self) -> str:
         """Return the state route_status carries: `sign` while on a sign's tape."""
+        if self.held:
+            return 'obstacle'
         if self.in_sign and self.state == 'following':
             return 'sign'
         return 'idle' if self.state == 'parked' else self.state  # motors off at the length

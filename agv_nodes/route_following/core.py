@@ -19,6 +19,9 @@ wheel odometry, frames and its loop to CameraMode (agv_nodes.route_following.cam
 which says what the wheels do and what status reports.
 DriveSafety (drive_safety.py) checks the drive (Rajagopalan 1991, 6.3.11): on a fault camera
 mode stops, motor off, and route_status names it (`drive_fault`).
+ObstacleStop (obstacle_stop.py) reads the front sonar (6.3.11): an obstacle holds camera mode
+at rest, motor off (state obstacle) until the way is clear; a sonar gone silent is the drive
+fault sonar_silent.
 Manual mode (route_command mode manual, App. F.4) drives the wheels from cmd_vel
 (manual_drive.py, the same fault stopping it); calibration mode (App. F.3) reads a camera at
 rest against the known tape (calibration.py).
@@ -33,6 +36,7 @@ from agv_nodes.route_following.calibration import Calibration
 from agv_nodes.route_following.camera_mode import CameraMode
 from agv_nodes.route_following.drive_safety import DriveSafety
 from agv_nodes.route_following.manual_drive import ManualDrive
+from agv_nodes.route_following.obstacle_stop import ObstacleStop
 from agv_nodes.route_following.settings import RouteParams
 from agv_nodes.route_following.track_guidance import TrackGuidance
 from agv_nodes.subsystem import SubsystemCore
@@ -92,6 +96,7 @@ class RouteCore(SubsystemCore):
         self._next_status, self._last_state = 0.0, ''
         self.cam = CameraMode(self.p, self.notes)
         self.safety = DriveSafety(self.p.drive_safety)
+        self.obstacle = ObstacleStop(self.p.obstacle, self.notes)
         self.manual = ManualDrive(self.p, self.notes)
         self.calibration = Calibration(self.p, self.notes)
 
@@ -157,6 +162,7 @@ class RouteCore(SubsystemCore):
         mode = 'camera' if fields['mode'] == 'dead_reckoning' else fields['mode']
         began = mode == 'camera' and self.cam.command(fields, now, self.mode != 'camera')
         if began or (mode != 'camera' and mode != self.mode):
+            self.obstacle.clear()
             self.safety.clear()  # a new leg, or another mode: the software reloaded
         new_srm = mode == 'srm' and fields['manoeuvre'] != self.manoeuvre
         self.manoeuvre = fields['manoeuvre']
@@ -273,6 +279,22 @@ class RouteCore(SubsystemCore):
         self.steer = max(-w.max_steer, min(w.max_steer, steer))
 
     # -- camera ---------------------------------------------------------------------------
+    def on_sonar(self, reading: float, now: float) -> dict | None:
+        """Take a front sonar reading (m; +inf no echo, -inf too near to time)."""
+        self.obstacle.reading(reading, now)
+        return None  # a stop goes out with the loop's steering_command
+
+    @property
+    def drive_fault(self) -> str:
+        """Return the fault camera mode stops on: the supervisor's, or a silent sonar."""
+        fault = self.safety.fault
+        return 'sonar_silent' if fault == 'none' and self.obstacle.holding \
+            and self.obstacle.silent else fault
+
+    def health(self) -> tuple[int, str]:
+        """Return the sonar's verdict for /diagnostics (the camera truck's)."""
+        return self.obstacle.health() if self.p.vehicle == 'concic2' else (0, '')
+
     def on_frame(self, frame: np.ndarray, now: float, camera: str = 'front') -> dict | None:
         """Take a binary frame (1 = dark tape) from the front or the rear camera."""
         if self.mode == 'camera':
@@ -296,13 +318,16 @@ class RouteCore(SubsystemCore):
             self.state, self.steer = 'lost', 0.0  # the pickup itself has gone quiet
         if self.state == 'wire_found' and self.mode == 'follow_wire':
             self.state = 'following'
+        self.obstacle.check(now)
         if self.mode == 'camera':
             self.cam.tick(now)
         return self._outputs(now)
 
     def _outputs(self, now: float, force_status: bool = False) -> dict:
-        if self.mode == 'camera' and self.safety.fault != 'none':
+        if self.mode == 'camera' and self.drive_fault != 'none':
             self.cam.drive_fault(now)
+        if self.mode == 'camera':  # the sonar holds the wheels at rest while it sees one
+            self.cam.hold(self.obstacle.holding)
         self.manual.tick(now, self.safety.fault)  # the watchdog, and a fault stops it at once
         out: dict[str, dict[str, Any]] = {'steering_command': self.steering_command()}
         state = self.cam.reported_state() if self.mode == 'camera' else self.state
@@ -332,7 +357,7 @@ class RouteCore(SubsystemCore):
         """Return the route_status record."""
         if self.mode == 'camera':
             return {**self.cam.status(), 'manoeuvre': self.manoeuvre,
-                    'drive_fault': self.safety.fault}
+                    'drive_fault': self.drive_fault}
         if self.mode == 'calibration' and (result := self.calibration.result) and result.normal:
             # App. F.3's display: the track's position (mm) and orientation (deg) measured
             self.lateral, self.steer = result.eps_d, result.eps_theta
@@ -343,5 +368,5 @@ class RouteCore(SubsystemCore):
             'signal': int(max(0, min(255, round(self.signal * 100)))),
             'steering': int(max(-128, min(127, round(math.degrees(self.steer))))),
             'sign_left': 0, 'sign_right': 0, 'sign_straight': 0, 'manoeuvre': self.manoeuvre,
-            **self.cam.leg_fields(), 'drive_fault': self.safety.fault,
+            **self.cam.leg_fields(), 'drive_fault': self.drive_fault,
         }

@@ -26,6 +26,7 @@ from visualization_msgs.msg import Marker
 from agv_nodes import qos
 from agv_nodes.core_node import CoreNode, spin_main
 from agv_nodes.route_following.core import RouteCore
+from agv_nodes.route_following.sonar_input import SonarSubscription
 from agv_nodes.stop_switches import FrameSubscription
 from agv_nodes.track_geometry.osculating import Circle
 
@@ -121,6 +122,10 @@ class RouteFollowingNode(CoreNode):
         for camera in ('front', 'rear'):  # from the named writer only (world, or a driver)
             frames = FrameSubscription(self, camera, qos.STREAM_READER, self._frame(camera))
             self.input_diagnostics.add(frames.name, frames)
+        if self.core.p.vehicle == 'concic2':  # the front sonar (obstacle_stop.py)
+            sonar = SonarSubscription(self, lambda m: self.publish(self.core.on_sonar(
+                m, self.now_s())))
+            self.input_diagnostics.add(sonar.name, sonar)
         if self.core.p.vehicle == 'concic2':  # the camera truck identifies its track
             self.input_diagnostics.add('cmd_vel', CmdVelInput(self))
             # Pictures that change as the truck goes, as the world's pose is.

@@ -52,6 +52,11 @@ class DualCameraParams:
 
 
 @settings_class
+class ObstacleStopParams:
+    """The ultrasonic obstacle stop (Rajagopalan 1991, 6.3.11; obstacle_stop.py)."""
+
+
+@settings_class
 class DriveSafetyParams:
     """The software checks of the safety supervisor (Rajagopalan 1991, 6.3.11; drive_safety.py)."""
 

@@ -2,7 +2,8 @@
 
 Stepped once per marker-sensor sample (340 Hz by default, Baker 1983, 5.3.5.2). Inputs are the
 hardware-side records (traction_drive, steering_command, conveyor_command) and the radio stop;
-outputs are the hardware-side records due at this step, camera frames, and ground-truth events.
+outputs are the hardware-side records due at this step, camera frames, the CONCIC-II's sonar
+readings (agv_nodes/world/sonar.py) and ground-truth events.
 The CONCIC-II's amplifiers are powered by its safety PAL (agv_nodes/world/safety_pal.py).
 Everything is seeded: the same seed and inputs give the same samples.
 """
@@ -24,8 +25,10 @@ from agv_nodes.world.ground_truth import GroundTruth
 from agv_nodes.world.guide_wire import GuideWirePickup
 from agv_nodes.world.layout import Layout, Marker
 from agv_nodes.world.marker_sensor import MarkerSensorModel, lens_position
+from agv_nodes.world.obstacles import Obstacles
 from agv_nodes.world.safety_pal import SafetyPal, encoder_reading
 from agv_nodes.world.settings import WorldParams
+from agv_nodes.world.sonar import Sonar
 from agv_nodes.world.vehicles import Concic2, Electruk
 
 
@@ -102,6 +105,11 @@ class WorldCore(GroundTruth):
         self._cam_every = _Every(self.p.camera_rate, self.p.sample_rate)
         self._drive_every = _Every(self.p.drive_status_rate, self.p.sample_rate)
         self.pal = SafetyPal(self.p.concic2) if isinstance(self.vehicle, Concic2) else None
+        # The floor's obstacles (either truck's); the CONCIC-II's front sonar sees them.
+        self.obstacles = Obstacles(list(layout.obstacles))
+        self.sonar = Sonar(self.p.sonar, self.p.seed) if isinstance(self.vehicle, Concic2) \
+            else None
+        self._sonar_every = _Every(self.p.sonar.rate, self.p.sample_rate)
         self.radio_stop = False
         self.wire_powered = True  # the guide-wire generator (a fault test switches it off)
         self._last_watchdog: int | None = None
@@ -232,9 +240,14 @@ class WorldCore(GroundTruth):
         if self.camera is not None and sample >= (every := self._cam_every).next \
                 and every.due(sample):
             frames = self._frames()
+        sonar = None  # hw/sonar: a reading (m) when a ping is due
+        if self.sonar is not None and sample >= (every := self._sonar_every).next \
+                and every.due(sample) and self.p.sonar.enabled:
+            s = vehicle.state
+            sonar = self.sonar.ping(s.x, s.y, s.heading, self.obstacles)
         self._detect_stop()
         self._detect_drive_off()
-        return {'records': records, 'frames': frames, 'events': self.events}
+        return {'records': records, 'frames': frames, 'events': self.events, 'sonar': sonar}
 
     def _apply_safety(self, now: float) -> None:
         v = self.vehicle

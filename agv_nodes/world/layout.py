@@ -109,6 +109,8 @@ class Layout:
     # wire by an SRM at that angle (deg, + = left) and so take another way (`srm at N angle
     # A`); unlike the route map's, a truck not told to stays on its wire.
     junctions: tuple[str, ...] = ()
+    # Obstacles standing from the start (agv_nodes/world/obstacles.py): the sonar sees them.
+    obstacles: list[Any] = field(default_factory=list)
 
 
 _MARKER_KEYS = {'kind', 'identity', 'path', 'at', 'station', 'conveyor', 'standoff', 'height',
@@ -116,7 +118,7 @@ _MARKER_KEYS = {'kind', 'identity', 'path', 'at', 'station', 'conveyor', 'stando
 _NAME = re.compile(r'[A-Za-z][A-Za-z0-9_]{0,15}')
 _TOP_KEYS = {'layout', 'description', 'vehicle', 'kind', 'wires', 'tapes', 'markers',
              'stations', 'start', 'sensor', 'rig', 'route_limit', 'step', 'signs', 'srm_map',
-             'camera_law', 'parking', 'junctions'}
+             'camera_law', 'parking', 'junctions', 'obstacles'}
 
 
 def load_layout(file: Path | str) -> Layout:
@@ -194,10 +196,28 @@ def load_layout(file: Path | str) -> Layout:
         description=' '.join(str(doc.get('description', '')).split()), signs=signs,
         srm_map=srm_map, camera_law=camera_law,
         parking=_parking(doc.get('parking') or [], file, markers),
-        junctions=_junctions(doc.get('junctions') or [], file, markers, srm_map))
+        junctions=_junctions(doc.get('junctions') or [], file, markers, srm_map),
+        obstacles=_obstacles(doc.get('obstacles') or [], file))
     if kind == 'rig':
         _check_rig(layout, file)
     return layout
+
+
+def _obstacles(specs: Any, file: Path) -> list[Any]:
+    """Return the layout's obstacles, or LayoutError naming the file, key and value."""
+    from agv_nodes.world.obstacles import ObstacleError, obstacle
+
+    if not isinstance(specs, list):
+        raise LayoutError(f'{file}: key obstacles: {specs!r} must be a list')
+    out = []
+    for i, spec in enumerate(specs):
+        try:
+            out.append(obstacle(spec, f'obstacles[{i}]'))
+        except ObstacleError as exc:
+            raise LayoutError(f'{file}: {exc}') from None
+    if len({o.name for o in out}) != len(out):
+        raise LayoutError(f'{file}: key obstacles: a name used twice')
+    return out
 
 
 def _load_marker(spec: Any, i: int, file: Path, paths: dict[str, Path2D],

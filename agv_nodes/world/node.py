@@ -11,15 +11,22 @@ for the graph, pacing, stepping).
 With `trucks` set the world is a floor of several trucks, each a world node of its own in its
 truck's namespace, stepped together on one clock (agv_nodes/world/floor.py).
 
-Faults switched at run time: `sensor.ambient`, `wire_powered` and the CONCIC-II's `concic2.estop`,
-`concic2.controller_fault`, `concic2.encoder_fault`, `concic2.battery_voltage`; the service
+Faults switched at run time: `sensor.ambient`, `wire_powered`, `sonar.enabled` and the
+CONCIC-II's `concic2.estop`, `concic2.controller_fault`, `concic2.encoder_fault`,
+`concic2.battery_voltage`; the service
 `~/hardware_reset` (std_srvs/Trigger) presses the CONCIC-II's reset, which clears the safety
 PAL's latches (Rajagopalan 1991, 6.3.11).
+
+The CONCIC-II's front sonar pings on hw/sonar (sensor_msgs/Range, agv_nodes/world/sonar.py);
+world/obstacles (std_msgs/String, one JSON command a message) places and removes obstacles on the
+floor while it runs (agv_nodes/world/obstacles.py), a refused command logged in one line and
+counted in /diagnostics.
 """
 
 from __future__ import annotations
 
 from dataclasses import replace
+import math
 import sys
 from typing import Any
 
@@ -29,8 +36,8 @@ from nav_msgs.msg import Path as PathMsg
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import Image
-from std_msgs.msg import Bool
+from sensor_msgs.msg import Image, Range
+from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
@@ -54,6 +61,7 @@ from agv_nodes.world.floor import Control, Floor, Place, set_down
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
 from agv_nodes.world.layout_check import enforce
 from agv_nodes.world.loop import WorldLoop
+from agv_nodes.world.obstacles import ObstacleCommands
 from agv_nodes.world.pacing import GraphPacer
 from agv_nodes.world.peers import LinkWatch, parse_link_entry
 from agv_nodes.world.settings import WorldNodeSettings, WorldParams
@@ -135,6 +143,11 @@ class WorldNode(WorldLoop, Node):
         self.camera_pubs = {name: self.create_publisher(Image, f'hw/camera/{name}',
                                                         qos.STREAM_WRITER)
                             for name in ('front', 'rear')}
+        self.sonar_pub = self.create_publisher(Range, 'hw/sonar', qos.STREAM_WRITER) \
+            if self.core.sonar is not None else None
+        self.obstacle_commands = ObstacleCommands(self.core.obstacles)
+        self.input_diagnostics.add('obstacles', self.obstacle_commands)
+        self.create_subscription(String, 'world/obstacles', self._obstacle_command, qos.EVENTS)
         route, markers = layout_messages(self.layout)
         self.create_publisher(PathMsg, 'world/route', qos.LATCHED).publish(route)
         self.create_publisher(MarkerArray, 'world/markers', qos.LATCHED).publish(markers)
@@ -221,12 +234,20 @@ class WorldNode(WorldLoop, Node):
                     core.sensor.p.ambient = float(param.value)
                 elif param.name == 'wire_powered':
                     core.wire_powered = bool(param.value)
+                elif param.name == 'sonar.enabled':  # silenced: hw/sonar stops
+                    core.p.sonar.enabled = bool(param.value)
                 elif param.name == 'clock_offset':  # /clock jumps by the change
                     self.s.clock_offset = float(param.value)
                 elif param.name in concic2:
                     setattr(core.p.concic2, param.name.split('.', 1)[1],
                             convert(concic2[param.name], param.value))
         return SetParametersResult(successful=True)
+
+    def _obstacle_command(self, msg: String) -> None:
+        self._work += 1
+        applied, line = self.obstacle_commands.take(msg.data, round(self.time * 1e9))
+        log = self.get_logger()
+        (log.info if applied else log.warning)(f'{line} at {self.time:.3f} s')
 
     def _radio_stop(self, on: bool) -> None:
         self._work += 1
@@ -292,6 +313,14 @@ class WorldNode(WorldLoop, Node):
             self._bumper = self.core.bumper
             self.bumper_pub.publish(Bool(data=self._bumper))
 
+    def _range(self, reading: float) -> Range:
+        """hw/sonar: one ping as REP 117 has it (+inf: no echo, -inf: nearer than min_range)."""
+        p = self.core.p.sonar
+        msg = Range(radiation_type=Range.ULTRASOUND, field_of_view=math.radians(p.beam),
+                    min_range=p.min_range, max_range=p.max_range, range=reading)
+        msg.header.stamp, msg.header.frame_id = self.stamp(), 'sonar_front'
+        return msg
+
     def publish_step(self, out: dict) -> None:
         """Publish what one core step produced (not /clock: the floor's loop does)."""
         for name, fields in out['records'].items():
@@ -301,6 +330,8 @@ class WorldNode(WorldLoop, Node):
         stamp = self.stamp() if out['frames'] or pose_due else None
         for name, frame in out['frames'].items():
             self.camera_pubs[name].publish(camera_image(frame, name, stamp))
+        if out.get('sonar') is not None and self.sonar_pub is not None:
+            self.sonar_pub.publish(self._range(out['sonar']))
         if pose_due:
             x, y, h, _v = self.core.pose()
             self.pose_pub.publish(pose_message(x, y, h, stamp))

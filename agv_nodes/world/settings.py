@@ -35,6 +35,11 @@ class CameraParams:
 
 
 @settings_class
+class SonarParams:
+    """The CONCIC-II's front ultrasonic sensor (Rajagopalan 1991, 6.3.11; sonar.py)."""
+
+
+@settings_class
 class WorldParams:
     """The simulated hardware: rates, the trip relay, conveyors, and each device's model."""
 
