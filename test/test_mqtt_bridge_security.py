@@ -14,6 +14,7 @@ import json
 from pathlib import Path
 import queue
 import subprocess
+import time
 
 from mqtt_broker import TestCa, require_mosquitto
 import pytest
@@ -109,3 +110,45 @@ def test_bad_security_parameters_stop_the_bridge_with_one_line(secured, monkeypa
     (line,) = run.stderr.strip().splitlines()
     assert line.startswith('vda5050_bridge: ') and words.format(ca=ca.ca_file) in line, line
     assert PASSWORD not in run.stdout + run.stderr
+
+
+DISPATCHER = str(Path(PYTHON).parent / 'dispatcher')
+
+
+@pytest.mark.timeout(90)
+def test_the_dispatcher_connects_to_a_tls_broker_with_the_same_parameters(secured):
+    """The fleet's master takes the same five parameters; mosquitto's log shows it accepted."""
+    broker, ca, directory = secured
+    pair = ca.issue('dispatcher', server=False)
+    password_file = directory / 'master.password'
+    password_file.write_text('master-secret\n')
+    args = [DISPATCHER, '--ros-args', '-p', f'mqtt_url:={broker.url}', '-p', 'trucks:=[agv1]',
+            '-p', f'tls_ca:={ca.ca_file}', '-p', f'tls_cert:={pair.cert}',
+            '-p', f'tls_key:={pair.key}', '-p', 'username:=master',
+            '-p', f'password_file:={password_file}']
+    dispatcher = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                  text=True)
+    accepted = "as agv_nodes_dispatcher (p2, c1, k30, u'master')"
+    try:
+        deadline = time.monotonic() + 60.0
+        while accepted not in broker.log_path.read_text():
+            assert dispatcher.poll() is None, dispatcher.communicate(timeout=10)[0][-2000:]
+            assert time.monotonic() < deadline, 'mosquitto did not accept the dispatcher'
+            time.sleep(0.1)
+    finally:
+        dispatcher.terminate()
+        dispatcher.communicate(timeout=20)
+
+
+@pytest.mark.timeout(60)
+def test_a_bad_security_parameter_stops_the_dispatcher_with_one_line(secured):
+    """TLS files for a plain URL: exit status 2 and one line naming the parameter."""
+    broker, ca, _ = secured
+    url = broker.url.replace('mqtts://', 'mqtt://')
+    run = subprocess.run([DISPATCHER, '--ros-args', '-p', f'mqtt_url:={url}', '-p',
+                          'trucks:=[agv1]', '-p', f'tls_ca:={ca.ca_file}'],
+                         capture_output=True, text=True, timeout=50)
+    assert run.returncode == 2, run.stdout + run.stderr
+    (line,) = run.stderr.strip().splitlines()
+    assert line.startswith(f"dispatcher: parameter 'tls_ca' = '{ca.ca_file}': TLS files "
+                           'apply to mqtts:// only'), line

@@ -345,6 +345,8 @@ def test_broker_url_explicit_beats_environment_beats_none(monkeypatch):
     assert broker_url(None) == 'mqtt://broker.local:1883'
     assert broker_url('mqtt://127.0.0.1:1884') == 'mqtt://127.0.0.1:1884'
     assert broker_url('mqtt://[::1]:1885') == 'mqtt://[::1]:1885'
+    assert broker_url('mqtts://broker.plant') == 'mqtts://broker.plant:8883'
+    assert broker_url('MQTTS://127.0.0.1:18883') == 'mqtts://127.0.0.1:18883'
 
 
 BAD_URLS = [

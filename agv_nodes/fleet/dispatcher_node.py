@@ -43,7 +43,11 @@ from agv_nodes.node_process import spin_main
 from agv_nodes.params import declare, parameter_error, refuse_unknown
 from agv_nodes.ros_ports import ERROR, OK, WARN, diagnostic_status
 from agv_nodes.settings import SettingError
-from agv_nodes.vda5050.link_parameters import broker_parameter, graph_parameter
+from agv_nodes.vda5050.link_parameters import (
+    broker_parameter,
+    graph_parameter,
+    security_parameters,
+)
 
 # A query, not a transport: answered with one line of counts and changing nothing, so a program
 # that starts with the node asks it until answered, which proves both directions of the topics
@@ -73,7 +77,8 @@ class DispatcherNode(Node):
                                 parking=parking, positions=positions,
                                 reroute_after=s.reroute_after)
         self.link = MqttLink(url, f'{s.manufacturer}_dispatcher', reconnect_min_s=1.0,
-                             reconnect_max_s=RECONNECT_MAX)
+                             reconnect_max_s=RECONNECT_MAX,
+                             security=security_parameters(self, s, url))
         self.master = MqttMaster(dispatcher, self.link)
         self._report_pub = self.create_publisher(String, 'fleet/report', qos.EVENTS)
         self.create_subscription(String, 'fleet/transport', self._transport, qos.EVENTS)

@@ -37,7 +37,7 @@ from typing import Any
 
 from amqtt.broker import Broker
 
-from agv_nodes.mqtt.client import ENV_URL, format_mqtt_url, parse_mqtt_url
+from agv_nodes.mqtt.client import ENV_URL, format_mqtt_url, parse_mqtt_url, uses_tls
 from agv_nodes.mqtt.mosquitto import Mosquitto, find_mosquitto
 
 HOST = '127.0.0.1'
@@ -78,7 +78,7 @@ def broker_url(explicit: str | None) -> str | None:
     """Return the URL of the broker to use, or None to start the embedded one.
 
     The explicit `--mqtt-url` value wins over the AGV_MQTT_URL environment variable (an empty
-    variable counts as unset). The URL comes back canonical (mqtt://host:port); a bad one raises
+    variable counts as unset). The URL comes back canonical (mqtt[s]://host:port); a bad one raises
     ValueError in one line naming where it came from, the value and what is wrong.
     """
     if explicit is not None:
@@ -91,7 +91,7 @@ def broker_url(explicit: str | None) -> str | None:
         host, port = parse_mqtt_url(value)
     except ValueError as exc:
         raise ValueError(f'{source} {value!r}: {exc}') from None
-    return format_mqtt_url(host, port)
+    return format_mqtt_url(host, port, tls=uses_tls(value))
 
 
 def local_broker(port: int = 0, host: str = HOST,
