@@ -1,11 +1,11 @@
 """The dispatcher as VDA 5050 master over MQTT (agv_nodes.fleet.mqtt_master), without ROS.
 
-A real broker (the embedded amqtt), the MqttMaster on a link of its own, and trucks played by
-the test: each is a bridge core (agv_nodes.vda5050.bridge.BridgeCore, what the vda5050_bridge
-node runs) on an MQTT link of its own with the bridge's last will, but with no truck behind it:
-it answers orders and instant actions with the states a bridge sends, and never drives. A spy
-link hears every order and instant action the master publishes; each is checked against the
-standard's JSON schema (test/data/vda5050_2.1.0), apart from the package's models.
+A real broker (mosquitto, test/mqtt_broker.py), the MqttMaster on a link of its own, and trucks
+played by the test: each is a bridge core (agv_nodes.vda5050.bridge.BridgeCore, what the
+vda5050_bridge node runs) on an MQTT link of its own with the bridge's last will, but with no
+truck behind it: it answers orders and instant actions with the states a bridge sends, and never
+drives. A spy link hears every order and instant action the master publishes; each is checked
+against the standard's JSON schema (test/data/vda5050_2.1.0), apart from the package's models.
 """
 
 from __future__ import annotations
@@ -16,14 +16,15 @@ import queue
 import time
 
 from jsonschema.validators import validator_for
+from mqtt_broker import require_mosquitto
 import pytest
 from vda5050_master import SCHEMAS
 
 from agv_nodes.fleet.dispatcher import Dispatcher, TransportOrder
 from agv_nodes.fleet.mqtt_master import MqttMaster, TransportError, parse_transport
 from agv_nodes.fleet.track_graph import TrackGraph, track_graph
-from agv_nodes.mqtt.broker import EmbeddedBroker
 from agv_nodes.mqtt.client import LastWill, MqttLink
+from agv_nodes.mqtt.mosquitto import Mosquitto
 from agv_nodes.vda5050.bridge import BridgeCore, Outbox
 from agv_nodes.vda5050.codec import parse, to_json
 from agv_nodes.vda5050.connection import ConnectionState
@@ -42,8 +43,9 @@ def graph() -> TrackGraph:
 
 
 @pytest.fixture
-def broker() -> Iterator[EmbeddedBroker]:
-    with EmbeddedBroker() as running:
+def broker() -> Iterator[Mosquitto]:
+    require_mosquitto()
+    with Mosquitto() as running:
         yield running
 
 
