@@ -70,7 +70,7 @@ def test_calibration_reads_the_tape_as_the_geometry_places_it(y, heading):
     route, script, world = calibrate(y, heading)
     r = route.calibration.result
     assert (r.camera, r.frames, r.normal, r.left_out) == ('front', FRAMES, FRAMES, {})
-    assert r.scale_across == pytest.approx(0.25 / 128) and r.scale_along == pytest.approx(0.05 / 64)
+    assert (r.scale_across, r.scale_along) == pytest.approx((0.25 / 128, 0.05 / 64))
     # the window centre's distance from the tape, measured across the window (+ = tape left)
     window_y = y + L_C * math.sin(heading)
     assert r.eps_d == pytest.approx(-window_y / math.cos(heading), abs=PIXEL)
