@@ -167,15 +167,24 @@ def test_the_camera_truck_supervises_route_following_and_communications_only() -
     assert ex.report['subsystem'] == 'route' and ex.route['mode'] == 'idle'
 
 
-def test_the_reverse_leg_goes_straight_on_whatever_the_forward_script() -> None:
+def test_the_reverse_leg_numbers_its_junctions_on_from_the_forward_legs() -> None:
+    """The script numbers the task's junctions as its legs meet them (App. F.7's one file)."""
     legs = TapeLegs(seed=1, rest_time=0.3)
-    task = parse_task('tape junctions 1 left, 2 right otherwise random then reverse').record()
+    task = parse_task('tape junctions 1 left, 2 right, 3 straight wait 4 then reverse').record()
+    route = legs.start(task, 'tape', 0, {})
+    assert route['junction'] == 'left'
+    _, route = legs.update(status(legs.leg, junctions=1), route, 1.0)
+    assert (route['junction'], route['junction_number']) == ('right', 2)
+    route = legs.start(task, 'tape_reverse', 0, {})  # the forward leg met one junction
+    assert (route['direction'], route['junction'], route['junction_number']) == \
+        ('reverse', 'right', 1)
+    _, route = legs.update(status(legs.leg, junctions=1), route, 2.0)
+    assert (route['junction'], route['junction_wait'], route['junction_number']) == \
+        ('straight', 4, 2)
+    _, route = legs.update(status(legs.leg, junctions=2), route, 3.0)
+    assert (route['junction'], route['junction_wait']) == ('straight', 0)  # no 4th line
+    # A new task numbers from 1 again.
     assert legs.start(task, 'tape', 0, {})['junction'] == 'left'
-    route = legs.start(task, 'tape_reverse', 0, {})
-    assert (route['direction'], route['junction']) == ('reverse', 'straight')
-    for k in range(1, 6):
-        _, route = legs.update(status(legs.leg, junctions=k), route, float(k))
-        assert route['junction'] == 'straight'
 
 
 @pytest.mark.timeout(120)

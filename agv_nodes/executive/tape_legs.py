@@ -5,14 +5,18 @@ tape from where the truck stands and, with `then reverse`, a second leg back alo
 with the rear camera leading. Each leg gets a new `leg` counter value in route_command, so route
 following counts its junctions and distance from 0.
 
-Junctions (App. F.6-F.7): route following counts road signs as it sights them; while it has met
-k, the executive offers the decision for junction k + 1 (the script's line for it, or the
-task's `unscripted` choice), numbered, with the line's wait. A random decision is drawn as the
-thesis drew it: an even number turns, an odd one goes straight; a turn draws again, even left
-and odd right (the thesis seeded with the time of day; here `junction_seed`, so runs repeat).
-The script belongs to the forward leg; a reverse leg goes straight on at every junction, back
-the way it came. The task's camera_law goes with the forward leg (the feedback law steers in
-reverse).
+Junctions (App. F.6-F.7): route following counts road signs as it sights them, from 0 on each
+leg; while it has met k, the executive offers the decision for junction k + 1 of the leg (the
+script's line for it, or the task's `unscripted` choice), numbered, with the line's wait. The
+script numbers the task's junctions in the order its legs meet them, as the thesis's script
+file numbered a run's (App. F.7, Fig. 6.32): the reverse leg's first junction is the one after
+the last the forward leg met (a task's four script lines then serve both legs, and one number
+means one junction). So a script applies in reverse too, left and right being those of the
+direction of travel; a junction neither the script nor `unscripted` decides goes straight on.
+A random decision is drawn as the thesis drew it: an even number turns, an odd one goes
+straight; a turn draws again, even left and odd right (the thesis seeded with the time of day;
+here `junction_seed`, so runs repeat). The task's camera_law goes with the forward leg (the
+feedback law steers in reverse).
 
 A reckon task is one dead-reckoning leg (App. F.9): route_command mode dead_reckoning with the
 task's trajectory; route following drives along it by odometry alone and the leg ends, as a tape
@@ -45,15 +49,19 @@ class LegOutcome:
     detail: str = ''
 
 
-def no_branch_detail(status: dict[str, Any], decision: str) -> str:
-    """Return what a no_branch was: the junction, the sign seen, its branches, the decision."""
+def no_branch_detail(status: dict[str, Any], decision: str, number: int | None = None) -> str:
+    """Return what a no_branch was: the junction, the sign seen, its branches, the decision.
+
+    `number`: the junction's number in the task's script (default: route_status's count).
+    """
     # Fig. 4.3's decoding, imported only on a failure: the executive otherwise runs without numpy.
     from agv_nodes.route_following.camera_guidance import sign_name
 
     flags = [int(status.get(f'sign_{way}', 0)) for way in ('left', 'right', 'straight')]
     offered = [way for way, flag in zip(('left', 'right', 'straight'), flags, strict=True)
                if flag] or ['none']
-    return (f'junction {status.get("junctions")}: sign {sign_name(*flags) or "unread"} seen, '
+    number = status.get('junctions') if number is None else number
+    return (f'junction {number}: sign {sign_name(*flags) or "unread"} seen, '
             f'offering {" and ".join(offered)}; the decision {decision} is not on it')
 
 
@@ -66,9 +74,11 @@ class TapeLegs:
         self.leg = 0  # the route_command leg counter (0 = none yet)
         self.task: dict[str, Any] = {}
         self.length_cm = 0  # 0 = to the tape's end
-        self.next_junction = 1
+        self.next_junction = 1  # of the leg (route following's count + 1)
+        self.before = 0  # junctions the task's earlier legs met: the script's numbers go on
+        self.met = 0  # junctions this leg has met (route_status)
         self.decision = ('straight', 0)
-        self.decisions: dict[int, str] = {}  # junction number -> the decision offered for it
+        self.decisions: dict[int, str] = {}  # the leg's junction -> the decision offered for it
         self.phase = ''  # driving | stopping
         self._still: tuple[int, float] | None = None  # (distance, since) while stopping
         self.obstacle = False  # route following holds the leg for an obstacle (its sonar)
@@ -78,20 +88,23 @@ class TapeLegs:
               route: dict[str, Any]) -> dict[str, Any]:
         """Begin a leg (tape, tape_reverse or reckon); return the route_command that starts it."""
         reverse = kind == 'tape_reverse'
-        # The script is the forward leg's: the way back takes every junction straight on, as
-        # it came (a task's four script lines cannot name both ways).
-        self.task = {} if reverse else task
+        # The reverse leg numbers its junctions on from the forward leg's (the module docstring).
+        self.before = self.before + self.met if reverse else 0
+        self.task, self.met = task, 0
         self.leg = (self.leg + 1) & 0xFF or 1
         self.length_cm, self.next_junction, self.phase = length_dm * 10, 1, 'driving'
         self._still, self.decisions = None, {}
         self.decision = self._decide(1)
-        route = {**route, 'camera_law': self.task.get('camera_law', 'default'),
+        route = {**route, 'camera_law': 'default' if reverse else task.get('camera_law',
+                                                                            'default'),
                  'trajectory': int(task.get('trajectory', 0)) if kind == 'reckon' else 0,
                  'length': length_dm}
         return self._command(route, 'dead_reckoning' if kind == 'reckon' else 'camera',
                              'reverse' if reverse else 'forward')
 
-    def _decide(self, n: int) -> tuple[str, int]:
+    def _decide(self, k: int) -> tuple[str, int]:
+        """Return the decision and wait for the leg's junction k (the task's before + k)."""
+        n = self.before + k
         if n <= SCRIPT_JUNCTIONS:
             decision = self.task.get(f'junction_{n}', 'straight')
             wait = self.task.get(f'wait_{n}', 0)
@@ -102,7 +115,7 @@ class TapeLegs:
             decision = ('left' if self.rng.randrange(1 << 15) % 2 == 0 else 'right') \
                 if turn else 'straight'
             self.log.append(f'junction {n}: random choice {decision}')
-        self.decisions[n] = decision
+        self.decisions[k] = decision
         return decision, int(wait)
 
     def _command(self, route: dict[str, Any], mode: str, direction: str) -> dict[str, Any]:
@@ -113,7 +126,8 @@ class TapeLegs:
     def no_branch(self, status: dict[str, Any]) -> str:
         """Return a no_branch's detail: the junction, the sign seen, its branches, the decision."""
         met = int(status.get('junctions', 0))
-        return no_branch_detail(status, self.decisions.get(met, self.decision[0]))
+        return no_branch_detail(status, self.decisions.get(met, self.decision[0]),
+                                self.before + met)
 
     def update(self, status: dict[str, Any], route: dict[str, Any],
                now: float) -> tuple[LegOutcome, dict[str, Any]]:
@@ -130,10 +144,10 @@ class TapeLegs:
             return LegOutcome('failed', 'no_branch', self.no_branch(status)), route
         if state == 'lost':
             return LegOutcome('failed', 'lost_track', 'a junction turn did not finish'), route
+        met = self.met = max(self.met, int(status.get('junctions', 0)))
         if self.phase == 'driving':
-            met = int(status.get('junctions', 0))
             if met >= self.next_junction:
-                self.log.append(f'junction {met} passed ({self.decision[0]})')
+                self.log.append(f'junction {self.before + met} met ({self.decision[0]})')
                 self.next_junction = met + 1
                 self.decision = self._decide(self.next_junction)
                 route = self._command(route, route['mode'], route['direction'])
