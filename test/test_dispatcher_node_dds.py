@@ -1,6 +1,6 @@
 """The dispatcher node in its own process: transports over DDS, the trucks over MQTT.
 
-Real parts: the `dispatcher` console script (rclpy, Fast DDS), the embedded MQTT broker, and a
+Real parts: the `dispatcher` console script (rclpy, Fast DDS), mosquitto, and a
 truck played by the test as its bridge answers (test_dispatcher_mqtt.PlayedTruck). The test's
 own node writes `fleet/transport` and reads `fleet/report` and /diagnostics.
 
@@ -39,13 +39,13 @@ def test_transports_over_dds_are_answered_assigned_and_sent_to_the_truck(tmp_pat
 
     from agv_nodes import qos
     from agv_nodes.fleet.track_graph import track_graph
-    from agv_nodes.mqtt.broker import EmbeddedBroker
+    from agv_nodes.mqtt.mosquitto import Mosquitto
     from agv_nodes.vda5050.codec import parse
     from agv_nodes.vda5050.order import Order
     from agv_nodes.world.layout import layout_path, load_layout
 
     graph = track_graph(load_layout(layout_path('demo_1983')))
-    broker = EmbeddedBroker()
+    broker = Mosquitto()
     url = broker.start()
     log = open(tmp_path / 'dispatcher.log', 'w+')  # noqa: SIM115 - read at the end
     proc = subprocess.Popen(

@@ -118,10 +118,12 @@ def test_a_client_certificate_from_another_ca_is_refused(broker, links, good, tm
                          ids=['bad password', 'no credentials', 'no password', 'unknown user'])
 def test_bad_credentials_are_refused(broker, links, good, username, password):
     """Mosquitto answers CONNECT with "not authorised"; connect() says so in one line."""
-    message = _refusal(lambda: links(broker.url, 'agv1', LinkSecurity(
+    link = links(broker.url, 'agv1', LinkSecurity(
         ca_file=good.ca_file, cert_file=good.cert_file, key_file=good.key_file,
-        username=username, password=password)))
+        username=username, password=password))
+    message = _refusal(lambda: link)
     assert message == f"MQTT broker {broker.url} refused client 'agv1': Not authorized"
+    assert link.stats().last_failure == 'Not authorized'  # what /diagnostics shows
 
 
 def test_the_password_reaches_no_log_line_and_no_repr(broker, links, good, caplog):

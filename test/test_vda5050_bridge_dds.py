@@ -1,6 +1,6 @@
 """A VDA 5050 master drives the 1983 truck through its bridge: MQTT one side, DDS the other.
 
-Real parts end to end: the embedded MQTT broker, the truck's whole graph over DDS (one process
+Real parts end to end: mosquitto, the truck's whole graph over DDS (one process
 per node, the world on demo_1983), the vda5050_bridge node in its own process, and a master
 control written apart from the bridge (test/vda5050_master.py) that checks every message the
 truck sends against the standard's JSON schema. The master sends bad orders, an order with a
@@ -39,9 +39,9 @@ def _action(state: dict, action_id: str) -> str | None:
 
 @pytest.mark.timeout(300)
 def test_a_master_drives_the_truck_through_orders_an_update_a_cancel_and_bad_input(tmp_path):
-    from agv_nodes.mqtt.broker import EmbeddedBroker
+    from agv_nodes.mqtt.mosquitto import Mosquitto
 
-    broker = EmbeddedBroker()
+    broker = Mosquitto()
     url = broker.start()
     g = GraphProbe(tmp_path / 'logs', layout='demo_1983')
     bridge = subprocess.Popen(
@@ -135,9 +135,9 @@ def test_broker_lost_mid_order_the_truck_ends_its_base_and_the_master_hears_the_
     It finishes the released base and waits at the decision point; once the broker is back the
     bridge reconnects and reports the gap.
     """
-    from agv_nodes.mqtt.broker import EmbeddedBroker
+    from agv_nodes.mqtt.mosquitto import Mosquitto
 
-    broker = EmbeddedBroker()
+    broker = Mosquitto()
     url = broker.start()
     port = broker.port
     g = GraphProbe(tmp_path / 'logs', layout='demo_1983')
@@ -168,7 +168,7 @@ def test_broker_lost_mid_order_the_truck_ends_its_base_and_the_master_hears_the_
         g.spin_until(lambda: len([e for _t, e in g.events if e['event'] == 'load_moved']) == 2,
                      150, 'the load picked at W0 and dropped at W2')
         g.stays_at_rest(hold=2.0, what='at the decision point')
-        broker = EmbeddedBroker(port=port)
+        broker = Mosquitto(port=port)
         broker.start()
         back = master.wait_for(
             'state', lambda s: any(i['infoType'] == 'brokerConnectionGap'

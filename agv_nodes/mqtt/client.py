@@ -73,7 +73,8 @@ class LinkStats:
     re-made. `messages_dropped` counts QoS 0 publishes refused while disconnected (QoS 1 ones
     are queued by paho and sent after the reconnect). `last_disconnect` is wall-clock time
     (time.time()); `last_gap_s` is how long the last outage lasted, None before the first one
-    ended.
+    ended; `last_failure` the broker's refusal or the last failed attempt's reason (None once
+    connected), so /diagnostics says why a truck is off the broker.
     """
 
     connected: bool
@@ -85,6 +86,7 @@ class LinkStats:
     failed_attempts: int
     last_disconnect: float | None
     last_gap_s: float | None
+    last_failure: str | None = None  # why the broker refused the link or could not be reached
 
     def as_dict(self) -> dict[str, Any]:
         """Return the counters as a plain dict (for a diagnostics message or a log line)."""
@@ -240,7 +242,8 @@ class MqttLink:
         """Return a consistent snapshot of the counters."""
         with self._lock:
             return LinkStats(connected=self._ready, last_disconnect=self._last_disconnect,
-                             last_gap_s=self._last_gap_s, **self._counts)
+                             last_gap_s=self._last_gap_s,
+                             last_failure=self._refusal or self._last_failure, **self._counts)
 
     @property
     def connected(self) -> bool:
@@ -291,7 +294,7 @@ class MqttLink:
             return
         with self._lock:
             self._network_thread = threading.get_ident()
-            self._refusal = None
+            self._refusal = self._last_failure = None
             self._session_up = True
             wanted = [(topic, s.qos) for topic, s in self._subscriptions.items()]
             self._restore_mid = None
