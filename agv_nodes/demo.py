@@ -286,6 +286,17 @@ def own_layout_problem(file: str, truck: str) -> str | None:
     return None
 
 
+def own_layout_warnings(file: str) -> list[str]:
+    """Return the layout check's warnings of a tape layout: bends tighter than the truck follows.
+
+    The run goes on (the truck may read a road sign on the bend, or lose the tape there).
+    """
+    from agv_nodes.world.layout import layout_path, load_layout
+    from agv_nodes.world.tape_check import tight_bends
+
+    return tight_bends(load_layout(layout_path(file)))
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of agv-demo."""
     ap = argparse.ArgumentParser(prog='agv-demo', description=__doc__.splitlines()[0])
@@ -325,6 +336,8 @@ def main(argv: list[str] | None = None) -> int:
         if problem := own_layout_problem(args.layout, 'concic2'):
             print(f'agv-demo: {problem}', file=sys.stderr)
             return 2
+        for line in own_layout_warnings(args.layout):
+            print(f'agv-demo: warning: {line}', file=sys.stderr)
         return run(args)
     if args.fleet or args.external_master or args.mqtt_url or args.transfers is not None \
             or args.layout:

@@ -111,3 +111,18 @@ def test_agv_layout_check_names_the_bend_and_each_crossing_a_reverse_leg_meets(
                            'main toward its start'), err[1]
     shipped = check_layout(load_layout(layout_path('signs_1991')))
     assert shipped.warnings() == [] and len(shipped.reverse) == 11  # its 11 turning branches
+
+
+@pytest.mark.timeout(30)
+def test_agv_demo_warns_of_a_tight_bend_in_a_room_of_ones_own_and_runs(
+        tmp_path, capsys, monkeypatch) -> None:
+    from agv_nodes import demo
+
+    monkeypatch.setattr(demo, 'run', lambda args: 0)
+    tight, wide = room(tmp_path, 0.85), room(tmp_path, 1.05)
+    assert demo.main(['--truck', 'concic2', '--layout', str(tight)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f'agv-demo: warning: layout {tight}: ') \
+        and 'R 0.85 m' in err[0], err
+    assert demo.main(['--truck', 'concic2', '--layout', str(wide)]) == 0
+    assert capsys.readouterr().err == ''
