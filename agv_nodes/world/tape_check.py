@@ -13,8 +13,8 @@ direction of travel. Two limits follow from that geometry:
   a bend with cos(eps_theta) < 1 / wide_factor reads as a sign on plain tape (0.95 m).
 
 The larger is the smallest followable radius; a tighter bend is warned of. Measured in lock step
-(test/test_tape_layout_check.py): at the default cruise a 300 deg bend of 0.85 m reads a road
-sign on plain tape, one of 1.05 m does not; between them the approach's transient decides.
+(test/test_tape_layout_check.py, 200 deg bends at the default cruise): at 0.6 m the truck loses
+the tape, at 0.85 m it reads a road sign on plain tape, at 1.05 m neither (docs/tasks.md).
 
 Reverse legs: a tape task's `then reverse` backs out along the way it came, and a forward leg
 that took a sign's turning branch meets that sign's crossing again from the branch, the rear
