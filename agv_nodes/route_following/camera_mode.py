@@ -26,9 +26,10 @@ crossing (state waiting); a straight choice without a wait drives on. States whi
 junction: sign (sighted, still on the tape), turning (the approach, spin and settle), waiting.
 Signs are met the same way in reverse, the rear camera reading them in the frame of travel: a
 reverse leg counts them and honours its decisions, left and right being those of travel. A
-reverse leg's plain straight (no wait: the executive's reverse legs have no script) is no
-decision: a crossing met backwards, such as the main tape across the end of a branch the truck
-came up, read as a T, is driven straight across, and the leg ends where the tape does.
+reverse leg's plain straight (no wait: what the executive sends for a junction its script does
+not decide) is no choice among branches: a crossing met backwards, such as the main tape across
+the end of a branch the truck came up, read as a T, is driven straight across, and the leg ends
+where the tape does.
 
 A leg's law going forwards is route_command's camera_law (default: the parameter's). A
 dead-reckoning leg (route_command mode dead_reckoning, App. F.9) drives forwards without the
