@@ -391,3 +391,18 @@ def test_against_mosquitto(mosquitto_url, links, monkeypatch):
     url = broker_url(mosquitto_url)
     _exchange(url, links)
     _last_will(url, links)
+
+
+def test_local_broker_is_mosquitto_where_installed_else_amqtt_saying_why(monkeypatch):
+    """The launcher's choice: mosquitto when found; amqtt otherwise, its name saying why."""
+    import agv_nodes.mqtt.broker as broker_module
+    from agv_nodes.mqtt.mosquitto import Mosquitto
+
+    mqtt_broker.require_mosquitto()
+    assert isinstance(broker_module.local_broker(), Mosquitto)
+    embedded = broker_module.local_broker(embedded=True)
+    assert isinstance(embedded, EmbeddedBroker) and embedded.name == 'embedded amqtt'
+    monkeypatch.setattr(broker_module, 'find_mosquitto', lambda: None)
+    fallback = broker_module.local_broker()
+    assert isinstance(fallback, EmbeddedBroker)
+    assert fallback.name == 'embedded amqtt: mosquitto is not installed'

@@ -131,10 +131,10 @@ def test_shipped_parameter_file_is_valid_for_every_node(tmp_path):
     The recorder is given its bag and the VDA 5050 bridge a broker, as the launch gives them.
     """
     from agv_nodes.graph.model import load_graph
-    from agv_nodes.mqtt.broker import EmbeddedBroker
+    from agv_nodes.mqtt.broker import local_broker  # mosquitto, as the launch runs it
 
     graph = load_graph()
-    with EmbeddedBroker() as broker:
+    with local_broker() as broker:
         _start_every_node(graph, {'recorder': ['-p', f'bag:={tmp_path / "bag"}'],
                                   'bridge': ['-p', f'mqtt_url:={broker.url}'],
                                   'master': ['-p', f'mqtt_url:={broker.url}'],
