@@ -325,7 +325,7 @@ def main(argv: list[str] | None = None) -> int:
                     help='with --fleet: no dispatcher; the trucks wait for a VDA 5050 master '
                     'of your own on the printed broker until Ctrl-C')
     ap.add_argument('--mqtt-url', help='with --fleet: a broker of your own, mqtt://host[:port] '
-                    '(default: AGV_MQTT_URL, else one embedded in the launcher)')
+                    '(default: AGV_MQTT_URL, else one the launcher runs: mosquitto, or amqtt)')
     ap.add_argument('--layout', help='with --fleet: the floor (default demo_1983, room for '
                     'three trucks; fleet_1983 parks eight); with --truck concic2: a tape layout '
                     "(name or file), one leg to the tape's end")

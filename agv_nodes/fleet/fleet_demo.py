@@ -2,7 +2,7 @@
 
 The whole fleet over DDS and MQTT, as a user would run it: `agv-launch --trucks N --vda5050`
 (one world simulating every truck, each truck's graph in its namespace /agvK with its VDA 5050
-bridge, an embedded MQTT broker, a recorder) and the dispatcher node as the trucks' master, on
+bridge, an MQTT broker of its own, a recorder) and the dispatcher node as the trucks' master, on
 demo_1983 (three trucks at most) or `--layout fleet_1983` (eight). The demo gives the
 dispatcher transport orders as text on `fleet/transport`: loads going round
 (agv_nodes.world.fleet_floor.programme_loads: on demo_1983 A between W0 and W2 and B between
