@@ -62,11 +62,11 @@ def test_a_master_on_this_host_drives_a_truck_whose_graph_runs_on_another(truck_
     from std_msgs.msg import String
 
     from agv_nodes import qos
-    from agv_nodes.mqtt.broker import EmbeddedBroker
+    from agv_nodes.mqtt.mosquitto import Mosquitto
 
     netns, here, _there = truck_host
     domain = os.environ['ROS_DOMAIN_ID']
-    with EmbeddedBroker(host=here) as broker:
+    with Mosquitto(host=here) as broker:
         url = broker.url
         log = (tmp_path / 'truck.log').open('w+')
         # the truck: its whole graph and world on the other host, on this test's ROS domain

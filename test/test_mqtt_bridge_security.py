@@ -89,26 +89,32 @@ def test_the_bridge_comes_online_on_a_tls_broker_with_its_password_from_a_file(s
     ({'tls_ca': '/nonexistent/ca.pem'}, {},
      "parameter 'tls_ca' = '/nonexistent/ca.pem': no such file"),
     ({'tls_cert': '{ca}'}, {}, "parameter 'tls_key' = '': a client certificate needs its key"),
+    ({'tls_ca': '{password}'}, {}, "parameter 'tls_ca' = '{password}': not a PEM CA"),
+    ({'tls_cert': '{ca}', 'tls_key': '{ca}'}, {},
+     "parameter 'tls_cert' = '{ca}': not a PEM certificate whose key is tls_key"),
     ({'username': 'agv1', 'password_file': '/nonexistent/pw'}, {},
      "parameter 'password_file' = '/nonexistent/pw': password file /nonexistent/pw: cannot "
      'read it'),
     ({}, {ENV_PASSWORD: PASSWORD},
      f"parameter 'username' = '': a password is given ({ENV_PASSWORD}) but no user name"),
-], ids=['tls file with mqtt://', 'missing ca', 'cert without key', 'missing password file',
-        'password without user'])
+], ids=['tls file with mqtt://', 'missing ca', 'cert without key', 'ca not PEM',
+        'key not PEM', 'missing password file', 'password without user'])
 def test_bad_security_parameters_stop_the_bridge_with_one_line(secured, monkeypatch,
                                                                parameters, environment, words):
     """Each: exit status 2, one line on stderr naming the parameter, value and what is wrong."""
-    broker, ca, _ = secured
+    broker, ca, directory = secured
     for name, value in environment.items():
         monkeypatch.setenv(name, value)
-    url = broker.url if 'tls_ca' not in parameters or 'nonexistent' in parameters['tls_ca'] \
-        else broker.url.replace('mqtts://', 'mqtt://')
-    given = {name: value.format(ca=ca.ca_file) for name, value in parameters.items()}
+    plain = parameters.get('tls_ca') == '{ca}'  # the one case given a plain mqtt:// URL
+    url = broker.url.replace('mqtts://', 'mqtt://') if plain else broker.url
+    text_file = directory / 'a.password'
+    text_file.write_text('just a password\n')
+    files = {'ca': ca.ca_file, 'password': text_file}
+    given = {name: value.format(**files) for name, value in parameters.items()}
     run = subprocess.run(_bridge_args(url, **given), capture_output=True, text=True, timeout=50)
     assert run.returncode == 2, run.stdout + run.stderr
     (line,) = run.stderr.strip().splitlines()
-    assert line.startswith('vda5050_bridge: ') and words.format(ca=ca.ca_file) in line, line
+    assert line.startswith('vda5050_bridge: ') and words.format(**files) in line, line
     assert PASSWORD not in run.stdout + run.stderr
 
 

@@ -11,6 +11,7 @@ variable: never from a parameter value, which `ros2 param get` and the launch's 
 from __future__ import annotations
 
 import os
+import ssl
 from typing import Any
 
 from rclpy.node import Node
@@ -57,6 +58,7 @@ def security_parameters(node: Node, settings: Any, url: str) -> LinkSecurity:
         name = 'tls_key' if files['tls_cert'] else 'tls_cert'
         raise parameter_error(node, name, files[name], 'a client certificate needs its key '
                               '(tls_cert and tls_key): give both or neither')
+    _check_pem(node, files)
     username, password_file = settings.username, settings.password_file
     try:
         password = read_password(password_file)
@@ -68,6 +70,23 @@ def security_parameters(node: Node, settings: Any, url: str) -> LinkSecurity:
                               'but no user name')
     return LinkSecurity(ca_file=files['tls_ca'], cert_file=files['tls_cert'],
                         key_file=files['tls_key'], username=username, password=password)
+
+
+def _check_pem(node: Node, files: dict[str, str]) -> None:
+    """Load the TLS files as paho will, so a file that is not PEM stops here in one line."""
+    context = ssl.create_default_context()
+    try:
+        if files['tls_ca']:
+            context.load_verify_locations(cafile=files['tls_ca'])
+    except (ssl.SSLError, OSError) as exc:
+        raise parameter_error(node, 'tls_ca', files['tls_ca'], f'not a PEM CA certificate '
+                              f'({exc})') from None
+    try:
+        if files['tls_cert']:
+            context.load_cert_chain(files['tls_cert'], files['tls_key'])
+    except (ssl.SSLError, OSError) as exc:
+        raise parameter_error(node, 'tls_cert', files['tls_cert'], 'not a PEM certificate '
+                              f'whose key is tls_key ({exc})') from None
 
 
 def graph_parameter(node: Node, layout: str) -> TrackGraph:
