@@ -26,7 +26,7 @@ pytestmark = [pytest.mark.wall_clock, pytest.mark.timeout(60)]
 mosquitto_url = mqtt_broker.mosquitto_url  # a private mosquitto for this module
 
 WAIT_S = 10.0
-QUIET_S = 1.0  # after the SUBACK, how long a second copy or a foreign topic is waited for
+QUIET_S = 1.0  # after the retained copy, how long a second one or a foreign topic is waited for
 
 # what a new subscriber to ORDER must get: the one retained ORDER message, at QoS 1, retained
 ORDER, STATE = 'uagv/v2/m/agv1/order', 'uagv/v2/m/agv1/state'
@@ -70,11 +70,19 @@ def _new_subscriber_gets(url: str, client_id: str) -> list[tuple[str, bytes, int
             connected.get(timeout=WAIT_S)
             bare.subscribe(ORDER, 1)
             subacked.get(timeout=WAIT_S)
+            got = []
+            # the copy that must come (sent after the SUBACK), then a while for any stray one
+            while EXPECTED[0] not in got:
+                try:
+                    got.append(received.get(timeout=WAIT_S))
+                except queue.Empty:
+                    raise AssertionError(f'no {EXPECTED[0]} within {WAIT_S} s; got {got}') \
+                        from None
             time.sleep(QUIET_S)
         finally:
             bare.disconnect()
             bare.loop_stop()
-        return [received.get() for _ in range(received.qsize())]
+        return got + [received.get() for _ in range(received.qsize())]
     finally:
         for topic in (ORDER, STATE):  # leave the module's broker as it was
             other.publish(topic, b'', qos=1, retain=True)
