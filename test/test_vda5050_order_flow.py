@@ -135,13 +135,15 @@ def test_an_order_round_the_loop_picks_and_drops_and_ends_empty(flow):
     out = flow.on_order(loop_order())
     assert out.verdict == 'accepted' and out.publish_state
     assert tasks_of(out) == ['load at 1 first', 'unload at 3 first']
-    assert flow.last_node_id == 'L0' and nodes(flow) == LOOP[1:]
+    # 6.10.6: the truck has read no card yet: L0, the first ahead, is a node to traverse
+    assert flow.last_node_id == '' and nodes(flow) == LOOP
     assert edges(flow)[0] == 'L0-W0.1' and len(edges(flow)) == 8
     assert actions(flow) == {'a1': ActionStatus.WAITING, 'a2': ActionStatus.WAITING}
     flow.task_queued(6, 'load at 1 first')
     flow.task_state(6, 'running', 0, '', None)
-    assert flow.driving
-    flow.task_state(6, 'running', 0, '', 0)  # the start node passed: nothing changes
+    assert flow.driving and nodes(flow) == LOOP
+    assert flow.task_state(6, 'running', 0, '', 0).publish_state  # the start node read
+    assert (flow.last_node_id, flow.last_node_sequence_id) == ('L0', 0)
     assert nodes(flow) == LOOP[1:]
     assert flow.task_state(6, 'running', 0, '', 2).publish_state
     assert nodes(flow) == LOOP[3:] and flow.last_node_id == 'L2'
@@ -174,7 +176,7 @@ def test_only_the_base_becomes_tasks_and_an_update_stitches_at_its_end(flow):
     out = flow.on_order(loop_order(released=4))  # base L0..W2.1, horizon W2.2..W3.1
     assert tasks_of(out) == ['stop at 2 first']
     state = full_state(flow)
-    assert [n.released for n in state.node_states] == [True] * 3 + [False] * 5
+    assert [n.released for n in state.node_states] == [True] * 4 + [False] * 5
     assert [e.released for e in state.edge_states] == [True] * 3 + [False] * 5
     assert actions(flow) == {'a1': ActionStatus.WAITING, 'a2': ActionStatus.WAITING}
     assert state.new_base_request
@@ -183,7 +185,7 @@ def test_only_the_base_becomes_tasks_and_an_update_stitches_at_its_end(flow):
     out = flow.on_order(update)
     assert out.verdict == 'updated'
     assert tasks_of(out) == ['load at 1 first', 'unload at 3 first']
-    assert flow.order_update_id == 1 and nodes(flow) == LOOP[1:]
+    assert flow.order_update_id == 1 and nodes(flow) == LOOP
     assert all(n.released for n in full_state(flow).node_states)
     assert len(edges(flow)) == 8 and not full_state(flow).new_base_request
     drive(flow, 1, 'stop at 2 first', [2], None, steps=1)
@@ -231,7 +233,7 @@ def test_a_new_order_id_while_the_order_is_active_is_rejected(flow):
     out = flow.on_order(make_order(LOOP[:2], order_id='o2'))
     assert out.verdict == 'rejected' and out.errors[0].error_type == 'orderUpdateError'
     assert refs(out)[0]['orderId'] == 'o2' and flow.order_id == 'o1'
-    assert len(nodes(flow)) == 8
+    assert len(nodes(flow)) == 9  # L0 too: the truck has not read it yet
 
 
 def _order_error(flow: OrderFlow, order: Order) -> list[dict[str, str]]:

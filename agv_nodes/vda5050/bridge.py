@@ -8,9 +8,21 @@ its communications node writes (agv_nodes.communications.report_line), the radio
 1983, 3.3. It answers with `state` on every change and at least every `state_interval`
 seconds (6.10), `connection` (6.14) and the retained `factsheet` (6.15).
 
-The truck models no battery: battery_state reports a full charge, not charging. It has no
-safety scanner: safetyState is no e-stop and no field violation; a stop for a fault shows as
-the failed task's error. It knows where it is only at markers: no agvPosition.
+What the truck's records say comes in by typed methods, the same facts from the graph (the
+bridge node reads the records over DDS) or from a lock-step fleet (agv_nodes.harness):
+
+- on_marker_read(location, now): a card the position sensor read while navigating
+  (position_sensor_status): a location card's identity, or None for a stop marker's centre.
+  It is placed on the order's way (agv_nodes.vda5050.whereabouts) and becomes lastNodeId.
+- on_wheels(left_mm, right_mm, left_speed, right_speed, now): the wheel_odometry counters;
+  agvPosition and velocity are dead reckoning from the last node read.
+- on_loads(first, second, now): load_status's two conveyors: `loads`.
+- on_traction(TractionFacts, now): traction_status's E-stop, radio stop, bumper and manual:
+  safetyState (eStop MANUAL / REMOTE, fieldViolation) and operatingMode.
+- on_record(name, fields, now): any of those records decoded, taken by the method above that
+  reads it (RECORDS names them); what a reader of the graph's records calls.
+
+The truck models no battery: batteryState reports a full charge, not charging.
 """
 
 from __future__ import annotations
@@ -38,6 +50,7 @@ from agv_nodes.vda5050.connection import Connection, ConnectionState
 from agv_nodes.vda5050.order import InstantActions, Order
 from agv_nodes.vda5050.order_flow import OrderFlow
 from agv_nodes.vda5050.state import (
+    AgvPosition,
     BatteryState,
     Error,
     ErrorLevel,
@@ -45,13 +58,19 @@ from agv_nodes.vda5050.state import (
     EStop,
     Info,
     InfoLevel,
+    Load,
     OperatingMode,
     SafetyState,
     State,
+    Visualization,
 )
 from agv_nodes.vda5050.truck_factsheet import MIN_STATE_INTERVAL
+from agv_nodes.vda5050.truck_records import RecordFacts
+from agv_nodes.vda5050.whereabouts import TractionFacts, Whereabouts
+from agv_nodes.world.settings import WorldParams
 
 INBOUND = {'order': Order, 'instantActions': InstantActions}
+CONVEYORS = ('first', 'second')  # the loadPositions of the factsheet: the two conveyors
 
 
 @dataclass
@@ -72,8 +91,17 @@ class BridgeCore:
 
     def __init__(self, graph: TrackGraph, manufacturer: str, serial_number: str,
                  factsheet: Callable[[int], BaseModel] | None = None,
-                 state_interval: float = 30.0) -> None:
+                 state_interval: float = 30.0, *, map_id: str = 'demo_1983',
+                 electruk: Any = None, visualization_interval: float = 1.0) -> None:
         self.flow = OrderFlow(graph)
+        e = electruk or WorldParams().electruk  # the wheels the counters are of
+        self.where = Whereabouts(graph, e.track, e.wheelbase, map_id)
+        self.records = RecordFacts()
+        self.visualization_interval = visualization_interval  # s; 0: no visualization
+        self._last_visualization = -float('inf')
+        self._placed = ''  # the flow's lastNodeId the whereabouts were last set to
+        self._loads: list[Load] | None = None  # None until load handling is heard
+        self._traction = TractionFacts()
         self.manufacturer, self.serial_number = manufacturer, serial_number
         self._factsheet = factsheet
         self.state_interval = state_interval
@@ -144,6 +172,40 @@ class BridgeCore:
             out.extend(self._state(now))
         return out
 
+    def on_marker_read(self, location: int | None, now: float) -> Outbox:
+        """Take a card read while navigating: a location's identity, None a stop marker."""
+        node = self.where.place(location, self.flow.ahead())
+        if node is None or not self.flow.node_read(node):
+            return Outbox()
+        return self._state(now)
+
+    def on_wheels(self, left_mm: int, right_mm: int, left_speed: int, right_speed: int,
+                  now: float) -> Outbox:
+        """Take the wheel counters (wheel_odometry: wrapping mm, mm/s) for agvPosition."""
+        self._sync()
+        self.where.on_wheels(left_mm, right_mm, left_speed, right_speed)
+        return Outbox()
+
+    def on_loads(self, first: bool, second: bool, now: float) -> Outbox:
+        """Take the conveyors' load sensors (load_status); a change is sent as state."""
+        loads = [Load(load_position=name) for name, there in zip(CONVEYORS, (first, second),
+                                                                 strict=True) if there]
+        if loads == self._loads:
+            return Outbox()
+        self._loads = loads
+        return self._state(now)
+
+    def on_traction(self, facts: TractionFacts, now: float) -> Outbox:
+        """Take traction's stops and mode (traction_status); a change is sent as state."""
+        if facts == self._traction:
+            return Outbox()
+        self._traction = facts
+        return self._state(now)
+
+    def on_record(self, name: str, fields: dict[str, Any], now: float) -> Outbox:
+        """Take one decoded record of RECORDS by the typed method that reads it."""
+        return self.records.feed(self, name, fields, now)
+
     def reconnected(self, gap_s: float | None, now: float) -> Outbox:
         """Say ONLINE, the factsheet and the state after (re)connecting; report the gap.
 
@@ -168,9 +230,35 @@ class BridgeCore:
         A change within the factsheet's minStateInterval of the last state waits for this.
         """
         since = now - self._last_state
+        out = Outbox()
         if (self._held and since >= MIN_STATE_INTERVAL) or since >= self.state_interval:
-            return self._state(now)
-        return Outbox()
+            out = self._state(now)
+        if self.visualization_interval and \
+                now - self._last_visualization >= self.visualization_interval:
+            self._last_visualization = now
+            out.messages.append(('visualization', self.visualization()))
+        return out
+
+    def visualization(self) -> Visualization:
+        """Return the visualization message (6.13): agvPosition and velocity now."""
+        self._sync()
+        return Visualization(**self.header('visualization'), agv_position=self.position(),
+                             velocity=self.where.velocity())
+
+    def position(self) -> AgvPosition:
+        """Return agvPosition: the last node read and dead reckoning since (whereabouts)."""
+        self._sync()
+        return self.where.position()
+
+    def _sync(self) -> None:
+        """Set the whereabouts to the flow's lastNodeId where that has changed.
+
+        The flow moves lastNodeId on the truck's reports too (a location passed, a stop
+        reached, initPosition): the truck is at that node when it does.
+        """
+        if self.flow.last_node_id != self._placed:
+            self._placed = self.flow.last_node_id
+            self.where.at_node(self._placed)
 
     def state_now(self, now: float) -> Outbox:
         """Send state now (on connecting: the master learns where the truck stands)."""
@@ -197,10 +285,16 @@ class BridgeCore:
         fields['errors'] = [*self._rejections, *fields.get('errors', [])]
         if self._gap is not None:
             fields['information'] = [*(fields.get('information') or []), self._gap]
-        return State(**self.header('state'), **fields,
+        t = self._traction
+        e_stop = EStop.MANUAL if t.e_stop else EStop.REMOTE if t.radio_stop else EStop.NONE
+        return State(**self.header('state'), **fields, agv_position=self.position(),
+                     velocity=self.where.velocity(), loads=self._loads,
+                     distance_since_last_node=self.where.since if self.where.initialized
+                     else None,
                      battery_state=BatteryState(battery_charge=100.0, charging=False),
-                     operating_mode=OperatingMode.AUTOMATIC,
-                     safety_state=SafetyState(e_stop=EStop.NONE, field_violation=False))
+                     operating_mode=OperatingMode.MANUAL if t.manual
+                     else OperatingMode.AUTOMATIC,
+                     safety_state=SafetyState(e_stop=e_stop, field_violation=t.bumper))
 
     def _state(self, now: float) -> Outbox:
         """Send state now, or at the next tick when one went out under minStateInterval ago."""

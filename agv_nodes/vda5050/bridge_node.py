@@ -9,8 +9,14 @@ queue that a wall-clock timer empties into the executor's thread. Before the fir
 bridge asks communications for `status` until it answers: what a writer sends before the
 reader has matched it is lost (docs/tasks.md).
 
+It also reads the truck's records the state needs (agv_nodes.vda5050.truck_records.RECORDS:
+the cards read, the loads, traction's stops, the wheel counters) as one more reader, each judged
+by its RecordReader (E2E counter and CRC where the record has them): a rejected record is
+counted and never acted on.
+
 /diagnostics `agv[/ns]/vda5050_bridge/link`: the MQTT link's counters, the messages taken and
-the invalid ones (WARN while the last message was invalid, ERROR while the broker is gone).
+the invalid ones (WARN while the last message was invalid, ERROR while the broker is gone), and
+the records taken and rejected.
 """
 
 from __future__ import annotations
@@ -22,13 +28,15 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from std_msgs.msg import String
+from std_msgs.msg import String, UInt8MultiArray
 
 from agv_nodes import qos
 from agv_nodes.mqtt.client import LastWill, MqttLink
 from agv_nodes.node_process import spin_main
 from agv_nodes.params import declare, refuse_unknown
-from agv_nodes.ros_ports import ERROR, OK, WARN, diagnostic_status
+from agv_nodes.records import codec
+from agv_nodes.records.ports import RecordReader
+from agv_nodes.ros_ports import ERROR, OK, WARN, diagnostic_status, record_bytes
 from agv_nodes.settings import settings_class
 from agv_nodes.vda5050.bridge import INBOUND, BridgeCore, Outbox
 from agv_nodes.vda5050.codec import to_json
@@ -40,6 +48,7 @@ from agv_nodes.vda5050.link_parameters import (
 )
 from agv_nodes.vda5050.topics import TOPICS, topic
 from agv_nodes.vda5050.truck_factsheet import truck_factsheet
+from agv_nodes.vda5050.truck_records import RECORDS
 
 STATUS_EVERY = 0.5  # wall s between `status` queries until communications answers
 
@@ -64,11 +73,18 @@ class BridgeNode(Node):
             graph, s.manufacturer, s.serial_number,
             factsheet=lambda n: truck_factsheet(s.manufacturer, s.serial_number, n,
                                                 state_interval=s.state_interval),
-            state_interval=s.state_interval)
+            state_interval=s.state_interval, map_id=s.layout)
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
         self._task_pub = self.create_publisher(String, 'comms/task', qos.EVENTS)
         self.create_subscription(String, 'comms/report', self._report, qos.EVENTS)
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos.EVENTS)
+        self._readers: dict[str, RecordReader] = {}
+        for name in RECORDS:
+            schema = codec()[name]
+            self._readers[name] = RecordReader(schema, 'e2e' if schema.protected else 'none')
+            self.create_subscription(UInt8MultiArray, schema.topic.lstrip('/'),
+                                     lambda raw, name=name: self._record(name, raw),
+                                     qos.reader_qos(schema), raw=True)
         self._inbox: deque[tuple[str, bytes]] = deque()
         self._connected: deque[bool] = deque()
         self._comms_answered = False
@@ -117,6 +133,12 @@ class BridgeNode(Node):
             self._comms_answered = True
         self._send(self.core.on_report(msg.data, self._now()))
 
+    def _record(self, name: str, raw: bytes) -> None:
+        fields = self._readers[name].accept(record_bytes(raw),
+                                            self.get_clock().now().nanoseconds)
+        if fields is not None:
+            self._send(self.core.on_record(name, fields, self._now()))
+
     def _send(self, out: Outbox) -> None:
         self._pending += out.tasks
         if self._comms_answered:
@@ -135,7 +157,11 @@ class BridgeNode(Node):
             level, message = ERROR, 'broker not connected'
         elif self.core.last_invalid:
             level, message = WARN, f'invalid message: {self.core.last_invalid}'
-        values = {k: str(v) for k, v in {**stats.as_dict(), **counts}.items()}
+        records = {'cards_read': self.core.records.reads,
+                   'cards_unplaced': self.core.where.unplaced,
+                   **{f'{name}_accepted': r.accepted for name, r in self._readers.items()},
+                   **{f'{name}_rejected': r.rejected for name, r in self._readers.items()}}
+        values = {k: str(v) for k, v in {**stats.as_dict(), **counts, **records}.items()}
         msg = DiagnosticArray(status=[diagnostic_status(self, f'{self.get_name()}/link', level,
                                                         message, self.get_name(), values)])
         msg.header.stamp = self.get_clock().now().to_msg()

@@ -128,8 +128,12 @@ class OrderFlow(InstantActionFlow):
         self._instant &= set(self._actions)
         self._had_order = True
         self.order_id, self.order_update_id = order.order_id, order.order_update_id
-        self.last_node_id, self.last_node_sequence_id = first.node_id, first.sequence_id
-        self._nodes, self._edges, self._stops = list(order.nodes[1:]), list(order.edges), []
+        self._edges, self._stops = list(order.edges), []
+        if passed:  # 6.10.6: the truck stands at the first node
+            self.last_node_sequence_id = first.sequence_id
+            self._nodes = list(order.nodes[1:])
+        else:  # the first card ahead: lastNodeId once the truck has read it
+            self._nodes = list(order.nodes)
         self._base_end_passed = passed
         return self._take(order, points, 'accepted')
 
@@ -286,6 +290,26 @@ class OrderFlow(InstantActionFlow):
             out.tasks = self._fail(target, task_id, state, cause)
             out.publish_state = True
         return out
+
+    def ahead(self) -> list[str]:
+        """Return the order's nodes still to traverse, in order (the nodeStates' ids)."""
+        return [n.node_id for n in self._nodes]
+
+    def node_read(self, node_id: str) -> bool:
+        """Take a card the truck read as `node_id`; return True when the state changed.
+
+        A node of the order clears it and what comes before it (6.10.2: every node the truck
+        passes is lastNodeId, stop markers too); without an order it is lastNodeId with
+        lastNodeSequenceId 0 (6.10.6).
+        """
+        node = next((n for n in self._nodes if n.node_id == node_id), None)
+        if node is not None:
+            self._traversed(node.node_id, node.sequence_id)
+            return True
+        if node_id == self.last_node_id:
+            return False
+        self.last_node_id, self.last_node_sequence_id = node_id, 0
+        return True
 
     def _passed_marker(self, marker: int, stop: StopPoint) -> bool:
         """Clear the nodes up to location `marker`, passed on the way to `stop`.

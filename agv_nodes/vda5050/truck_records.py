@@ -1,0 +1,57 @@
+"""The truck's records a bridge reads, turned into the facts BridgeCore takes.
+
+The bridge node subscribes to these records as one more reader (agv_nodes.vda5050.bridge_node),
+a lock-step fleet taps them (agv_nodes.harness); either hands each decoded record to
+BridgeCore.on_record, which takes it here:
+
+- position_sensor_status: a new recognition (its `recognitions` counter moved) in the
+  navigating table is a card read: a location's identity, or EDIM for a stop marker's centre
+  (Baker 1983, App. B.1 UCTAB). Heartbeats repeat the last recognition and are not reads.
+- load_status: the two conveyors' load sensors (Baker 1983, 6.5).
+- traction_status: the E-stop, the radio stop, the bumper and manual control.
+- wheel_odometry: the driven wheels' counters, for dead reckoning.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from agv_nodes.markers import EDIM
+from agv_nodes.vda5050.whereabouts import TractionFacts
+
+if TYPE_CHECKING:
+    from agv_nodes.vda5050.bridge import BridgeCore, Outbox
+
+RECORDS = ('position_sensor_status', 'load_status', 'traction_status', 'wheel_odometry')
+NONE = 0xFF  # position_sensor_status identity: no card recognised yet
+
+
+class RecordFacts:
+    """Reads RECORDS into BridgeCore's typed methods (see the module docstring)."""
+
+    def __init__(self) -> None:
+        self._recognitions: int | None = None  # the sensor's counter last seen
+        self.reads = 0  # cards read (recognitions in the navigating table)
+
+    def feed(self, core: BridgeCore, name: str, fields: dict[str, Any], now: float) -> Outbox:
+        """Give `core` what record `name` (decoded `fields`) says."""
+        from agv_nodes.vda5050.bridge import Outbox  # the bridge imports this module
+        if name == 'wheel_odometry':
+            return core.on_wheels(fields['left_distance'], fields['right_distance'],
+                                  fields['left_speed'], fields['right_speed'], now)
+        if name == 'position_sensor_status':
+            count, before = fields['recognitions'], self._recognitions
+            self._recognitions = count
+            identity = fields['identity']
+            new = count != before if before is not None else bool(fields['recognised'])
+            if not new or fields['table'] != 'navigating' or identity == NONE:
+                return Outbox()
+            self.reads += 1
+            return core.on_marker_read(None if identity == EDIM else identity, now)
+        if name == 'load_status':
+            return core.on_loads(bool(fields['load_first']), bool(fields['load_second']), now)
+        if name == 'traction_status':
+            return core.on_traction(TractionFacts(
+                e_stop=bool(fields['emergency_stop']), radio_stop=bool(fields['radio_stop']),
+                bumper=bool(fields['bumper']), manual=bool(fields['manual'])), now)
+        raise ValueError(f'record {name!r}: the bridge reads only {", ".join(RECORDS)}')
