@@ -164,6 +164,20 @@ def test_differential_step_damped_like_the_kinematic_truck() -> None:
 
 
 @pytest.mark.timeout(30)
+def test_servo_loop_time_constant_within_the_thesis_bound() -> None:
+    """The servo loop alone (the trapezoid a step): 63 % of a yaw-rate step in 0.16-0.24 s.
+
+    6.3.8: "the cycle time is one quarter of the time constant of the servo loop"; the cycle is
+    40-60 ms (6.3.10: 16-25 frames a second; 7.5.1.6: "varies from 40 ms to 60 ms").
+    """
+    p = Concic2DynamicParams(acceleration=30.0)
+    dyn, _turned = differential_step(Concic2Dynamic(p), 0.47, 0.03, 1.0)
+    target = 0.06 / p.wheel_span
+    t63 = next(t for t, w in dyn if w >= 0.632 * target)
+    assert 4 * 0.040 <= t63 <= 4 * 0.060
+
+
+@pytest.mark.timeout(30)
 def test_no_yaw_on_a_straight_command() -> None:
     """Equal wheel commands at cruise: no steady yaw (no caster side force or friction bias)."""
     v = Concic2Dynamic(Concic2DynamicParams())

@@ -58,6 +58,13 @@ vision cycles, 0.18 s), and motor off stops the truck in 5.3 mm from 0.16 m/s (7
 7.9: 5 mm), where a voltage source coasted 20 mm. G_v 1.5 stops in 6.0 mm, 2.5 in 4.6 mm; the
 speed step from rest overshoots 1 % (7.5.2.1: 1 %).
 
+The servo loop's time constant [D], measured (bench/concic2_thesis_bench.py, the drive table):
+a differential step with the trapezoid's acceleration at 30 m/s^2, so that the profile is a
+step, reaches 63 % of its yaw rate in 0.198 s; through the 0.3 m/s^2 trapezoid, 0.242 s. The
+thesis bounds it by its cycle: "the cycle time is one quarter of the time constant of the servo
+loop" (6.3.8), the cycle 40-60 ms (6.3.10, 7.5.1.6): 0.16-0.24 s. G_v and the output shift
+(lm628) set it; the fits above pin G_v, and shifts 15 and 17 give 0.108 and 0.302 s.
+
 Yaw inertia [D]: Table B.1 masses, the two batteries (120 lb) as points at their App. B.3
 centres, the other 153.5 lb as a uniform 1115 x 781 mm plate: 22.2 kg m^2; payload [A] a
 uniform block over the rear half of the upper deck, centred at O (App. G.2.1), gyration radius
@@ -92,7 +99,10 @@ class Concic2DynamicParams:
     caster_distance: float = 0.31  # m, L_a [D]
     caster_trail: float = 0.05  # m, s [D]
     camera_distance: float = 0.64  # m, L_c [D]
-    acceleration: float = 0.3  # m/s^2 of the LM628 trapezoid, both wheels
+    # m/s^2 of the LM628 trapezoid, both wheels [A]: 0 to 0.785 m/s in 2.7 s, within 7.3.2's
+    # "less than 7 s"; the thesis's "0.024" (7.3) read through Eq. 6.12 is 0.112 (7.0 s there),
+    # the world's concic2.acceleration option (bench/results/concic2_thesis_bench.md).
+    acceleration: float = 0.3
     max_wheel_speed: float = 1.14  # m/s (145 rpm, Table B.3)
     mass: float = 273.5 * LB  # kg, Table B.1 (124 kg)
     payload: float = 250.0 * LB  # kg, the experiments' 250 lb (7.3.2)
@@ -118,7 +128,7 @@ class Concic2DynamicParams:
     continuous_current: float = 9.0  # A (6.3.3)
     peak_duration: float = 0.39  # s (C.2.3.1)
     dac_volts_per_code: float = 0.09  # V [D]
-    kp: int = 225  # LM628 filter (7.3)
+    kp: int = 225  # LM628 filter, all four (7.3)
     ki: int = 100
     kd: int = 50
     il: int = 30

@@ -30,7 +30,9 @@ Scalings the thesis does not give, chosen here:
   ripple). With the speed-loop amplifier of concic2_dynamics, 16 puts the loaded truck's
   position loop near the critical damping the thesis tuned for (C.2.3.5): 1 code per 291
   counts (3.4 mm of rim travel), crossover about 7 per s, a differential speed step overshoots
-  7 % (15: 19 %, 17: 6 % but 0.33 s to 63 %). The gains keep the thesis's ratios; the
+  7 % (15: 19 %, 17: 6 % but 0.33 s to 63 %); with the profile a step the loop's time
+  constant is 0.198 s (15: 0.108 s, 17: 0.302 s), within the 0.16-0.24 s that four of the
+  thesis's 40-60 ms cycles give (6.3.8). The gains keep the thesis's ratios; the
   integral term, at most IL 2^8 >> 16 = 0.1 code, has no effect at this shift.
 - [A] Derivative sampling interval 16 samples (5.5 ms): the thesis does not give its setting;
   the overshoot varies little between 1 and 64.
