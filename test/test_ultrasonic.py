@@ -280,3 +280,38 @@ def test_a_sonar_gone_silent_stops_the_truck_and_fails_the_task_naming_it(
         + 1 / default(WorldParams, 'sample_rate')
     coast = v * v / (2 * default(Concic2Params, 'coast_deceleration'))
     assert s.x - x0 <= v * budget + coast, (s.x - x0, h.now - t0)
+
+
+# -- the 1983 truck: no sonar, a bumper --------------------------------------------------------
+def test_a_disc_touches_an_outline_by_its_edge_corner_or_from_inside() -> None:
+    square = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]  # anticlockwise
+
+    def touch(x: float, y: float, size: float) -> bool:
+        return Obstacles([Obstacle('o', x, y, size)]).touching(square) is not None
+
+    assert touch(0.5, 0.5, 0.01)  # inside
+    assert touch(1.25, 0.5, 0.5) and not touch(1.25, 0.5, 0.49)  # 0.25 m beyond an edge
+    corner = 0.25 * math.sqrt(2.0)  # off a corner along the diagonal
+    assert touch(1.25, 1.25, 2 * corner + 1e-9) and not touch(1.25, 1.25, 2 * corner - 1e-6)
+
+
+def test_the_tug_runs_into_an_obstacle_and_its_bumper_stops_it() -> None:
+    from agv_nodes.world.settings import ElectrukParams
+
+    h = truck('demo_1983', seed=2)
+    s = h.world.vehicle.state
+    x0, heading = s.x, s.heading
+    assert heading == 0.0  # the demo floor's start: along +x on a straight
+    front = default(ElectrukParams, 'wheelbase') + default(ElectrukParams, 'front_overhang')
+    h.world.obstacles.place(Obstacle('crate', x0 + front + 1.5, s.y, 0.3))
+    h.run(0.5)
+    submit(h, 'stop at 2 first')
+    assert h.run(30.0, until=lambda: h.world.bumper)
+    # the bumper meets the crate 1.5 - 0.15 m on, within a world sample's travel
+    reach = s.x - x0
+    assert 1.35 <= reach <= 1.35 + s.speed / default(WorldParams, 'sample_rate') + 1e-6, reach
+    assert [e['event'] for e in h.events].count('collision') == 1
+    h.run(5.0)
+    assert abs(s.speed) < 1e-3
+    ex = h.cores['executive'].report
+    assert (ex['state'], ex['cause']) == ('failed', 'collision'), ex

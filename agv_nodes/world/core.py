@@ -20,6 +20,7 @@ from agv_nodes.markers import snapshot_record
 from agv_nodes.world import kernels
 from agv_nodes.world.camera import BinaryCamera
 from agv_nodes.world.concic2_dynamics import Concic2Dynamic
+from agv_nodes.world.contact import footprint
 from agv_nodes.world.conveyors import Conveyors
 from agv_nodes.world.ground_truth import GroundTruth
 from agv_nodes.world.guide_wire import GuideWirePickup
@@ -189,7 +190,7 @@ class WorldCore(GroundTruth):
             self.pal.hardware_reset(self.time)
 
     def bump(self) -> None:
-        """Another truck touched this one: a collision event, and the bumper cuts the drive.
+        """Another truck (or an obstacle) touched this one: a collision event, the drive cut.
 
         Modern (neither thesis has two trucks meet): the bumper switch is in the drive's safety
         circuit, as the radio stop is, and stays pressed until a reset.
@@ -240,6 +241,11 @@ class WorldCore(GroundTruth):
         if self.camera is not None and sample >= (every := self._cam_every).next \
                 and every.due(sample):
             frames = self._frames()
+        if self._electruk and self.obstacles.by_name and not self.bumper:
+            # The tug has no sonar: its bumper finds an obstacle, as it finds another truck.
+            s = vehicle.state
+            if self.obstacles.touching(footprint(s.x, s.y, s.heading, p.electruk)):
+                self.bump()
         sonar = None  # hw/sonar: a reading (m) when a ping is due
         if self.sonar is not None and sample >= (every := self._sonar_every).next \
                 and every.due(sample) and self.p.sonar.enabled:

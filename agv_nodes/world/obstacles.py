@@ -3,7 +3,9 @@
 An obstacle is a disc of a diameter (`size`) at (x, y) on the floor, the shape a carton, a post
 or a person's legs present to a sonar at bumper height. The floor's obstacles are shared by
 every sensor that looks for them (the CONCIC-II's front sonar, agv_nodes/world/sonar.py), and
-are the same for either truck's world. A layout lists the ones that stand from the start
+are the same for either truck's world: the Electruk, which has no sonar, runs into one, and its
+bumper (the world's, agv_nodes/world/contact.py's outline) cuts the drive as another truck's
+touch does. A layout lists the ones that stand from the start
 (`obstacles:`); the world's `world/obstacles` topic places and removes them while it runs, one
 JSON command a message:
 
@@ -72,6 +74,23 @@ def obstacle(spec: Any, where: str = '') -> Obstacle:
                     _number(spec.get('size'), f'{key}size', *SIZE_RANGE))
 
 
+def _inside(outline: list[tuple[float, float]], x: float, y: float) -> bool:
+    """Return True when (x, y) is inside or on a convex anticlockwise outline."""
+    for i, (x0, y0) in enumerate(outline):
+        x1, y1 = outline[(i + 1) % len(outline)]
+        if (x1 - x0) * (y - y0) - (y1 - y0) * (x - x0) < 0.0:
+            return False
+    return True
+
+
+def _to_segment(x: float, y: float, a: tuple[float, float], b: tuple[float, float]) -> float:
+    """Return the distance from (x, y) to the segment a-b."""
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    span = dx * dx + dy * dy
+    t = 0.0 if span == 0.0 else min(1.0, max(0.0, ((x - a[0]) * dx + (y - a[1]) * dy) / span))
+    return math.hypot(x - a[0] - t * dx, y - a[1] - t * dy)
+
+
 class Obstacles:
     """The floor's obstacles by name; `changes` counts every place and remove applied."""
 
@@ -86,6 +105,19 @@ class Obstacles:
     def __len__(self) -> int:
         """Return how many stand now."""
         return len(self.by_name)
+
+    def touching(self, outline: list[tuple[float, float]]) -> Obstacle | None:
+        """Return an obstacle that touches or overlaps a convex outline (anticlockwise), if any.
+
+        A disc meets a convex polygon when its centre lies inside it or within its radius of
+        one of its edges.
+        """
+        for item in self.by_name.values():
+            if _inside(outline, item.x, item.y) or min(
+                    _to_segment(item.x, item.y, outline[i], outline[(i + 1) % len(outline)])
+                    for i in range(len(outline))) <= item.radius:
+                return item
+        return None
 
     def place(self, item: Obstacle) -> None:
         """Put `item` down (one of its name already there moves)."""
