@@ -80,7 +80,9 @@ class Mosquitto:
     """A private mosquitto on `host`, started by `start()` and ended by `stop()`.
 
     `passwords` (user name -> password) turns anonymous access off: only those users connect.
-    `tls` makes the one listener TLS (the URL mqtts://). Usable as a context manager.
+    `tls` makes the one listener TLS (the URL mqtts://). Usable as a context manager. The
+    parent-death signal is tied to the thread that calls `start()`: start it from a thread
+    that lives as long as the broker should (the main thread, as the launcher does).
     """
 
     def __init__(self, host: str = HOST, port: int = 0, tls: BrokerTls | None = None,
