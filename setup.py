@@ -62,6 +62,7 @@ setup(
             # tools
             'agv-demo = agv_nodes.demo:main',
             'agv-diag = agv_nodes.executive.diag_view:main',
+            'agv-fleet-sim = agv_nodes.fleet.fleet_sim:main',
             'agv-launch = agv_nodes.graph.cli:main',
             'agv-layout = agv_nodes.world.layout_cli:main',
             'agv-records = agv_nodes.records.cli:main',

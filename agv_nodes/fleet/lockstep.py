@@ -15,6 +15,10 @@ per truck (seed + index), so their sensors' noise does too.
 (agv_nodes.fleet.truck_processes): the same samples in the same order, on more cores. Then
 `trucks` holds only the trucks of this process (the first ones); `query` reaches any truck.
 Close such a fleet (`close`, or use it as a context manager) to end its processes.
+
+`add` puts a truck on the floor while the fleet runs and `remove` takes one off (a fleet
+simulator's tester does: agv_nodes.fleet.fleet_sim). An added truck is powered on then: its
+own clock starts at 0, as a truck's cores count from their start.
 """
 
 from __future__ import annotations
@@ -96,6 +100,9 @@ class Fleet:
                 self._far[name] = (h.world.pose(), h.world.p.electruk)
         self._local = local
         self._closed = False
+        self.layout_name, self.overrides = layout_name, overrides
+        # the floor's clock: samples stepped, of the first truck's world (trucks come and go)
+        self._samples, self._dt = 0, next(iter(self.trucks.values())).world.dt
 
     def __enter__(self) -> Fleet:
         return self
@@ -112,8 +119,8 @@ class Fleet:
 
     @property
     def now(self) -> float:
-        """Simulated seconds (the same for every truck)."""
-        return self.trucks[self._local[0]].now
+        """Simulated seconds (the same for every truck that was there from the start)."""
+        return self._samples * self._dt  # as WorldCore.time counts them
 
     def submit(self, name: str, text: str) -> None:
         """Hand a task to truck `name`'s communications (a comms/task message in the graph)."""
@@ -153,6 +160,7 @@ class Fleet:
 
     def step_trucks(self) -> None:
         """One world sample for every truck (in its own process)."""
+        self._samples += 1
         workers = self._workers
         if not workers:
             if self._closed:
@@ -197,6 +205,50 @@ class Fleet:
     def run(self, seconds: float, until: Callable[[], bool] | None = None) -> bool:
         """Step for `seconds` of simulated time, or until `until()` is true (returns it)."""
         return run_for(self, seconds, until)
+
+    def add(self, name: str, start: tuple[str, float], *, seed: int) -> None:
+        """Put truck `name` on the floor at `start` (path, at), stepped from the next sample.
+
+        It goes to the process that steps the fewest trucks (the others before the first, which
+        also checks the contacts). ValueError when the name is taken or its body would touch
+        another truck's.
+        """
+        if name in self.names:
+            raise ValueError(f'truck {name!r} is on the floor already')
+        h = truck(self.layout_name, seed=seed, start=start, station_loads=self.station_loads,
+                  overrides=self.overrides)
+        body = (h.world.pose(), h.world.p.electruk)
+        watch = ContactWatch([*self.names, name])
+        if touching := [pair for pair in watch.contacts({**self._bodies(), name: body})
+                        if name in pair]:
+            raise ValueError(f'truck {name!r} would touch {sorted(touching)[0]} at {start}')
+        worker = min(self._workers, key=lambda w: len(w.names), default=None)
+        if worker is None or len(worker.names) > len(self._local):
+            self.trucks[name] = h
+            self._local.append(name)
+        else:  # built again there, from the same seed and loads: the same truck
+            worker.pending.append(('add', name, self.layout_name, seed, start, self.overrides))
+            worker.names.append(name)
+            self._owner[name] = worker
+            self._notes[name] = deque(maxlen=NOTES_KEPT)
+            self._far[name] = body
+        self.names.append(name)
+        self.contacts.names.append(name)
+
+    def remove(self, name: str) -> None:
+        """Take truck `name` off the floor: from the next sample it is stepped no more."""
+        if name not in self.names:
+            raise KeyError(f'no truck {name!r} on the floor')
+        self.names.remove(name)
+        self.contacts.names.remove(name)
+        self.contacts.touching = {pair for pair in self.contacts.touching if name not in pair}
+        if (worker := self._owner.pop(name, None)) is not None:
+            worker.pending.append(('remove', name))
+            worker.names.remove(name)
+            del self._far[name], self._notes[name]
+        else:
+            del self.trucks[name]
+            self._local.remove(name)
 
     def reports(self, name: str) -> list[str]:
         """Return truck `name`'s communications reports so far."""

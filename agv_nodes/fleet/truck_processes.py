@@ -30,11 +30,13 @@ import time
 import traceback
 from typing import Any
 
-from agv_nodes.harness import Harness, submit
+from agv_nodes.harness import Harness, submit, truck
 
 SPIN = 200e-6  # s a side polls for the other's message before it blocks
 
-Op = tuple[Any, ...]  # ('loads', {station: load}) | ('submit', truck, text) | ('bump', truck)
+# ('loads', {station: load}) | ('submit', truck, text) | ('bump', truck) | ('remove', truck)
+# | ('add', truck, layout, seed, start, overrides): a truck put on the floor (Fleet.add)
+Op = tuple[Any, ...]
 
 
 def bump(h: Harness) -> None:
@@ -78,6 +80,12 @@ def _apply(trucks: Mapping[str, Harness], loads: dict[str, int], ops: Sequence[O
             loads.update(op[1])
         elif op[0] == 'submit':
             submit(trucks[op[1]], op[2])
+        elif op[0] == 'add':
+            _, name, layout, seed, start, overrides = op
+            trucks[name] = truck(layout, seed=seed, start=start, station_loads=loads,
+                                 overrides=overrides)
+        elif op[0] == 'remove':
+            del trucks[op[1]]
         else:  # 'bump'
             bump(trucks[op[1]])
 
