@@ -11,6 +11,7 @@ import pytest
 from agv_nodes.graph.cli import build_parser, options_from
 from agv_nodes.graph.model import load_graph
 from agv_nodes.graph.parameters import layout_name, truck_graph
+from agv_nodes.harness import truck
 from agv_nodes.package_share import config_dir
 from agv_nodes.route_following.camera_guidance import CameraSteering, Measurement, Validity
 from agv_nodes.route_following.settings import RouteParams
@@ -70,3 +71,13 @@ def test_agv_launch_takes_the_preset() -> None:
     assert layout_name(graph, options) == 'tape_1991'
     names = {n.name for n in graph.nodes}
     assert 'route_following' in names and 'traction' not in names  # the CONCIC-II's graph
+
+
+@pytest.mark.timeout(60)
+def test_lock_step_truck_takes_the_preset() -> None:
+    """The harness builds the camera truck's cores from the preset, each section accepted."""
+    h = truck('tape_1991', params_file=PRESET)
+    route = h.cores['route_following'].p
+    assert route.vehicle == 'concic2'  # from the layout
+    assert route.steering.integral_form == 'with_dt'
+    assert list(route.image.rows) == [3, 29, 55]
