@@ -37,7 +37,7 @@ from typing import Any
 
 from amqtt.broker import Broker
 
-from agv_nodes.mqtt.client import ENV_URL, format_mqtt_url, parse_mqtt_url, uses_tls
+from agv_nodes.mqtt.address import ENV_URL, format_mqtt_url, parse_mqtt_url, uses_tls
 from agv_nodes.mqtt.mosquitto import Mosquitto, find_mosquitto
 
 HOST = '127.0.0.1'

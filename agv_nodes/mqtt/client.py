@@ -18,7 +18,6 @@ logged and the network thread carries on (paho would otherwise let it end the th
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 import logging
-import re
 import socket
 import ssl
 import sys
@@ -29,22 +28,9 @@ from typing import Any
 from paho.mqtt.client import MQTT_LOG_ERR, Client, MQTTv311, topic_matches_sub
 from paho.mqtt.enums import CallbackAPIVersion, MQTTErrorCode
 
-from agv_nodes.mqtt.address import (  # the address helpers, importable from here as before
-    DEFAULT_PORT as DEFAULT_PORT,
-)
-from agv_nodes.mqtt.address import (
-    ENV_URL as ENV_URL,
-)
-from agv_nodes.mqtt.address import (
-    LinkSecurity,
-    parse_mqtt_url,
-    uses_tls,
-)
-from agv_nodes.mqtt.address import (
-    format_mqtt_url as format_mqtt_url,
-)
+from agv_nodes.mqtt.address import LinkSecurity, parse_mqtt_url, uses_tls
+from agv_nodes.mqtt.failure import READ_FAILED, failure_text, log_failure_text
 
-_READ_FAILED = 'failed to receive on socket: '  # paho's log line for a failed read
 _log = logging.getLogger(__name__)
 
 MessageCallback = Callable[[str, bytes], None]
@@ -360,9 +346,9 @@ class MqttLink:
 
     def _on_log(self, client: Client, userdata: Any, level: int, text: str) -> None:
         # paho reports a failed read (a TLS alert from the broker among them) only in its log
-        if level != MQTT_LOG_ERR or not text.startswith(_READ_FAILED):
+        if level != MQTT_LOG_ERR or not text.startswith(READ_FAILED):
             return
-        why = _log_failure_text(text)
+        why = log_failure_text(text)
         with self._lock:
             if self._session_up:
                 return
@@ -375,7 +361,7 @@ class MqttLink:
     def _on_connect_fail(self, client: Client, userdata: Any) -> None:
         # paho calls this inside its `except OSError`, so the exception is still at hand
         error = sys.exc_info()[1]
-        why = _failure_text(error) if error is not None else 'connection failed'
+        why = failure_text(error) if error is not None else 'connection failed'
         with self._lock:
             self._counts['failed_attempts'] += 1
             new = why != self._last_failure
@@ -410,18 +396,3 @@ class MqttLink:
             except Exception:
                 _log.exception('MQTT on_connection callback failed')
 
-
-def _failure_text(error: BaseException) -> str:
-    """One line on why a connection failed (an SSL error's reason, not its errno tuple)."""
-    if isinstance(error, ssl.SSLCertVerificationError):
-        return f'TLS: the broker certificate is not trusted ({error.verify_message})'
-    if isinstance(error, ssl.SSLError):
-        return f'TLS: {error.reason or error}'
-    return str(error) or type(error).__name__
-
-
-def _log_failure_text(text: str) -> str:
-    """Return paho's `failed to receive on socket: [SSL: X] reason (_ssl.c:N)` as `TLS: reason`."""
-    text = text.removeprefix(_READ_FAILED)
-    match = re.fullmatch(r'\[SSL(?:: \w+)?\] (.*?)(?: \(_ssl\.c:\d+\))?', text)
-    return f'TLS: {match.group(1)}' if match else text
