@@ -95,7 +95,7 @@ class HealthMonitor:
         flags = {
             'traction': [('tripped', 'trip relay open: ' + str(fields.get('trip_cause'))),
                          ('radio_stop', 'radio stop'),
-                         ('bumper', 'bumper pressed by another truck')],
+                         ('bumper', 'bumper pressed (another truck or an obstacle)')],
             'route': [('state', 'guide-wire pickup not yet heard' if fields.get('state') ==
                        'unheard' else 'guide wire lost')],
             'navigation': [('sensor_lost', 'marker sensor lost'),

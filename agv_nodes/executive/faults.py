@@ -102,7 +102,8 @@ class FaultSupervision:
             return self._fail(now, 'no_branch', 'route', self.tape.no_branch(route))
         traction = self.status.get('traction') or {}
         if traction.get('bumper'):
-            return self._fail(now, 'collision', 'traction', 'bumper pressed by another truck')
+            return self._fail(now, 'collision', 'traction',
+                              'bumper pressed (another truck or an obstacle)')
         if traction.get('radio_stop'):
             return self._fail(now, 'radio_stop', 'traction', 'radio stop')
         if traction.get('trip_cause') == 'clock_jumped':  # traction took the jump first
