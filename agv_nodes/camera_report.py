@@ -26,7 +26,7 @@ from agv_nodes.world.settings import WorldParams
 # lateral error measures the following; turning, waiting and stopped phases would swamp it.
 STEERED = ('following', 'sign')
 # States in which route following switched the motors off: the cause of the stop that follows.
-HALTS = ('lost', 'no_track', 'no_branch', 'drive_fault')
+HALTS = ('lost', 'no_track', 'no_branch', 'drive_fault', 'obstacle')
 JUNCTION_PHASES = ('turning', 'waiting')
 TASK_ENDS = (': completed', ': FAILED', ': rejected')
 FAILURE_WINDOW_S = 2.0  # a FAILED report this close to a stop is that stop's failure
