@@ -5,9 +5,10 @@ parking", takes 5 mm. A leg with a length slows to that speed and cuts the motor
 ends at the length (route following's parking_speed, parking_distance; camera_mode.py).
 
 Lock step, the whole camera truck (world, route following, executive, communications) on a
-straight 12 m tape written for the test, at the default speeds and on the default (dynamic)
-CONCIC-II model; each leg's length is measured by the world's ground truth, the path of the
-axle centre from the leg's start to rest, not by the truck's odometry.
+straight 12 m tape written for the test (and junction_1991 for a reverse leg that turns at its
+cross), at the default speeds and on the default (dynamic) CONCIC-II model; each leg's length
+is measured by the world's ground truth, the path of the axle centre from the leg's start to
+rest, not by the truck's odometry.
 """
 
 from __future__ import annotations
@@ -111,3 +112,20 @@ def test_a_dead_reckoning_leg_parks_at_its_length_too(tmp_path: Path) -> None:
     h = parking_truck(tmp_path)
     travels, _ = run_legs(h, 'reckon trajectory 1 for 1.5 m')
     assert travels == [pytest.approx(1.5, abs=CLAIM)]
+
+
+@pytest.mark.timeout(300)
+def test_a_reverse_leg_that_turns_at_a_junction_parks_at_its_length() -> None:
+    """junction_1991: left at the R2, up the branch to its end, back down it and left of travel.
+
+    The reverse leg's 4 m: 2.4-2.5 m back down the branch to the cross (the forward leg's
+    window ran off the branch's end), the quarter turn over it (the axle centre stays put), then
+    along the main tape toward +x, parking at 4 m of the axle's ground-truth travel. Counted as
+    the sum of |travel|, the wheels' mean swinging back and forth in the spin (one wheel's loop
+    lagging the other's) had the truck park 72 mm short.
+    """
+    h = truck('junction_1991', seed=4, overrides={'world': {'rear_camera': True}})
+    travels, _cuts = run_legs(h, 'tape junctions 1 left, 2 left then reverse for 4 m', 150.0)
+    assert len(travels) == 2 and travels[1] == pytest.approx(4.0, abs=CLAIM), travels
+    s = h.world.vehicle.state
+    assert abs(s.y) < 0.01 and s.x > 3.5, (s.x, s.y)  # on the main tape, past the cross

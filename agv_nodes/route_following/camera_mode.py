@@ -100,6 +100,7 @@ class CameraMode:
         self._set_off_at: float | None = None  # sim time the vehicle set off from rest
         self._last_lead: float | None = None  # sim time of the last leading frame
         self._rows = len(params.image.rows) or 64
+        self._spun = 0.0  # m the wheels' mean moved in this spin (net), counted after it
         self.reckoning: Conic | None = None  # a dead-reckoning leg's curve, odometry frame
         self._reckoned_at: float | None = None  # sim time it last steered
         self.held = False  # held at rest by the sonar (obstacle_stop.py)
@@ -132,7 +133,7 @@ class CameraMode:
         if trajectory is not None:
             direction = 1  # along the trajectory as it was stored
         self.leg, self.direction, self.junctions, self.travel = leg, direction, 0, 0.0
-        self.length = length
+        self.length, self._spun = length, 0.0
         self.state, self.turn.phase, self.motor_on = 'following', '', False
         self.wheels, self.in_sign, self._set_off_at, self._last_lead = (0.0, 0.0), False, None, now
         self.law.start(direction, law)
@@ -172,8 +173,15 @@ class CameraMode:
         self.rims = (fields['left_speed'] / 1000.0, fields['right_speed'] / 1000.0)
         self.speed = (self.rims[0] + self.rims[1]) / 2.0
         before, left, right = self.odo.metres, self.odo.left, self.odo.right
-        self.travel += abs(self.odo.update(fields['left_distance'], fields['right_distance'])
-                           - before)
+        moved = self.odo.update(fields['left_distance'], fields['right_distance']) - before
+        if self.turn.phase in ('spin', 'settle'):
+            # In a spin the wheels' mean swings back and forth as one wheel's loop lags the
+            # other's: summed as |travel| it added 5-8 cm a quarter turn that the axle centre
+            # never went (lock step, the dynamic model). Only the spin's net move counts.
+            self._spun += moved
+        else:
+            self.travel += abs(self._spun) + abs(moved)
+            self._spun = 0.0
         self.law.odometry(self.odo.left - left, self.odo.right - right)
 
     def frame(self, frame: np.ndarray, now: float, camera: str) -> None:
