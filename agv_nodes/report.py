@@ -316,13 +316,27 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of agv-report."""
     ap = argparse.ArgumentParser(prog='agv-report', description=__doc__.splitlines()[0])
     ap.add_argument('bag', type=Path)
-    ap.add_argument('--out', type=Path, help='output directory (default: <bag>_report)')
+    ap.add_argument('--out', type=Path, help='output directory (default: <bag>_report); with '
+                    '--channels the CSV file (default: <bag>_channels.csv)')
+    ap.add_argument('--channels', action='store_true',
+                    help="write the camera truck's 12 software channels, 50 ms apart, as CSV "
+                    '(agv_nodes.channels) instead')
     ap.add_argument('--layout', help='a camera-truck run on this tape layout (name or file): '
                     'write the camera report (agv_nodes.camera_report) instead')
     args = ap.parse_args(argv)
     if not (args.bag / 'metadata.yaml').is_file():
         print(f'agv-report: {args.bag} is not a rosbag2 bag (no metadata.yaml)', file=sys.stderr)
         return 2
+    if args.channels:
+        from agv_nodes.channels import export
+
+        try:
+            path, rows = export(args.bag, args.out)
+        except ValueError as exc:
+            print(f'agv-report: {exc}', file=sys.stderr)
+            return 2
+        print(f'{rows} samples of the 12 software channels; wrote {path}')
+        return 0
     out = args.out or args.bag.with_name(args.bag.name + '_report')
     if args.layout:
         from agv_nodes.camera_report import make_camera_report  # it imports this module

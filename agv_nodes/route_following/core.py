@@ -88,6 +88,7 @@ class RouteCore(SubsystemCore):
         self._wire_time: float | None = None
         self.speed = 0.0  # m/s from wheel odometry
         self._rim_speeds = (0.0, 0.0)  # m/s, from wheel odometry
+        self.odometry_time: float | None = None  # sim time of the last wheel_odometry
         self.steer_actual = 0.0  # model of the actuator's position
         self.heading_error = 0.0  # SRM: heading relative to the wire left (new wire parallel)
         self._aligned_since: float | None = None
@@ -150,6 +151,7 @@ class RouteCore(SubsystemCore):
         elif record == 'wheel_odometry':
             self.speed = (fields['left_speed'] + fields['right_speed']) / 2000.0
             self._rim_speeds = (fields['left_speed'] / 1000.0, fields['right_speed'] / 1000.0)
+            self.odometry_time = now
             self.cam.odometry(fields)
             self.safety.odometry(fields, self.wheels,
                                  self.motor_on and self.mode in ('camera', 'manual'), now)

@@ -8,7 +8,8 @@ visualization_msgs/Marker line strip, both in the odometry frame the track was i
 
 The camera truck also takes geometry_msgs/Twist on `cmd_vel` (relative; teleop_twist_keyboard's
 topic), acted on only in manual mode (manual_drive.py); refused commands are counted by reason
-in /diagnostics as input `cmd_vel`.
+in /diagnostics as input `cmd_vel`. It logs its 12 software channels every 50 ms of sim time on
+`route/channels` (agv_nodes/channels.py; Rajagopalan 1991, 6.3.8, App. F.10).
 """
 
 from collections import Counter
@@ -21,9 +22,10 @@ from geometry_msgs.msg import Point, PoseStamped, Twist
 from nav_msgs.msg import Path
 import numpy as np
 from sensor_msgs.msg import Image
+from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import Marker
 
-from agv_nodes import qos
+from agv_nodes import channels, qos
 from agv_nodes.core_node import CoreNode, spin_main
 from agv_nodes.route_following.core import RouteCore
 from agv_nodes.route_following.sonar_input import SonarSubscription
@@ -119,6 +121,7 @@ class RouteFollowingNode(CoreNode):
 
     def __init__(self) -> None:
         super().__init__(RouteCore)
+        self.channel_log: channels.ChannelLog | None = None
         for camera in ('front', 'rear'):  # from the named writer only (world, or a driver)
             frames = FrameSubscription(self, camera, qos.STREAM_READER, self._frame(camera))
             self.input_diagnostics.add(frames.name, frames)
@@ -128,6 +131,10 @@ class RouteFollowingNode(CoreNode):
             self.input_diagnostics.add(sonar.name, sonar)
         if self.core.p.vehicle == 'concic2':  # the camera truck identifies its track
             self.input_diagnostics.add('cmd_vel', CmdVelInput(self))
+            self.channel_log = channels.ChannelLog(self.core.p.image)
+            self.channels_pub = self.create_publisher(Float64MultiArray, channels.TOPIC,
+                                                      qos.STREAM_WRITER)
+            self.periodic(channels.SAMPLE_PERIOD, self._log_channels)
             # Pictures that change as the truck goes, as the world's pose is.
             self.track_pub = self.create_publisher(Path, 'route/identified_track',
                                                    qos.STREAM_WRITER)
@@ -144,8 +151,14 @@ class RouteFollowingNode(CoreNode):
             pixels = np.frombuffer(bytes(msg.data), dtype=np.uint8).reshape(msg.height,
                                                                               msg.width)
             frame = (pixels < 128).astype(np.uint8)  # dark tape = 1, as the optic-RAM gives it
+            if self.channel_log is not None:
+                self.channel_log.frame(frame, camera)
             self.publish(self.core.on_frame(frame, self.now_s(), camera))
         return callback
+
+    def _log_channels(self) -> None:
+        sample = self.channel_log.sample(self.core, self.now_s())
+        self.channels_pub.publish(Float64MultiArray(data=sample))
 
     def _draw_track(self) -> None:
         guidance = self.core.track_guidance
