@@ -503,6 +503,7 @@ def test_the_rviz_configuration_shows_what_the_graph_publishes_as_it_publishes_i
     manager = config['Visualization Manager']
     assert manager['Global Options']['Fixed Frame'] == 'map'  # world/markers' frame
     published = {'world/markers': qos.LATCHED, 'world/route': qos.LATCHED,
+                 'world/obstacle_markers': qos.LATCHED,
                  'world/pose': qos.STREAM_WRITER, 'odom': qos.EVENTS,
                  'hw/camera/front': qos.STREAM_WRITER}
     shown = {d['Topic']['Value']: d['Topic'] for d in manager['Displays'] if 'Topic' in d}

@@ -67,6 +67,7 @@ def late_and_coast(v: float) -> tuple[float, float]:
 def test_an_obstacle_stops_the_running_truck_short_and_removed_it_finishes(tmp_path) -> None:
     from diagnostic_msgs.msg import DiagnosticArray
     from std_msgs.msg import String
+    from visualization_msgs.msg import Marker, MarkerArray
 
     from agv_nodes import qos
 
@@ -77,6 +78,10 @@ def test_an_obstacle_stops_the_running_truck_short_and_removed_it_finishes(tmp_p
         lambda m: said.extend(s.message for s in m.status if 'route_following' in s.name),
         qos.EVENTS)
     obstacles = g.node.create_publisher(String, 'world/obstacles', qos.EVENTS)
+    drawn: list[set[tuple[str, float, float, float]]] = []  # the world's obstacle markers
+    g.node.create_subscription(MarkerArray, 'world/obstacle_markers', lambda m: drawn.append(
+        {(k.text, k.pose.position.x, k.pose.position.y, k.scale.x) for k in m.markers
+         if k.action == Marker.ADD}), qos.LATCHED)
     mount = default(SonarParams, 'mount')
     try:
         g.start_task('tape for 6.0 m', cruise=CRUISE)
@@ -97,8 +102,13 @@ def test_an_obstacle_stops_the_running_truck_short_and_removed_it_finishes(tmp_p
         g.spin_until(lambda: any(m.startswith('Obstacle detected') for m in said), 30,
                      "route following's /diagnostics to say Obstacle detected")
         assert not any('FAILED' in r for r in g.reports), g.reports
+        # the viewers' picture of the floor follows: the box drawn where it was placed, then
+        # gone (latched, so the first sample is the empty floor)
+        assert drawn[0] == set() and (BOX['place'], BOX['x'], BOX['y'], BOX['size']) in \
+            set().union(*drawn), drawn
         obstacles.publish(String(data=json.dumps({'remove': 'box'})))
         g.report_with('completed', wall_limit=120)
+        assert drawn[-1] == set(), drawn
         end = g.path[-1][1]
         assert g.time > since + 3.0 and end - x0 == pytest.approx(6.0, abs=0.01), (x0, end)
         logs = '\n'.join(p.read_text(errors='replace')

@@ -3,8 +3,9 @@
 One process beside the graph (`agv-launch --foxglove`, or `ros2 run agv_nodes live_view`
 against any running graph). It serves a Foxglove WebSocket (foxglove-sdk) on 127.0.0.1 with:
 
-- `/scene`: the floor (wires and tape, marker cards, stations) and each truck's body with its
-  marker lens or camera windows (agv_nodes.view.scene), re-sent every `scene_period`;
+- `/scene`: the floor (wires and tape, marker cards, stations, the obstacles standing, as the
+  world's latched `world/obstacle_markers` gives them) and each truck's body with its marker
+  lens or camera windows (agv_nodes.view.scene), re-sent every `scene_period` and on a change;
 - `/tf`: the frames `map -> odom -> base_link -> marker_lens | camera_front | camera_rear` of
   each truck (its own prefixed with its namespace in a fleet);
 - `[/<ns>]/decoded/<record topic>`: every record decoded, with the reader's verdict
@@ -34,12 +35,21 @@ from foxglove.channels import (
     RawImageChannel,
     SceneUpdateChannel,
 )
-from foxglove.messages import FrameTransforms, Log, LogLevel, RawImage, SceneUpdate
+from foxglove.messages import (
+    FrameTransforms,
+    Log,
+    LogLevel,
+    RawImage,
+    SceneEntityDeletion,
+    SceneEntityDeletionType,
+    SceneUpdate,
+)
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import Image
 from std_msgs.msg import String, UInt8MultiArray
+from visualization_msgs.msg import Marker, MarkerArray
 
 from agv_nodes import qos
 from agv_nodes.node_process import spin_main
@@ -51,7 +61,13 @@ from agv_nodes.ros_ports import record_bytes
 from agv_nodes.settings import settings_class
 from agv_nodes.view.frames import TruckFrames, TruckShape, frame, track_of, truck_shape
 from agv_nodes.view.odometry import PlanarPose
-from agv_nodes.view.scene import floor_entities, stamp, transform, truck_entities
+from agv_nodes.view.scene import (
+    floor_entities,
+    obstacle_entity,
+    stamp,
+    transform,
+    truck_entities,
+)
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
 from agv_nodes.world.settings import WorldParams
 
@@ -196,16 +212,35 @@ class LiveView:
         self.ros_tf = node.create_publisher(tf_type, '/tf', qos.EVENTS) if tf_type else None
         self.trucks = [TruckView(self, ns, shape, track) for ns in s.trucks]
         self._floor = floor_entities(self.layout)
+        self._obstacles: list[Marker] = []
+        self._gone: list[str] = []  # obstacles removed since the last scene: deleted in it
+        node.create_subscription(MarkerArray, 'world/obstacle_markers', self.on_obstacles,
+                                 qos.LATCHED)
         node.create_timer(s.scene_period, self.send_scene)
+        self.send_scene()
+
+    def on_obstacles(self, msg: MarkerArray) -> None:
+        """Take the world's obstacles standing now (the whole set, on every change)."""
+        posts = [m for m in msg.markers if m.action == Marker.ADD and m.type == Marker.CYLINDER]
+        now = {m.text for m in posts}
+        self._gone += [m.text for m in self._obstacles if m.text not in now]
+        self._obstacles = posts
         self.send_scene()
 
     def send_scene(self) -> None:
         """Send the floor and the trucks (for viewers that joined since)."""
         t = self.trucks[0].now() if self.trucks else 0.0
         entities = list(self._floor)
+        entities += [obstacle_entity(m.text, m.pose.position.x, m.pose.position.y, m.scale.x,
+                                     m.scale.z, t) for m in self._obstacles]
         for truck in self.trucks:
             entities += truck_entities(truck.shape, truck.ns, t)
-        self.scene.log(SceneUpdate(entities=entities), log_time=round(t * 1e9))
+        deletions = [SceneEntityDeletion(timestamp=stamp(t), id=f'obstacle/{name}',
+                                         type=SceneEntityDeletionType.MatchingId)
+                     for name in self._gone]
+        self._gone = []
+        self.scene.log(SceneUpdate(deletions=deletions, entities=entities),
+                       log_time=round(t * 1e9))
 
     def send_transforms(self, transforms: list, t: float) -> None:
         """Send frames to the viewer, and to ROS's /tf where tf2_msgs exists."""

@@ -17,6 +17,7 @@ import math
 from foxglove.messages import (
     Color,
     CubePrimitive,
+    CylinderPrimitive,
     FrameTransform,
     LinePrimitive,
     LinePrimitiveLineType,
@@ -39,6 +40,7 @@ CARD = {'location': Color(r=0.2, g=0.5, b=1.0, a=1.0), 'stop': Color(r=1.0, g=0.
         'white': Color(r=0.95, g=0.95, b=0.95, a=1.0)}
 BODY = Color(r=0.3, g=0.7, b=0.3, a=0.6)
 LENS = Color(r=1.0, g=0.9, b=0.0, a=1.0)
+OBSTACLE = Color(r=0.8, g=0.2, b=0.8, a=0.8)
 CARD_HEIGHT = 0.08  # m: two rows of 40 mm elements (Baker 1983, 4.3)
 
 
@@ -119,6 +121,18 @@ def truck_entities(shape: TruckShape, ns: str = '', t: float = 0.0) -> list[Scen
             frame_locked=True, cubes=[CubePrimitive(pose=pose(0.0, 0.0), size=size,
                                                     color=LENS)]))
     return entities
+
+
+def obstacle_entity(name: str, x: float, y: float, size: float, height: float,
+                    t: float = 0.0) -> SceneEntity:
+    """Return an obstacle in `map`: a post of diameter `size` standing at (x, y)."""
+    return SceneEntity(
+        timestamp=stamp(t), frame_id='map', id=f'obstacle/{name}',
+        cylinders=[CylinderPrimitive(pose=pose(x, y, z=height / 2.0),
+                                     size=Vector3(x=size, y=size, z=height),
+                                     bottom_scale=1.0, top_scale=1.0, color=OBSTACLE)],
+        texts=[TextPrimitive(pose=pose(x, y, z=height + 0.1), billboard=True, font_size=12.0,
+                             scale_invariant=True, color=OBSTACLE, text=name)])
 
 
 def scene(entities: list[SceneEntity]) -> SceneUpdate:

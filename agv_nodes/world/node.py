@@ -20,7 +20,8 @@ PAL's latches (Rajagopalan 1991, 6.3.11).
 The CONCIC-II's front sonar pings on hw/sonar (sensor_msgs/Range, agv_nodes/world/sonar.py);
 world/obstacles (std_msgs/String, one JSON command a message) places and removes obstacles on the
 floor while it runs (agv_nodes/world/obstacles.py), a refused command logged in one line and
-counted in /diagnostics.
+counted in /diagnostics; world/obstacle_markers (visualization_msgs/MarkerArray, latched) draws
+the obstacles standing, re-sent whole on every change.
 """
 
 from __future__ import annotations
@@ -65,7 +66,7 @@ from agv_nodes.world.obstacles import ObstacleCommands
 from agv_nodes.world.pacing import GraphPacer
 from agv_nodes.world.peers import LinkWatch, parse_link_entry
 from agv_nodes.world.settings import WorldNodeSettings, WorldParams
-from agv_nodes.world.viz import camera_image, layout_messages, pose_message
+from agv_nodes.world.viz import camera_image, layout_messages, obstacle_markers, pose_message
 
 NODE = 'world'
 
@@ -151,6 +152,9 @@ class WorldNode(WorldLoop, Node):
         route, markers = layout_messages(self.layout)
         self.create_publisher(PathMsg, 'world/route', qos.LATCHED).publish(route)
         self.create_publisher(MarkerArray, 'world/markers', qos.LATCHED).publish(markers)
+        self.obstacle_pub = self.create_publisher(MarkerArray, 'world/obstacle_markers',
+                                                  qos.LATCHED)
+        self.obstacle_pub.publish(obstacle_markers(self.core.obstacles))
         self._pose_every = max(1, round(wp.sample_rate / 50.0))
         self._serve()
 
@@ -246,6 +250,8 @@ class WorldNode(WorldLoop, Node):
     def _obstacle_command(self, msg: String) -> None:
         self._work += 1
         applied, line = self.obstacle_commands.take(msg.data, round(self.time * 1e9))
+        if applied:
+            self.obstacle_pub.publish(obstacle_markers(self.core.obstacles))
         log = self.get_logger()
         (log.info if applied else log.warning)(f'{line} at {self.time:.3f} s')
 

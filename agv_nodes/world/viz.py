@@ -1,4 +1,4 @@
-"""The world's pictures: the route and marker cards (latched), the pose, camera frames."""
+"""The world's pictures: route, marker cards and obstacles (latched), the pose, camera frames."""
 
 import math
 
@@ -81,3 +81,30 @@ def layout_messages(layout: Layout) -> tuple[Path, MarkerArray]:
     for k, m in enumerate(layout.markers):
         markers.markers.extend(_card(k, m))
     return path, markers
+
+
+OBSTACLE_HEIGHT = 0.5  # m: drawn as a post; the sonar sees a disc at its own height
+
+
+def obstacle_markers(obstacles) -> MarkerArray:
+    """Build world/obstacle_markers: a DELETEALL, then each standing obstacle as a cylinder.
+
+    Sent whole on every change (latched), so a viewer joining late sees the floor as it is and
+    a removed obstacle disappears. The marker's `text` carries the obstacle's name.
+    """
+    out = MarkerArray()
+    clear = Marker(ns='obstacles', action=Marker.DELETEALL)
+    clear.header.frame_id = 'map'
+    out.markers.append(clear)
+    for k, item in enumerate(sorted(obstacles, key=lambda o: o.name)):
+        post = Marker(ns='obstacles', id=k, type=Marker.CYLINDER, action=Marker.ADD,
+                      text=item.name)
+        post.header.frame_id = 'map'
+        post.pose.position.x, post.pose.position.y = float(item.x), float(item.y)
+        post.pose.position.z = OBSTACLE_HEIGHT / 2.0
+        post.pose.orientation.w = 1.0
+        post.scale.x = post.scale.y = float(item.size)
+        post.scale.z = OBSTACLE_HEIGHT
+        post.color.a, post.color.r, post.color.g, post.color.b = 0.8, 0.8, 0.2, 0.8
+        out.markers.append(post)
+    return out
