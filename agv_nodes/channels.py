@@ -19,7 +19,9 @@ writes them as CSV (header `time_s` and the names below, one row per sample). A 
 no frame, or whose last frame showed no tape, gives an empty cell (NaN), not a made-up zero.
 The offsets are the camera's latest frame analysed as guidance analyses it
 (camera_guidance.py), by the log's own analyser, so the camera that does not steer is logged
-too (App. F.2 (8): "the unused one can still be logged").
+too (App. F.2 (8): "the unused one can still be logged"). Each is the camera's own reading: the
+rear camera faces backwards, so its eps_d has the opposite sign of the forward frame's, its
+eps_theta the same (dual_camera.travel_frame turns it for the law).
 """
 
 from __future__ import annotations
@@ -91,7 +93,7 @@ class ChannelLog:
             self._counts = (read_at, odo.left, odo.right)
         law = route.cam.law
         dual = float(law.dual.decision.law.value) if (
-            route.mode == 'camera' and route.p.cameras == 'both' and route.motor_on) else 0.0
+            route.mode == 'camera' and law.law == 'dual' and route.motor_on) else 0.0
         steering = route.cam.steer if route.mode == 'camera' else 0.0
         return [now, *desired, *route.cam.rims, *counted, *self._offsets('front'),
                 *self._offsets('rear'), steering, dual]

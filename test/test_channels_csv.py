@@ -1,5 +1,8 @@
 """The 12 software channels at 50 ms, from a real recorded bag to CSV (Rajagopalan 1991, 6.3.8).
 
+First in lock step: the channel log of a dual-camera leg (world, route following and a scripted
+executive) names the law in operation and reads both cameras as the world places the tape.
+
 A camera-truck graph over DDS (world, route following, executive, communications and the
 recorder) drives a tape leg on junction_1991 and records its bag; `agv-report --channels BAG
 --out FILE` writes the CSV. The header must be the thesis's list, in its order (6.3.8, written
@@ -16,10 +19,15 @@ import math
 from graph_probe import GraphProbe
 import pytest
 
+from agv_nodes.channels import NAMES, ChannelLog
+from agv_nodes.harness import Harness
 from agv_nodes.report import main as agv_report
-from agv_nodes.world.settings import WorldNodeSettings, WorldParams
-
-pytestmark = [pytest.mark.dds, pytest.mark.slow]
+from agv_nodes.route_following.core import RouteCore
+from agv_nodes.route_following.dual_camera import Law
+from agv_nodes.route_following.settings import RouteParams
+from agv_nodes.world.core import WorldCore
+from agv_nodes.world.layout import layout_path, load_layout
+from agv_nodes.world.settings import Concic2Params, WorldNodeSettings, WorldParams
 
 # Rajagopalan 1991, 6.3.8: "The data recorded by the software channels are
 THESIS_ORDER = [
@@ -40,6 +48,8 @@ CLOCK_STEP = WorldNodeSettings().clock_every / WorldParams().sample_rate  # s, /
 CRUISE = 0.47  # m/s, route following's camera_speed
 
 
+@pytest.mark.dds
+@pytest.mark.slow
 @pytest.mark.timeout(300)
 def test_channels_csv_from_a_recorded_bag_has_the_thesis_order_every_50_ms(tmp_path) -> None:
     bag = tmp_path / 'bag'
@@ -89,3 +99,57 @@ def test_channels_csv_from_a_recorded_bag_has_the_thesis_order_every_50_ms(tmp_p
         assert r[col['dual_law']] == 0.0  # the leading camera alone steers (cameras lead)
     assert sum(not math.isnan(r[col['eps_dr']]) for r in cruising) > 10
     assert agv_report(['--channels', str(tmp_path / 'logs'), '--out', str(out)]) == 2
+
+
+class Exec:
+    """A scripted executive: one camera leg forwards."""
+
+    node, period = 'executive', 0.05
+
+    def on_record(self, record, fields, now):
+        pass
+
+    def tick(self, now):
+        return {'route_command': {'mode': 'camera', 'srm_angle': 0, 'junction': 'straight',
+                                  'manoeuvre': 0, 'direction': 'forward', 'junction_number': 0,
+                                  'junction_wait': 0, 'leg': 1}}
+
+
+@pytest.mark.timeout(60)
+def test_the_channel_log_of_a_dual_camera_leg_names_the_law_and_reads_both_cameras():
+    assert ['time_s', *NAMES] == THESIS_ORDER
+    world = WorldCore(load_layout(layout_path('junction_1991')),
+                      WorldParams(seed=3, rear_camera=True,
+                                  concic2=Concic2Params(model='kinematic')))
+    route = RouteCore(RouteParams(vehicle='concic2', cameras='both'))
+    h = Harness(world, [Exec(), route], seed=3)
+    log, rows, seen, posed = ChannelLog(route.p.image), [], {}, {}
+    st, due = world.vehicle.state, PERIOD
+    while h.now < 6.0:  # to x = 2.3 m, short of the cross at 3 m
+        h.step()
+        for camera, frame in h.frames.items():
+            if seen.get(camera) is not frame:  # the cameras' new frames, as the node takes them
+                log.frame(frame, camera)
+                seen[camera], posed[camera] = frame, (st.y, st.heading)
+        if h.now >= due - 1e-9:
+            rows.append(log.sample(route, h.now))
+            due += PERIOD
+    col = {name: k for k, name in enumerate(THESIS_ORDER)}
+    # the rear window (L_c behind the axle) over the tape once the axle is 0.64 m past x = 0
+    assert st.x - L_C > 0.3 and route.cam.law.law == 'dual'
+    last = rows[-1]
+    assert last[col['dual_law']] in {float(law.value) for law in Law}
+    assert last[col['steering_command']] == route.cam.steer
+    for camera, ahead, name in (('front', L_C, 'eps_df'), ('rear', -L_C, 'eps_dr')):
+        y, heading = posed[camera]  # where the truck stood when the frame was taken
+        window_y = y + ahead * math.sin(heading)  # the tape is y = 0
+        # (the rear camera's frame is the frame of reverse travel: its left is the truck's right)
+        assert last[col[name]] == pytest.approx(-window_y if ahead > 0 else window_y, abs=PIXEL)
+    duals = [r for r in rows if r[col['dual_law']]]
+    assert len(duals) > 20 and all(not math.isnan(r[col['eps_dr']]) for r in duals)
+    before = [r for r in rows if math.isnan(r[col['eps_dr']])]  # rear window behind the start
+    assert before and all(r[col['dual_law']] == 0.0 for r in before)
+
+
+L_C = Concic2Params().camera_distance  # m, both windows from the axle (the world's)
+PIXEL = RouteParams().image.width / 128  # m per column
