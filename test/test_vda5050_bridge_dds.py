@@ -85,10 +85,25 @@ def test_a_master_drives_the_truck_through_orders_an_update_a_cancel_and_bad_inp
         master.order('o1', 0, nodes, edges)
         taken = master.wait_for('state', lambda s: s['orderId'] == 'o1', 20, 'order o1', spin)
         assert not taken['errors']  # an accepted order clears the rejections
+        # 6.10.6: the truck has read no card yet; L0, the first ahead, is still to traverse
+        assert taken['lastNodeId'] == '' and taken['nodeStates'][0]['nodeId'] == 'L0'
+        assert taken['agvPosition']['positionInitialized'] is False
+        assert taken.get('loads') == []  # load handling heard: both conveyors empty
+        at_l0 = master.wait_for('state', lambda s: s['lastNodeId'] == 'L0', 60, 'L0 read', spin)
+        assert at_l0['agvPosition']['positionInitialized'] is True
+        assert [n['nodeId'] for n in at_l0['nodeStates']] == ['W0.1', 'L2', 'W2.1']
+        picked = master.wait_for('state', lambda s: _action(s, 'pick1') == 'FINISHED', 150,
+                                 'pick1 FINISHED', spin)
+        # the conveyor's sensor and the task's end come by different paths: the next states
+        master.wait_for('state', lambda s: s['headerId'] >= picked['headerId']
+                        and s['loads'] == [{'loadPosition': 'first'}], 10, 'the load on', spin)
         done = master.wait_for(
             'state', lambda s: _action(s, 'drop1') == 'FINISHED', 150, 'drop1 FINISHED', spin)
-        assert _action(done, 'pick1') == 'FINISHED'
         assert (done['lastNodeId'], done['nodeStates'], done['edgeStates']) == ('W2.1', [], [])
+        # the conveyor's sensor and the task's end come by different paths: the next states
+        empty = master.wait_for('state', lambda s: s['headerId'] >= done['headerId']
+                                and s['loads'] == [], 10, 'the load gone', spin)
+        assert empty['lastNodeId'] == 'W2.1'
         moved = [e for _t, e in g.events if e['event'] == 'load_moved']
         assert len(moved) == 2, moved  # the world's ground truth: on at W0, off at W2
 
@@ -97,6 +112,11 @@ def test_a_master_drives_the_truck_through_orders_an_update_a_cancel_and_bad_inp
         master.order('o1', 1, nodes, edges)
         master.wait_for('state', lambda s: s['orderUpdateId'] == 1 and s['driving'], 30,
                         'update 1 driving', spin)
+        # W2.2, a stop marker driven past, is lastNodeId as the truck passes it, L1 still ahead
+        passed = master.wait_for('state', lambda s: s['lastNodeId'] == 'W2.2', 60,
+                                 'W2.2 passed', spin)
+        assert [n['nodeId'] for n in passed['nodeStates']] == ['L1', 'W1.1']
+        assert passed['driving'] and passed['lastNodeSequenceId'] == 8
         g.spin_until(lambda: g.speed > 0.3, 60, 'the truck under way')
         master.instant({'actionType': 'cancelOrder', 'actionId': 'cancel1',
                         'blockingType': 'HARD'})
@@ -112,6 +132,10 @@ def test_a_master_drives_the_truck_through_orders_an_update_a_cancel_and_bad_inp
                                'an orderUpdateError', spin)
         assert late['orderUpdateId'] == 1
 
+        shown = [v for v in master.received['visualization']
+                 if v['agvPosition']['positionInitialized']]
+        assert shown and all(s['safetyState'] == {'eStop': 'NONE', 'fieldViolation': False}
+                             for s in master.states())
         assert master.invalid == [], master.invalid[:5]  # every message valid by the schema
         bridge.send_signal(signal.SIGINT)
         out, _ = bridge.communicate(timeout=30)

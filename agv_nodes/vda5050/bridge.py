@@ -17,8 +17,8 @@ bridge node reads the records over DDS) or from a lock-step fleet (agv_nodes.har
 - on_wheels(left_mm, right_mm, left_speed, right_speed, now): the wheel_odometry counters;
   agvPosition and velocity are dead reckoning from the last node read.
 - on_loads(first, second, now): load_status's two conveyors: `loads`.
-- on_traction(TractionFacts, now): traction_status's E-stop, radio stop, bumper and manual:
-  safetyState (eStop MANUAL / REMOTE, fieldViolation) and operatingMode.
+- on_traction(TractionFacts, now): traction's radio stop, bumper and manual control
+  (traction_status): safetyState (eStop REMOTE, fieldViolation) and operatingMode.
 - on_record(name, fields, now): any of those records decoded, taken by the method above that
   reads it (RECORDS names them); what a reader of the graph's records calls.
 
@@ -174,6 +174,7 @@ class BridgeCore:
 
     def on_marker_read(self, location: int | None, now: float) -> Outbox:
         """Take a card read while navigating: a location's identity, None a stop marker."""
+        self._sync()
         node = self.where.place(location, self.flow.ahead())
         if node is None or not self.flow.node_read(node):
             return Outbox()

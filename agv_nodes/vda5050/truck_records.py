@@ -8,7 +8,8 @@ BridgeCore.on_record, which takes it here:
   navigating table is a card read: a location's identity, or EDIM for a stop marker's centre
   (Baker 1983, App. B.1 UCTAB). Heartbeats repeat the last recognition and are not reads.
 - load_status: the two conveyors' load sensors (Baker 1983, 6.5).
-- traction_status: the E-stop, the radio stop, the bumper and manual control.
+- traction_status: the radio stop, the bumper and manual control (the 1983 truck's records
+  carry no emergency stop button: traction's emergency_stop is the executive's 00H stop).
 - wheel_odometry: the driven wheels' counters, for dead reckoning.
 """
 
@@ -51,7 +52,9 @@ class RecordFacts:
         if name == 'load_status':
             return core.on_loads(bool(fields['load_first']), bool(fields['load_second']), now)
         if name == 'traction_status':
+            # Its emergency_stop flag is the executive's commanded stop (00H, GETREF), made at
+            # every stop: no emergency stop button's.
             return core.on_traction(TractionFacts(
-                e_stop=bool(fields['emergency_stop']), radio_stop=bool(fields['radio_stop']),
-                bumper=bool(fields['bumper']), manual=bool(fields['manual'])), now)
+                radio_stop=bool(fields['radio_stop']), bumper=bool(fields['bumper']),
+                manual=bool(fields['manual'])), now)
         raise ValueError(f'record {name!r}: the bridge reads only {", ".join(RECORDS)}')

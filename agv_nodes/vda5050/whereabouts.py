@@ -42,9 +42,11 @@ REREAD_FRACTION = 0.5
 class TractionFacts:
     """What traction reports that the state shows (traction_status, Baker 1983 6.3.1).
 
-    e_stop: the truck's emergency stop button; radio_stop: the radio stop input (the remote
-    emergency stop); bumper: pressed by another truck (the protective field of 6.10.6);
-    manual: the truck driven by hand (REF from the command byte), not by its executive.
+    e_stop: an emergency stop button pressed on the truck (eStop MANUAL: acknowledged on the
+    truck; no record of the 1983 truck carries one); radio_stop: the radio stop input, the
+    remote emergency stop (eStop REMOTE); bumper: pressed by another truck or an obstacle (the
+    protective field of 6.10.6: fieldViolation); manual: the truck driven by hand (REF from the
+    command byte), not by its executive (operatingMode MANUAL).
     """
 
     e_stop: bool = False
@@ -114,8 +116,11 @@ class Whereabouts:
             candidates = candidates[:1] if location is not None else []
         for node_id in candidates:
             if self._is(node_id, location):
+                if self.node is not None and node_id == self.node.id:
+                    return None  # the card the executive has just reported (a location), or
+                    # the one the truck stood on, read again as it leaves
                 if self._too_soon(node_id):
-                    return None  # the card just stood on, read again as the truck leaves it
+                    return None  # the card just stood on, read as the next one's edge begins
                 return node_id
             if ahead and location is None and self.graph.nodes[node_id].kind == 'location':
                 break  # a stop marker's read never passes a location card not read
@@ -133,8 +138,6 @@ class Whereabouts:
     def _too_soon(self, node_id: str) -> bool:
         if self.node is None:
             return False
-        if node_id == self.node.id:
-            return True
         edge = self.graph.edge(self.node.id, node_id)
         return edge is not None and self.since < REREAD_FRACTION * edge.length
 
