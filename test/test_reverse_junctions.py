@@ -124,6 +124,10 @@ def test_a_reverse_decision_the_sign_cannot_honour_fails_naming_it(tmp_path: Pat
     assert any('FAILED no_branch (route): junction 2: sign P12 seen, offering right; the '
                'decision left is not on it' in t for t in ex.notes.texts()), ex.notes.texts()
     assert h.cores['communications'].results[-1][1:] == ('failed', 'no_branch')
+    assert any(': FAILED: no branch (route): junction 2: sign P12 seen, offering right; the '
+               'decision left is not on it' in t
+               for t in h.cores['communications'].notes.texts()), \
+        h.cores['communications'].notes.texts()
     corner = load_layout(tmp_path / 'corner_1991.yaml')
     # agv-layout check foretold the reading: backing out of the branch, a P12, right alone.
     assert 'read as P12: no decision goes straight across and off the tape' in \

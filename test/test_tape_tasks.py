@@ -206,6 +206,10 @@ def test_a_decision_the_sign_lacks_fails_the_task_and_stops_the_truck() -> None:
     assert any('FAILED no_branch (route): junction 2: sign P22 seen, offering right and '
                'straight; the decision left is not on it' in text for text in ex.notes.texts()), \
         ex.notes.texts()
+    # ...and so does the task's report line, from comms_command's junction, sign and decision
+    assert any(': FAILED: no branch (route): junction 2: sign P22 seen, offering right and '
+               'straight; the decision left is not on it' in text
+               for text in comms.notes.texts()), comms.notes.texts()
     # Stopped just past the P22 (9 m along the tape, the truck set off 0.5 m along): the window,
     # 0.64 m ahead of the axle, saw the sign end without the left branch, within a metre.
     window_at = 0.5 + h.world.vehicle.state.distance + 0.64

@@ -72,6 +72,20 @@ def abort_line(task_id: int, dropped: int) -> str:
     return f'task {task_id} abort: queue of {dropped} dropped'
 
 
+def no_branch_text(junction: int, flags: tuple[int, int, int], decision: str) -> str:
+    """Return what a no_branch was: the junction, the sign seen, its branches, the decision.
+
+    `flags`: the sign's (left, right, straight) branch flags (Rajagopalan 1991, fig 4.3).
+    """
+    # Fig. 4.3's decoding, imported only for a no_branch: the reader otherwise needs no numpy.
+    from agv_nodes.route_following.camera_guidance import sign_name
+
+    offered = [way for way, flag in zip(('left', 'right', 'straight'), flags, strict=True)
+               if flag] or ['none']
+    return (f'junction {junction}: sign {sign_name(*flags) or "unread"} seen, '
+            f'offering {" and ".join(offered)}; the decision {decision} is not on it')
+
+
 def progress_line(task_id: int, text: str, fields: dict) -> str:
     """Return the line for a comms_command record about task `task_id`."""
     line = f'task {task_id} {text!r}: {STATE_WORDS.get(fields["state"], fields["state"])}'
@@ -83,6 +97,11 @@ def progress_line(task_id: int, text: str, fields: dict) -> str:
             line += f' ({fields["subsystem"]})'
         if fields.get('detail', 'none') != 'none':  # which drive fault
             line += f': {fields["detail"].replace("_", " ")}'
+        if fields['cause'] == 'no_branch' and fields.get('junction', 0):
+            line += ': ' + no_branch_text(
+                fields['junction'], tuple(int(fields.get(f'sign_{way}', 0))
+                                          for way in ('left', 'right', 'straight')),
+                fields.get('decision', 'none'))
     if fields['location'] != 0xFF:
         line += f' [last marker L{fields["location"]}]'
     return line

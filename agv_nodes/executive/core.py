@@ -32,7 +32,7 @@ from agv_nodes.executive.faults import SUBSYSTEM_OF, SUBSYSTEMS, FaultSupervisio
 from agv_nodes.executive.itinerary import NO_TASK, Step, itinerary
 from agv_nodes.executive.set_down import SetDown
 from agv_nodes.executive.settings import ExecutiveParams, parse_srm_map
-from agv_nodes.executive.tape_legs import TapeLegs
+from agv_nodes.executive.tape_legs import NO_BRANCH_FIELDS, TapeLegs
 from agv_nodes.records.ports import DUPLICATE_WRITER
 from agv_nodes.subsystem import SubsystemCore
 
@@ -352,7 +352,7 @@ class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
             if outcome.state == 'done':
                 self._advance(now)
             elif outcome.state == 'failed':
-                self._fail(now, outcome.cause, 'route', outcome.detail)
+                self._fail(now, outcome.cause, 'route', outcome.detail, report=outcome.report)
 
     def _log(self, now: float, text: str) -> None:
         self.notes.add(now, text)
@@ -411,5 +411,7 @@ class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
                               'step': self.index if self.mode == 'running' else 0,
                               'cause': self.report['cause'], 'subsystem': self.report['subsystem'],
                               'detail': self.report.get('detail', 'none'),
+                              **{key: self.report.get(key, default)
+                                 for key, default in NO_BRANCH_FIELDS.items()},
                               'location': self.last_marker if self.last_marker <= 31 else 0xFF},
         }

@@ -7,6 +7,7 @@ the executive: every fault here ends the task with an emergency stop and a named
 from typing import Any
 
 from agv_nodes.executive.itinerary import NO_TASK
+from agv_nodes.executive.tape_legs import no_branch_detail
 
 STATUS_RECORDS = {'navigation': 'navigation_status', 'traction': 'traction_status',
                   'route': 'route_status', 'load': 'load_status',
@@ -99,7 +100,8 @@ class FaultSupervision:
             return self._fail(now, 'lost_wire', 'route',
                               f'guide-wire pickup not heard within {self.p.trip_grace:g} s')
         if route.get('state') == 'no_branch' and self.camera:
-            return self._fail(now, 'no_branch', 'route', self.tape.no_branch(route))
+            account = self.tape.no_branch(route)
+            return self._fail(now, 'no_branch', 'route', no_branch_detail(account), report=account)
         traction = self.status.get('traction') or {}
         if traction.get('bumper'):
             return self._fail(now, 'collision', 'traction',
@@ -146,13 +148,17 @@ class FaultSupervision:
         return now < self.arm_until or (self.status.get('route') or {}).get('state') == 'unheard'
 
     def _fail(self, now: float, cause: str, subsystem: str, detail: str,
-              drive_fault: str = 'none') -> None:
-        """Stop and fail the task; `drive_fault` is comms_command's detail (cause drive_fault)."""
+              drive_fault: str = 'none', report: dict[str, Any] | None = None) -> None:
+        """Stop and fail the task; `drive_fault` is comms_command's detail (cause drive_fault).
+
+        `report`: more of comms_command's fields of the failure (a no_branch's junction, sign
+        and decision), so that the report line names them too.
+        """
         self._stop_everything()
         self.mode = 'failed'
         self.fault = (cause, subsystem)
         self.report = {'state': 'failed', 'cause': cause, 'subsystem': subsystem,
-                       'detail': drive_fault}
+                       'detail': drive_fault, **(report or {})}
         self._log(now, f'task {self.task_id}: FAILED {cause} ({subsystem}): {detail}')
 
     def _stop_everything(self) -> None:

@@ -33,9 +33,11 @@ absent_frames frames, motors off). no_track before a leg's length is a lost tape
 (the decision is not on the sign) and lost (a turn that did not finish) fail the task.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import random
 from typing import Any
+
+from agv_nodes.communications.report_line import no_branch_text
 
 SCRIPT_JUNCTIONS = 4  # comms_status junction_1..junction_4
 
@@ -47,22 +49,29 @@ class LegOutcome:
     state: str  # running | done | failed
     cause: str = 'none'
     detail: str = ''
+    report: dict[str, Any] = field(default_factory=dict)  # comms_command's fields of a failure
 
 
-def no_branch_detail(status: dict[str, Any], decision: str, number: int | None = None) -> str:
-    """Return what a no_branch was: the junction, the sign seen, its branches, the decision.
+# comms_command's account of a no_branch, and its values for every other report
+NO_BRANCH_FIELDS = {'junction': 0, 'sign_left': 0, 'sign_right': 0, 'sign_straight': 0,
+                    'decision': 'none'}
 
-    `number`: the junction's number in the task's script (default: route_status's count).
+
+def no_branch_fields(status: dict[str, Any], decision: str, number: int) -> dict[str, Any]:
+    """Return comms_command's account of a no_branch: the junction, the sign's flags, decision.
+
+    `number`: the junction's number in the task's script.
     """
-    # Fig. 4.3's decoding, imported only on a failure: the executive otherwise runs without numpy.
-    from agv_nodes.route_following.camera_guidance import sign_name
+    return {'junction': min(number, 255),
+            'decision': decision if decision in ('left', 'right', 'straight') else 'none',
+            **{f'sign_{way}': int(status.get(f'sign_{way}', 0))
+               for way in ('left', 'right', 'straight')}}
 
-    flags = [int(status.get(f'sign_{way}', 0)) for way in ('left', 'right', 'straight')]
-    offered = [way for way, flag in zip(('left', 'right', 'straight'), flags, strict=True)
-               if flag] or ['none']
-    number = status.get('junctions') if number is None else number
-    return (f'junction {number}: sign {sign_name(*flags) or "unread"} seen, '
-            f'offering {" and ".join(offered)}; the decision {decision} is not on it')
+
+def no_branch_detail(fields: dict[str, Any]) -> str:
+    """Return the line no_branch_fields' account reads as (communications reports the same)."""
+    return no_branch_text(fields['junction'], tuple(
+        fields[f'sign_{way}'] for way in ('left', 'right', 'straight')), fields['decision'])
 
 
 class TapeLegs:
@@ -123,10 +132,10 @@ class TapeLegs:
                 'junction_number': self.next_junction, 'junction_wait': self.decision[1],
                 'leg': self.leg}
 
-    def no_branch(self, status: dict[str, Any]) -> str:
-        """Return a no_branch's detail: the junction, the sign seen, its branches, the decision."""
+    def no_branch(self, status: dict[str, Any]) -> dict[str, Any]:
+        """Return a no_branch's account: the junction, the sign seen, its branches, decision."""
         met = int(status.get('junctions', 0))
-        return no_branch_detail(status, self.decisions.get(met, self.decision[0]),
+        return no_branch_fields(status, self.decisions.get(met, self.decision[0]),
                                 self.before + met)
 
     def update(self, status: dict[str, Any], route: dict[str, Any],
@@ -141,7 +150,8 @@ class TapeLegs:
                 f'Obstacle detected after {distance / 100:.2f} m: stopped until it is removed'
                 if self.obstacle else f'obstacle removed after {distance / 100:.2f} m: going on'))
         if state == 'no_branch':
-            return LegOutcome('failed', 'no_branch', self.no_branch(status)), route
+            account = self.no_branch(status)
+            return LegOutcome('failed', 'no_branch', no_branch_detail(account), account), route
         if state == 'lost':
             return LegOutcome('failed', 'lost_track', 'a junction turn did not finish'), route
         met = self.met = max(self.met, int(status.get('junctions', 0)))
