@@ -9,9 +9,9 @@ from agv_nodes.settings import settings_class
 # The track identification's groups: settings_class finds a nested group by name in this module.
 from agv_nodes.track_geometry.settings import FeedForwardParams, IdentificationParams
 
-__all__ = ['CalibrationParams', 'DeadReckoningParams', 'DriveSafetyParams', 'DualCameraParams',
-           'FeedForwardParams', 'IdentificationParams', 'ImageParams', 'ManualParams',
-           'RouteParams', 'SteeringParams', 'TurningParams', 'WireParams']
+__all__ = ['CalibrationParams', 'Chapter9Params', 'DeadReckoningParams', 'DriveSafetyParams',
+           'DualCameraParams', 'FeedForwardParams', 'IdentificationParams', 'ImageParams',
+           'ManualParams', 'RouteParams', 'SteeringParams', 'TurningParams', 'WireParams']
 
 
 @settings_class
@@ -74,6 +74,11 @@ class ManualParams:
 @settings_class
 class CalibrationParams:
     """Camera calibration against the known tape (Rajagopalan 1991, App. F.3; calibration.py)."""
+
+
+@settings_class
+class Chapter9Params:
+    """Rajagopalan 1991, Chapter 9's proposals on the camera law, all off (chapter9.py)."""
 
 
 @settings_class
