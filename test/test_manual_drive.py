@@ -206,3 +206,22 @@ def test_a_twist_that_is_no_number_or_not_planar_is_refused_and_the_last_one_sta
     assert route.wheels == pytest.approx((0.3, 0.3))
     assert [n.text for n in route.notes.recent if 'refused' in n.text] == [
         'cmd_vel refused (not_finite)', 'cmd_vel refused (not_planar)']
+
+
+def test_the_radio_stop_holds_the_truck_against_a_held_key_and_stays_stopped():
+    # The world's power cut (concic2_dynamics: the chips off while hw/radio_stop is true).
+    # Route following does not read the switch; its encoder check (wheels asked to turn that
+    # show no counts, drive_safety.encoder_time) then stops it as an encoder fault, latched
+    # until the mode is left: released, the held key does not drive the truck off.
+    h, world, route, _ = manual_truck()
+    st = world.vehicle.state
+    teleop(h, route, 3.0, 0.4, 0.0)
+    h.set_radio_stop(True)
+    teleop(h, route, 1.0, 0.4, 0.0)  # coasting to rest from 0.4 m/s takes 0.08 s
+    x = st.x
+    teleop(h, route, 3.0, 0.4, 0.0)
+    assert st.speed == 0.0 and st.x == x
+    assert route.safety.fault.startswith('encoder_') and not route.motor_on
+    h.set_radio_stop(False)
+    verdicts = teleop(h, route, 3.0, 0.4, 0.0)
+    assert set(verdicts) == {'drive_fault'} and st.speed == 0.0 and st.x == x
