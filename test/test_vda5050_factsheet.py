@@ -244,7 +244,11 @@ def test_parameters(sheet: Factsheet) -> None:
     for action_type, action in actions.items():
         if action_type not in ('wait', 'initPosition'):
             assert action.action_parameters is None
-    assert sheet.protocol_features.optional_parameters == []
+    # the state's optional fields the bridge fills (6.10.6), and visualization (6.13)
+    assert {(o.parameter, o.support) for o in sheet.protocol_features.optional_parameters} == {
+        ('state.agvPosition', 'SUPPORTED'), ('state.velocity', 'SUPPORTED'),
+        ('state.loads', 'SUPPORTED'), ('state.distanceSinceLastNode', 'SUPPORTED'),
+        ('visualization', 'SUPPORTED')}
 
 
 def test_protocol_limits(sheet: Factsheet) -> None:

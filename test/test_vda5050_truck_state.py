@@ -201,3 +201,21 @@ def test_agv_position_is_within_its_deviation_range_of_the_ground_truth(delivery
         assert 0.0 < p['localizationScore'] <= 1.0
         checked += 1
     assert checked > 30
+
+
+def test_the_radio_stop_is_a_remote_e_stop_and_the_truck_stops():
+    """The radio stop (hw/radio_stop) mid-drive: eStop REMOTE while the world has it set."""
+    t = BridgedTruck(seed=2)
+    t.apply(t.core.state_now(0.0))
+    t.run(1.0)
+    t.apply(t.core.on_message('order', order(WAY[:4], {}), t.h.now))
+    assert t.run(60.0, until=lambda: t.h.world.vehicle.state.speed > 0.3)
+    t.h.set_radio_stop(True)
+    assert t.run(5.0, until=lambda: t.states[-1]['safetyState']['eStop'] == 'REMOTE')
+    t.run(5.0)
+    assert t.states[-1]['safetyState'] == {'eStop': 'REMOTE', 'fieldViolation': False}
+    assert abs(t.h.world.vehicle.state.speed) < 0.01  # the world: the truck stands
+    assert not t.states[-1]['driving']
+    t.h.set_radio_stop(False)
+    assert t.run(5.0, until=lambda: t.states[-1]['safetyState']['eStop'] == 'NONE')
+    assert not t.invalid

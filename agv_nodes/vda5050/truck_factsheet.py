@@ -40,10 +40,12 @@ from agv_nodes.vda5050.factsheet import (
     MaxArrayLens,
     MaxStringLens,
     NavigationType,
+    OptionalParameter,
     PhysicalParameters,
     PolygonPoint,
     ProtocolFeatures,
     ProtocolLimits,
+    Support,
     Timing,
     TypeSpecification,
     ValueDataType,
@@ -168,6 +170,23 @@ def _geometry(world: WorldParams) -> tuple[AgvGeometry, float]:
     return AgvGeometry(wheel_definitions=wheels, envelopes2d=[outline]), front - rear
 
 
+# The optional fields of state (6.10.6) the bridge fills (agv_nodes.vda5050.bridge); what it
+# leaves out (zoneSetId, maps, batteryState's voltage, health and reach) is not listed.
+STATE_FIELDS = [
+    OptionalParameter(parameter='state.agvPosition', support=Support.SUPPORTED,
+                      description='the last marker card read and dead reckoning from the wheel '
+                      'counters since; deviationRange grows with the distance driven'),
+    OptionalParameter(parameter='state.velocity', support=Support.SUPPORTED,
+                      description='from the wheel counters'),
+    OptionalParameter(parameter='state.loads', support=Support.SUPPORTED,
+                      description="the two conveyors' load sensors: loadPosition only"),
+    OptionalParameter(parameter='state.distanceSinceLastNode', support=Support.SUPPORTED,
+                      description='the wheel counters since the last card read'),
+    OptionalParameter(parameter='visualization', support=Support.SUPPORTED,
+                      description='agvPosition and velocity, once a second'),
+]
+
+
 def truck_factsheet(manufacturer: str, serial_number: str, header_id: int,
                     timestamp: datetime | None = None, *,
                     state_interval: float = DEFAULT_STATE_INTERVAL) -> Factsheet:
@@ -218,7 +237,7 @@ def truck_factsheet(manufacturer: str, serial_number: str, header_id: int,
             timing=Timing(min_order_interval=MIN_ORDER_INTERVAL,
                           min_state_interval=MIN_STATE_INTERVAL,
                           default_state_interval=state_interval)),
-        protocol_features=ProtocolFeatures(optional_parameters=[],
+        protocol_features=ProtocolFeatures(optional_parameters=STATE_FIELDS,
                                            agv_actions=_agv_actions()),
         agv_geometry=geometry,
         load_specification=LoadSpecification(load_positions=positions))
