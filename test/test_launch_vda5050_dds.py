@@ -164,3 +164,52 @@ def test_a_sigkilled_launcher_leaves_no_bridge_and_no_broker(tmp_path, fault_tab
                     'the bridge and every node end (SIGTERM from the kernel), the embedded '
                     'broker with the launcher',
                     f'all {len(pids)} gone {took:.1f} s after the kill, the broker at once')
+
+
+@pytest.mark.timeout(300)
+def test_a_master_drives_agv_launch_on_mosquitto_and_hears_the_last_will():
+    """The independent master (test/vda5050_master.py) drives `agv-launch --vda5050`.
+
+    On mosquitto: a pick at W0.1 and a drop at W2.1, then the bridge SIGKILLed: the broker
+    sends its last will, CONNECTIONBROKEN. Every message the truck sent validates against the
+    official 2.1.0 schemas.
+    """
+    from vda5050_master import Master, action, path
+
+    from agv_nodes.graph.parameters import Options
+    from agv_nodes.graph.supervisor import Launch
+    from agv_nodes.mqtt.mosquitto import Mosquitto
+
+    broker = Mosquitto()
+    url = broker.start()
+    launch = Launch(Options(vda5050=True, mqtt_url=url, quiet=True,
+                            domain_id=int(os.environ['ROS_DOMAIN_ID'])))
+    master = None
+    try:
+        master = Master(url, 'agv_nodes', 'agv1')
+        launch.start()
+        master.wait_for('connection', lambda c: c['connectionState'] == 'ONLINE', 60, 'ONLINE')
+        nodes, edges = path(['L0', 'W0.1', 'L2', 'W2.1'],
+                            actions={'W0.1': [action('pick', 'pick1')],
+                                     'W2.1': [action('drop', 'drop1')]})
+        master.order('o1', 0, nodes, edges)
+        taken = master.wait_for('state', lambda s: s['orderId'] == 'o1', 30, 'order o1')
+        assert taken['lastNodeId'] == '' and not taken['errors']
+        master.wait_for('state', lambda s: any(a['actionId'] == 'drop1'
+                                               and a['actionStatus'] == 'FINISHED'
+                                               for a in s['actionStates']), 200, 'drop1 done')
+        empty = master.wait_for('state', lambda s: s['lastNodeId'] == 'W2.1'
+                                and s.get('loads') == [], 10, 'the load dropped')
+        assert empty['nodeStates'] == [] and empty['agvPosition']['positionInitialized']
+        assert any(s.get('loads') == [{'loadPosition': 'first'}] for s in master.states())
+        assert launch.poll() == []
+        os.kill(launch.procs['vda5050_bridge'].pid, signal.SIGKILL)
+        master.wait_for('connection', lambda c: c['connectionState'] == 'CONNECTIONBROKEN', 30,
+                        'the last will')
+        assert master.received['visualization']
+        assert master.invalid == [], master.invalid[:5]
+    finally:
+        if master is not None:
+            master.close()
+        launch.stop()
+        broker.stop()
