@@ -39,6 +39,9 @@ WITHIN = 0.01  # m, "5 % of the window dimension" (Sec. 7.4)
 VISIBLE = 0.1  # m, how far off the tape a window centre still sees it
 SINGLE_OVERSHOOT = (0.028, 0.005)  # m, front / rear of the single law on this start (kinematic)
 NEEDED = 0.6 * 2.55  # s: 40 % below the single law's rear time on this start (kinematic)
+# The same against the single law the thesis simulated, P only (Sec. 7.4): its rear time on
+# this start in bench/results/dual_camera_bench.md (kinematic).
+NEEDED_P = 0.6 * 3.20
 DT = 0.02  # s per step of the programme
 HORIZON = 4.0  # s
 
@@ -117,11 +120,15 @@ def main(argv: list[str] | None = None) -> int:
              + (f' --out {args.out}`' if args.out else '`'), '', __doc__.split('\n\n', 2)[2]
              .strip().replace('\n', ' '), '',
              f'Goal of bench/dual_camera_bench.py: the rear within {WITHIN * 1000:.0f} mm by '
-             f"{NEEDED:.2f} s (40 % below the single law's 2.55 s, kinematic).", '',
-             '| limits | fastest rear time (s) | goal reachable |', '|---|---|---|']
+             f"{NEEDED:.2f} s (40 % below the single law's 2.55 s, kinematic); against the "
+             f'P-only single law the thesis simulated (Sec. 7.4), by {NEEDED_P:.2f} s (40 % '
+             'below its 3.20 s).', '',
+             '| limits | fastest rear time (s) | goal reachable | against P only: reachable |',
+             '|---|---|---|---|']
     for case in CASES:
         best = fastest(case)
-        lines.append(f'| {case.name} | {best:.2f} | {"yes" if best <= NEEDED else "no"} |')
+        lines.append(f'| {case.name} | {best:.2f} | {"yes" if best <= NEEDED else "no"} | '
+                     f'{"yes" if best <= NEEDED_P else "no"} |')
     text = '\n'.join(lines) + '\n'
     print(text)
     if args.out:
