@@ -30,7 +30,7 @@ def test_preset_holds_the_thesis_laws_and_gains() -> None:
     assert s.gain_theta == 0.0  # 9.1: the orientation offset not fed back
     assert s.integral_form == 'with_dt'  # Eq. 5.6; the 8254 times the PI's interval (6.3.10)
     assert s.set_off_acceleration == 0.0  # 7.3.2: the LM628 ramps both wheels alike
-    assert (s.schedule_speed, s.integral_band) == (0.0, 0.0)  # none of our options
+    assert (s.schedule_speed, s.integral_band, s.predict) == (0.0, 0.0, 0.0)  # none of ours
     assert s.absent_frames == 4  # App. F.5: four frames without the tape, motor off
     assert list(p.image.rows) == [3, 29, 55]  # 8.3: the 4th, 30th and 56th of 64 rows
     assert (p.cameras, p.camera_law) == ('lead', 'feedback')  # 7.3: the front camera alone
