@@ -21,11 +21,9 @@ import pytest
 
 from agv_nodes.fleet.track_graph import track_graph
 from agv_nodes.harness import submit, truck
-from agv_nodes.records import codec
-from agv_nodes.records.ports import RecordReader
 from agv_nodes.vda5050.bridge import BridgeCore, Outbox
 from agv_nodes.vda5050.codec import to_json
-from agv_nodes.vda5050.truck_records import RECORDS
+from agv_nodes.vda5050.truck_records import RecordTap
 from agv_nodes.world.layout import layout_path, load_layout
 
 pytestmark = pytest.mark.timeout(600)
@@ -63,20 +61,14 @@ class BridgedTruck:
         self.graph = track_graph(load_layout(layout_path('demo_1983')))
         self.core = BridgeCore(self.graph, 'agv_nodes', 'agv1', map_id='demo_1983',
                                electruk=self.h.world.p.electruk)
-        self.readers = {name: RecordReader(codec()[name], 'e2e' if codec()[name].protected
-                                           else 'none') for name in RECORDS}
+        self.tap = RecordTap(self.core)  # the records, each judged by a reader of its own
         self.states: list[dict[str, Any]] = []
         self.truth: list[dict[str, Any]] = []  # the world when each state was sent
         self.messages: list[tuple[str, dict[str, Any]]] = []
         self.positions: list[tuple[dict[str, Any], dict[str, Any]]] = []  # with the truth then
         self._validators = {n: _validator(n) for n in ('state', 'visualization')}
         self.invalid: list[str] = []
-        self.h.taps.append(self._tap)
-
-    def _tap(self, record: str, raw: bytes, now: float) -> None:
-        reader = self.readers.get(record)
-        if reader is not None and (fields := reader.accept(raw, round(now * 1e9))) is not None:
-            self.apply(self.core.on_record(record, fields, now))
+        self.h.taps.append(self.tap)
 
     def truth_now(self) -> dict[str, Any]:
         v = self.h.world.vehicle
@@ -102,6 +94,7 @@ class BridgedTruck:
     def step(self) -> None:
         self.h.step()
         now = self.h.now
+        self.apply(self.tap.take())
         for note in self.h.cores['communications'].notes.take():
             self.apply(self.core.on_report(note.text, now))
         self.apply(self.core.tick(now))

@@ -22,6 +22,11 @@ bridge node reads the records over DDS) or from a lock-step fleet (agv_nodes.har
 - on_record(name, fields, now): any of those records decoded, taken by the method above that
   reads it (RECORDS names them); what a reader of the graph's records calls.
 
+BridgeCore(graph, manufacturer, serial_number, factsheet, state_interval, *, map_id, electruk,
+visualization_interval): `map_id` is agvPosition's mapId (the layout's name), `electruk` the
+world's Electruk parameters whose wheels the counters are of (default: the package's), and
+`visualization_interval` the seconds between visualization messages from tick (0: none).
+
 The truck models no battery: batteryState reports a full charge, not charging.
 """
 

@@ -18,6 +18,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from agv_nodes.markers import EDIM
+from agv_nodes.records import codec
+from agv_nodes.records.ports import RecordReader
 from agv_nodes.vda5050.whereabouts import TractionFacts
 
 if TYPE_CHECKING:
@@ -58,3 +60,34 @@ class RecordFacts:
                 radio_stop=bool(fields['radio_stop']), bumper=bool(fields['bumper']),
                 manual=bool(fields['manual'])), now)
         raise ValueError(f'record {name!r}: the bridge reads only {", ".join(RECORDS)}')
+
+
+class RecordTap:
+    """A lock-step harness's tap (Harness.taps) that gives a bridge core the truck's records.
+
+    Each record of RECORDS is judged by a reader of its own, as the bridge node's readers judge
+    them (a rejected one is counted and dropped); what the core answers waits in `take()`,
+    for the caller to send (tasks to the truck, messages to the master):
+
+        tap = RecordTap(core); harness.taps.append(tap)
+        ... after each step: apply(tap.take())
+    """
+
+    def __init__(self, core: BridgeCore) -> None:
+        from agv_nodes.vda5050.bridge import Outbox  # the bridge imports this module
+        self.core = core
+        self.readers = {name: RecordReader(codec()[name], 'e2e' if codec()[name].protected
+                                           else 'none') for name in RECORDS}
+        self._out = Outbox()
+
+    def __call__(self, record: str, raw: bytes, now: float) -> None:
+        """Take one record as the harness delivers it (its 16 bytes, at sim time `now`)."""
+        reader = self.readers.get(record)
+        if reader is not None and (fields := reader.accept(raw, round(now * 1e9))) is not None:
+            self._out.extend(self.core.on_record(record, fields, now))
+
+    def take(self) -> Outbox:
+        """Return what the core answered since the last take (tasks, messages), and forget it."""
+        from agv_nodes.vda5050.bridge import Outbox
+        out, self._out = self._out, Outbox()
+        return out
