@@ -87,7 +87,7 @@ class CameraLaw:
         self.p = params
         self.cameras = params.cameras
         self.analysers = {name: ImageAnalyser(params.image) for name in ('front', 'rear')}
-        self.single = CameraSteering(params.steering)
+        self.single = CameraSteering(params.steering, params.turning.camera_ahead)
         self.dual = DualCameraGuidance(params.dual, params.steering, params.turning)
         # Always there: its pose follows the odometry, so a later leg can feed it or drive the
         # track it identified (dead reckoning, App. F.9); a leg's law says whether it steers.
@@ -115,6 +115,7 @@ class CameraLaw:
             self.feed_forward = (law if law != 'default' else self.p.camera_law) == 'feed_forward'
         self.direction = direction
         self.single.integral, self.single.absent = 0.0, 0
+        self.single.predictor.reset()
         self.dual.direction = direction
         self.dual.reset()
         for analyser in self.analysers.values():
