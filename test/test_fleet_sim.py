@@ -246,6 +246,8 @@ def test_a_truck_is_added_and_removed_over_the_control_topic(two_processes):
         client.publish(topic, '{"command": "add", "serialNumber": "agv9", "start": "A5.1"}',
                        qos=1).wait_for_publish(5)
         new.wait_for('state', lambda s: s['lastNodeId'] == 'A5.1', WALL, 'agv9 at A5.1')
+        # one truck in each process: the added one goes to the second (Fleet.add)
+        assert sim.fleet._owner.get('agv9') is sim.fleet._workers[0]
         assert new.received['factsheet'], 'no factsheet from the added truck'
         # the new truck drives: an order to the next stop
         nodes, edges = path(['A5.1', 'A6', 'A6.1'])
