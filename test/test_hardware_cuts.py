@@ -354,19 +354,31 @@ def under_way() -> Harness:
     return h
 
 
-def test_radio_stop_stops_the_concic2_its_software_unaware(under_way):
-    """Route following never reads hw/radio_stop: the world's cut alone stops the truck."""
+def test_radio_stop_stops_the_concic2_and_its_software_names_it(under_way):
+    """The world's cut stops the truck at once; route following then names the stop.
+
+    The cut acts in the sample the stop is pressed, before any drive_status can tell route
+    following of it (a record every 1 / drive_status_rate s): the hardware path is proven
+    for itself. drive_status's radio_stop then makes the stop `radio_stop`, not a silent
+    encoder (the wheels rightly stand still unpowered), and the executive fails the task
+    naming it; released, the stop stays latched and named as it was.
+    """
     h = copy.deepcopy(under_way)
-    v, route = h.world.vehicle, h.cores['route_following']
+    v, route, ex = h.world.vehicle, h.cores['route_following'], h.cores['executive']
     h.set_radio_stop(True)
     h.run(SAMPLE)
     assert not v.pushing and v.i1 == 0.0 and v.i2 == 0.0
+    assert route.safety.fault == 'none'  # the software has heard nothing of it yet
     fastest = max(abs(s) for s in v.wheel_speeds())
     assert h.run(fastest / concic2_friction_deceleration() + SAMPLE,
                  until=lambda: v.wheel_speeds() == (0.0, 0.0))
-    # at rest with the software still asking for speed: the cut alone stopped it
-    assert route.motor_on and route.safety.fault == 'none' and h.world.pal.powered
-    assert h.cores['executive'].mode == 'running'
+    assert route.safety.fault == 'radio_stop' and not route.motor_on
+    assert (ex.report['cause'], ex.report['detail']) == ('drive_fault', 'radio_stop'), ex.report
+    h.run(2.0)  # well past the encoder check's time, still pressed
+    assert route.safety.encoder == 'none'
+    h.set_radio_stop(False)
+    h.run(0.5)  # released: the stop stays latched until the next leg, the truck at rest
+    assert route.safety.fault == 'radio_stop' and v.wheel_speeds() == (0.0, 0.0)
 
 
 def test_the_watchdog_under_way_needs_no_software(under_way):

@@ -209,9 +209,8 @@ def test_a_twist_that_is_no_number_or_not_planar_is_refused_and_the_last_one_sta
 
 
 def test_the_radio_stop_holds_the_truck_against_a_held_key_and_stays_stopped():
-    # The world's power cut (concic2_dynamics: the chips off while hw/radio_stop is true).
-    # Route following does not read the switch; its encoder check (wheels asked to turn that
-    # show no counts, drive_safety.encoder_time) then stops it as an encoder fault, latched
+    # The world's power cut (concic2_dynamics: the chips off while hw/radio_stop is true),
+    # told to route following in drive_status (radio_stop): a drive fault it names, latched
     # until the mode is left: released, the held key does not drive the truck off.
     h, world, route, _ = manual_truck()
     st = world.vehicle.state
@@ -221,7 +220,7 @@ def test_the_radio_stop_holds_the_truck_against_a_held_key_and_stays_stopped():
     x = st.x
     teleop(h, route, 3.0, 0.4, 0.0)
     assert st.speed == 0.0 and st.x == x
-    assert route.safety.fault.startswith('encoder_') and not route.motor_on
+    assert route.safety.fault == 'radio_stop' and not route.motor_on
     h.set_radio_stop(False)
     verdicts = teleop(h, route, 3.0, 0.4, 0.0)
     assert set(verdicts) == {'drive_fault'} and st.speed == 0.0 and st.x == x

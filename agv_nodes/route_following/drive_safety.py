@@ -4,7 +4,9 @@ The safety PAL (agv_nodes/world/safety_pal.py) cuts the amplifiers itself and sa
 drive_status; the computer's checks of 6.3.11 add what only the software can see:
 
 - the PAL's latched faults, named: E-stop, watchdog timeout (CO-7), DAC over-voltage (CO-5),
-  LM628 malfunction (CO-6), and an encoder that failed the PAL's start-up test;
+  LM628 malfunction (CO-6), and an encoder that failed the PAL's start-up test; and the radio
+  receiver's stop, which holds the power off while pressed (drive_status's radio_stop) and is
+  latched here, as the encoder check's stop is, so that a released stop does not drive off;
 - the encoder check during motion: a wheel asked to turn at `encoder_speed` or more whose
   encoder count has not moved for `encoder_time` ("Encoders Malfunctioning in Servo Loop #");
   only while the PAL reports ready, since unpowered wheels rightly stand still;
@@ -13,10 +15,10 @@ drive_status; the computer's checks of 6.3.11 add what only the software can see
 
 Any of them is a fault route following stops on, motor off, and names in route_status. The
 PAL's faults and the battery are what drive_status says now (the PAL latches its own until a
-hardware reset); a failed encoder is latched here until `clear()`, the thesis's "a
-software-detected stop is cleared by reloading the software": route following clears it when
-it leaves camera mode or begins a leg, and the check finds it again once the wheel is asked to
-turn.
+hardware reset); a failed encoder and a radio stop are latched here until `clear()`, the
+thesis's "a software-detected stop is cleared by reloading the software": route following
+clears them when it leaves camera mode or begins a leg, and the checks find them again if they
+are still there.
 """
 
 from __future__ import annotations
@@ -26,13 +28,15 @@ from typing import Any
 from agv_nodes.route_following.settings import DriveSafetyParams
 
 FAULTS = ('none', 'estop', 'watchdog', 'over_voltage', 'controller', 'encoder_left',
-          'encoder_right', 'battery_low')
+          'encoder_right', 'battery_low', 'radio_stop')
 
 
 def pal_fault(status: dict[str, Any], battery_low: float) -> str:
     """Name the fault a drive_status record reports ('none' when the drive is healthy)."""
     if status['estop']:
         return 'estop'
+    if status.get('radio_stop'):  # the radio receiver's stop holds the power off
+        return 'radio_stop'
     if status['watchdog']:
         return 'watchdog'
     if status['over_voltage']:
@@ -53,6 +57,8 @@ class DriveSafety:
         self.p = params
         self.status: dict[str, Any] | None = None  # the latest drive_status
         self.encoder = 'none'  # a wheel the encoder check found silent (latched)
+        self.radio_stopped = False  # the radio stop was pressed (latched: released, the truck
+        # stays stopped until reloaded, as a software-detected stop is)
         self._counts: list[int | None] = [None, None]  # each wheel's last distance counter
         self._silent_since: list[float | None] = [None, None]
 
@@ -60,11 +66,15 @@ class DriveSafety:
     def fault(self) -> str:
         """The fault to stop on, the PAL's first (one of FAULTS)."""
         found = 'none' if self.status is None else pal_fault(self.status, self.p.battery_low)
-        return found if found != 'none' else self.encoder
+        if found != 'none':
+            return found
+        return 'radio_stop' if self.radio_stopped else self.encoder
 
     def drive_status(self, fields: dict[str, Any]) -> None:
-        """Take a drive_status record."""
+        """Take a drive_status record (a radio stop in it is latched until `clear()`)."""
         self.status = fields
+        if fields.get('radio_stop'):
+            self.radio_stopped = True
 
     def odometry(self, fields: dict[str, Any], demand: tuple[float, float], motor_on: bool,
                  now: float) -> None:
@@ -83,4 +93,5 @@ class DriveSafety:
     def clear(self) -> None:
         """Reload: forget a failed encoder (the check finds it again if it is still failed)."""
         self.encoder = 'none'
+        self.radio_stopped = False
         self._silent_since = [None, None]

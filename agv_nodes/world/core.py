@@ -231,7 +231,7 @@ class WorldCore(GroundTruth):
             records['wheel_odometry'] = self._odometry()
         if self.pal is not None and sample >= (every := self._drive_every).next \
                 and every.due(sample):
-            records['drive_status'] = self.pal.record()
+            records['drive_status'] = self.pal.record(self.radio_stop)
         at_rest = abs(vehicle.state.speed) <= 0.01
         if (moved := self.conveyors.step(now, dt, at_rest, self.lens_pose)) is not None:
             self._event('load_moved', marker=moved)

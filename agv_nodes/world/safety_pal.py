@@ -111,10 +111,15 @@ class SafetyPal:
         if self.state != 'fault':  # the first fault names the route code
             self.state, self.code, self.since = 'fault', code, now
 
-    def record(self) -> dict[str, Any]:
-        """Return the next drive_status record (the battery as the data-acquisition ADC has it)."""
+    def record(self, radio_stop: bool = False) -> dict[str, Any]:
+        """Return the next drive_status record (the battery as the data-acquisition ADC has it).
+
+        `radio_stop`: the radio receiver's stop input, which holds the amplifiers' power off
+        outside the PAL (the world's wiring); reported so the software can name the stop.
+        """
         self.records += 1
         return {'state': self.state, 'route_code': self.code, 'estop': int(self.estop),
+                'radio_stop': int(radio_stop),
                 'watchdog': int(self.watchdog), 'over_voltage': int(self.over_voltage),
                 'controller_fault': self.controller, 'encoder_fault': self.encoder,
                 'battery': int(min(max(round(self.p.battery_voltage * 10), 0), 0xFFFF)),
