@@ -263,6 +263,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f'agv-fleet-sim: {exc}', file=sys.stderr)
         return 2
+    if broker is not None:
+        print(f'agv-fleet-sim: MQTT broker {url} ({broker.name}, ends with agv-fleet-sim)',
+              flush=True)
     try:
         sim = FleetSim(options, url)
         try:

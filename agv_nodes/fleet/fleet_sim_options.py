@@ -15,7 +15,8 @@ import tempfile
 from typing import Any
 
 from agv_nodes.fleet.track_graph import track_graph
-from agv_nodes.mqtt.broker import EmbeddedBroker, broker_url
+from agv_nodes.mqtt.broker import EmbeddedBroker, broker_url, local_broker
+from agv_nodes.mqtt.mosquitto import Mosquitto
 from agv_nodes.vda5050 import INTERFACE
 from agv_nodes.vda5050.topics import topic
 from agv_nodes.world.fleet_floor import extension_for, fleet_floor_text
@@ -49,7 +50,8 @@ def parser() -> argparse.ArgumentParser:
         prog='agv-fleet-sim', description='N whole lock-step trucks, each a VDA 5050 AGV on '
         'one MQTT broker, for a master control of your own (docs/fleet_simulator.md).')
     p.add_argument('--mqtt-url', help='the broker, mqtt://host:port (default: AGV_MQTT_URL, '
-                   'else an embedded broker on a free port)')
+                   'else a local broker on a free port: mosquitto, or amqtt where it is not '
+                   'installed)')
     p.add_argument('--layout', default='fleet_1983',
                    help='layout name or file; fleet_1983_n<N> writes a floor parking N trucks')
     p.add_argument('--trucks', type=int, default=2, help='how many trucks (default 2)')
@@ -149,8 +151,11 @@ def _checked(args: argparse.Namespace, cpus: int) -> SimOptions:
 
 
 def options_from_args(args: argparse.Namespace, cpus: int
-                      ) -> tuple[SimOptions, str, EmbeddedBroker | None]:
-    """Return the checked options, the broker's URL and the embedded broker started, if any.
+                      ) -> tuple[SimOptions, str, Mosquitto | EmbeddedBroker | None]:
+    """Return the checked options, the broker's URL and the local broker started, if any.
+
+    The local broker is mosquitto where it is installed, else the embedded amqtt (as
+    agv-launch's).
 
     ValueError says in one line which option and value is wrong and what to give.
     """
@@ -158,5 +163,5 @@ def options_from_args(args: argparse.Namespace, cpus: int
     url = broker_url(args.mqtt_url)
     if url is not None:
         return options, url, None
-    broker = EmbeddedBroker()
+    broker = local_broker()
     return options, broker.start(), broker
