@@ -22,6 +22,8 @@ DECISIONS = ('straight', 'left', 'right', 'random')
 CAMERA_LAWS = tuple(law for law in codec()['comms_status'].field('camera_law').values
                     if law != 'default')
 TRAJECTORIES = codec()['comms_status'].field('trajectory').hi
+# A tape leg's steering camera (`camera C`), as comms_status carries it (App. F.2 items 7-8).
+CAMERAS = tuple(c for c in codec()['comms_status'].field('camera').values if c != 'default')
 
 
 class TaskError(ValueError):
@@ -55,6 +57,8 @@ class Task:
     reverse_distance: int = 0
     camera_law: str = 'default'  # a tape leg's law forwards (default: route following's own)
     trajectory: int = 0  # a reckon leg's stored trajectory (0 = the track identified last)
+    camera: str = 'default'  # a tape leg's steering camera (default: route following's own)
+    reverse_camera: str = 'default'  # the reverse leg's
 
     def record(self) -> dict[str, Any]:
         """Return the comms_status fields."""
@@ -63,7 +67,8 @@ class Task:
                'srm_angle': self.srm_angle, 'then': self.then, 'conveyor': self.conveyor,
                'unscripted': self.unscripted, 'leg_distance': self.leg_distance,
                'reverse_distance': self.reverse_distance, 'camera_law': self.camera_law,
-               'trajectory': self.trajectory}
+               'trajectory': self.trajectory, 'camera': self.camera,
+               'reverse_camera': self.reverse_camera}
         for n in range(1, SCRIPT_JUNCTIONS + 1):
             decision, wait = self.junctions.get(n, (self.unscripted, 0))
             out[f'junction_{n}'], out[f'wait_{n}'] = decision, wait
@@ -211,18 +216,24 @@ def parse_task(text: str, locations: tuple[int, ...] = (0, 1, 2, 3)) -> Task:
 
 
 def _tape(t: _Tokens) -> Task:
-    """`tape [with LAW] [junctions SCRIPT | junctions random] [for D m] [then reverse [for D m]]`.
+    """Parse `tape [with LAW] [camera C] [junctions ...] [for D m] [then reverse [camera C] ...]`.
 
-    LAW: feedback or feed_forward, the leg's law going forwards (App. F.5's keys chose it);
-    without `with`, route following's camera_law parameter (or the layout's). SCRIPT: `N
-    DECISION [wait S]` items, comma-separated, N the N-th junction met on the leg (Rajagopalan
-    1991, App. F.7: junction number, decision, wait time), optionally followed by `otherwise
-    straight|random` for the junctions it does not name.
+    In full: `tape [with LAW] [camera C] [junctions SCRIPT | junctions random] [for D m] [then
+    reverse [camera C] [for D m]]`. LAW: feedback or feed_forward, the leg's law going
+    forwards (App. F.5's keys chose it); without `with`, route following's camera_law
+    parameter (or the layout's). SCRIPT: `N DECISION [wait S]` items, comma-separated, N the
+    N-th junction met on the leg (Rajagopalan 1991, App. F.7: junction number, decision, wait
+    time), optionally followed by `otherwise straight|random` for the junctions it does not
+    name. C: the leg's steering camera, auto, front, rear or both (App. F.2 items 7-8);
+    without it, route following's camera_select.
     """
     task = Task(t.text, 'tape')
     if t.peek() == 'with':
         t.take()
         task.camera_law = t.take(*CAMERA_LAWS)
+    if t.peek() == 'camera':
+        t.take()
+        task.camera = t.take(*CAMERAS)
     if t.peek() == 'junctions':
         t.take()
         if t.peek() == 'random':
@@ -254,6 +265,9 @@ def _tape(t: _Tokens) -> Task:
     if t.peek() == 'then':
         t.take()
         task.then = t.take('reverse')
+        if t.peek() == 'camera':
+            t.take()
+            task.reverse_camera = t.take(*CAMERAS)
         if t.peek() == 'for':
             t.take()
             task.reverse_distance = t.decimetres('reverse length')

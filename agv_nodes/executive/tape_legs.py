@@ -107,7 +107,8 @@ class TapeLegs:
         route = {**route, 'camera_law': 'default' if reverse else task.get('camera_law',
                                                                             'default'),
                  'trajectory': int(task.get('trajectory', 0)) if kind == 'reckon' else 0,
-                 'length': length_dm}
+                 'length': length_dm,
+                 'camera': task.get('reverse_camera' if reverse else 'camera', 'default')}
         return self._command(route, 'dead_reckoning' if kind == 'reckon' else 'camera',
                              'reverse' if reverse else 'forward')
 

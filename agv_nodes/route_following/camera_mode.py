@@ -5,7 +5,9 @@ A leg begins when camera mode is entered or route_command carries a new `leg` va
 thrown from cruise one way to cruise the other). A leg counts its road signs (`junctions`) and
 the axle centre's travel (`distance`, the sum of |travel| by wheel odometry, so a spin adds
 nothing and a reverse leg counts up), both from 0. Forwards the front camera leads, in reverse
-the rear one: camera_law.py steers by it (or by both cameras) and gives the wheel speeds.
+the rear one: camera_law.py steers by it (or by both cameras) and gives the wheel speeds. A leg
+may choose its camera (route_command camera): front, rear or both either way, a camera facing
+against travel steering from behind the axle (camera_select.py).
 
 Each leading frame is analysed (camera_guidance.py), the law gives the caster angle and Eq.
 5.15/5.16 the wheel speeds (Rajagopalan 1991, 5.2); a saturated frame keeps the last command.
@@ -55,7 +57,8 @@ import numpy as np
 
 from agv_nodes.odometry import Odometer
 from agv_nodes.route_following.camera_guidance import Measurement, Validity
-from agv_nodes.route_following.camera_law import CameraLaw, View
+from agv_nodes.route_following.camera_law import View
+from agv_nodes.route_following.camera_select import SelectedCameraLaw
 from agv_nodes.route_following.dead_reckoning import place, trajectory_conic
 from agv_nodes.route_following.junction_turn import JunctionTurn
 from agv_nodes.route_following.settings import RouteParams
@@ -79,7 +82,7 @@ class CameraMode:
     def __init__(self, params: RouteParams, notes: Notes | None = None) -> None:
         self.p = params
         self.notes = notes or Notes()
-        self.law = CameraLaw(params)
+        self.law = SelectedCameraLaw(params)  # a leg's camera choice (camera_select.py)
         self.turn = JunctionTurn(params)
         self.odo = Odometer()  # each wheel's travel, from the encoders' counters
         self.rims = (0.0, 0.0)  # m/s, from wheel odometry
@@ -118,15 +121,16 @@ class CameraMode:
             if fields.get('mode') == 'dead_reckoning' else None
         self.begin_leg(leg, -1 if fields.get('direction') == 'reverse' else 1, now,
                        fields.get('camera_law', 'default'), trajectory,
-                       int(fields.get('length', 0)) / 10.0)
+                       int(fields.get('length', 0)) / 10.0, fields.get('camera', 'default'))
         return True
 
     def begin_leg(self, leg: int, direction: int, now: float, law: str = 'default',
-                  trajectory: int | None = None, length: float = 0.0) -> None:
+                  trajectory: int | None = None, length: float = 0.0,
+                  camera: str = 'default') -> None:
         """Start a leg from where the vehicle is: counts from 0, the laws afresh.
 
         `law`: its camera_law; `trajectory`: a dead-reckoning leg's (None: a camera leg);
-        `length`: m where it parks (0: none).
+        `length`: m where it parks (0: none); `camera`: its steering camera (camera_select.py).
         """
         # The identified track and the pose are those the last leg left, until law.start.
         reckoning = None if trajectory is None else self._trajectory(trajectory, now)
@@ -136,7 +140,7 @@ class CameraMode:
         self.length, self._spun = length, 0.0
         self.state, self.turn.phase, self.motor_on = 'following', '', False
         self.wheels, self.in_sign, self._set_off_at, self._last_lead = (0.0, 0.0), False, None, now
-        self.law.start(direction, law)
+        self.law.start(direction, law, camera)
         self.reckoning, self._reckoned_at = reckoning, None
         self.turn.trace.reset(self.odo, direction)
         if trajectory is not None:
@@ -146,7 +150,7 @@ class CameraMode:
                 self._stop('no_track', now)
             return
         self.notes.add(now, f'leg {leg}: {"reverse" if direction < 0 else "forward"}, '
-                            f'{self.p.cameras} camera(s)'
+                            f'{self.law.describe()}'
                             + (', feed-forward' if self.law.feed_forward else ''))
 
     def _trajectory(self, number: int, now: float) -> Conic | None:
@@ -321,6 +325,10 @@ class CameraMode:
         if number not in (0, self.junctions):
             self.notes.add(now, f'junction {self.junctions}: the decision is for junction '
                                 f'{number}', 'warn')
+            self._stop('no_branch', now)
+        elif junction != 'straight' and self.law.trailing:
+            self.notes.add(now, f'junction {self.junctions}: no turn with a trailing camera',
+                           'warn')
             self._stop('no_branch', now)
 
     def _junction(self, m: Measurement, view: View) -> None:
