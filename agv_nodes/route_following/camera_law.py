@@ -54,11 +54,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from agv_nodes.route_following.camera_guidance import (
-    CameraSteering,
     ImageAnalyser,
     Measurement,
     Validity,
 )
+from agv_nodes.route_following.chapter9 import steering_law
 from agv_nodes.route_following.dual_camera import DualCameraGuidance
 from agv_nodes.route_following.settings import RouteParams
 from agv_nodes.route_following.track_guidance import TrackGuidance
@@ -87,7 +87,8 @@ class CameraLaw:
         self.p = params
         self.cameras = params.cameras
         self.analysers = {name: ImageAnalyser(params.image) for name in ('front', 'rear')}
-        self.single = CameraSteering(params.steering, params.turning.camera_ahead)
+        self.single = steering_law(params.steering, params.turning.camera_ahead,
+                                   params.chapter9)  # CameraSteering with chapter9 off
         self.dual = DualCameraGuidance(params.dual, params.steering, params.turning)
         # Always there: its pose follows the odometry, so a later leg can feed it or drive the
         # track it identified (dead reckoning, App. F.9); a leg's law says whether it steers.
