@@ -23,7 +23,7 @@ from agv_nodes.route_following.camera_select import CURVATURE_RUN, TRAIL_POLE
 from agv_nodes.route_following.core import RouteCore
 from agv_nodes.route_following.settings import RouteParams
 from agv_nodes.world.core import WorldCore
-from agv_nodes.world.layout import Layout, load_layout
+from agv_nodes.world.layout import Layout, layout_path, load_layout
 from agv_nodes.world.settings import Concic2Params, WorldParams
 
 L_C = 0.64  # m, turning.camera_ahead and the world's concic2.camera_distance (parameters.yaml)
@@ -210,3 +210,28 @@ def test_the_task_camera_reaches_route_command() -> None:
     assert legs.start(fields, 'tape', 40, {})['camera'] == 'rear'
     assert legs.start(fields, 'tape_reverse', 42, {})['camera'] == 'front'
     assert parse_task('tape for 3 m').record()['camera'] == 'default'
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize('junction', ['left', 'straight'])
+def test_a_trailing_camera_counts_a_road_sign_and_takes_no_turn(junction: str) -> None:
+    """junction_1991's R2 cross 3 m along, driven forwards with the rear camera alone.
+
+    The sign is counted; straight on drives across it and parks at 5 m; a turn, which would
+    need the branch ahead of a leading window, stops the truck with no_branch, motors off.
+    """
+    lay = load_layout(layout_path('junction_1991'))
+    lay.start_at = 1.6  # both windows on the tape
+    world = WorldCore(lay, WorldParams(seed=3, rear_camera=True))
+    route = RouteCore(RouteParams(vehicle='concic2', camera_speed=SPEED))
+    script = CameraLegScript(camera='rear', junction=junction, length=50)
+    h = Harness(world, [script, route], seed=3)
+    while h.now < 30 and route.cam.state not in ('no_track', 'no_branch', 'lost', 'parked'):
+        h.step()
+    assert route.cam.junctions == 1
+    if junction == 'straight':
+        assert route.cam.state == 'parked'
+        assert route.cam.travel == pytest.approx(5.0, abs=0.01)
+    else:
+        assert route.cam.state == 'no_branch'
+        assert not route.cam.motor_on and route.cam.wheels == (0.0, 0.0)
