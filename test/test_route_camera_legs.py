@@ -153,7 +153,11 @@ def test_a_junction_wait_holds_the_vehicle_over_the_crossing(junction):
             s = world.vehicle.state
             held.append((h.now, abs(s.speed), math.dist((s.x, s.y), crossing)))
     assert held and held[-1][0] - held[0][0] >= wait - 0.011
-    assert max(speed for _t, speed, _d in held) < 0.01  # at rest (it was under 1 cm/s to stop)
+    # at rest: route following waits once the wheel_odometry record's speed is under 1 cm/s;
+    # the record counts each wheel in whole mm/s (msg_schemas/wheel_odometry.yaml), so the
+    # truth may be up to half a count above it as the wait begins, and slows from there
+    assert max(speed for _t, speed, _d in held) < 0.01 + 0.0005
+    assert all(b[1] <= a[1] for a, b in zip(held, held[1:], strict=False))
     assert max(d for _t, _v, d in held) < 0.01
     assert script.states[:4] == ['following', 'sign', 'turning', 'waiting']
     s = world.vehicle.state
