@@ -17,25 +17,14 @@ import math
 from pathlib import Path
 
 import pytest
+from tape_floors import straight_tape
 
 from agv_nodes.harness import Harness, submit, truck
 from agv_nodes.route_following.settings import RouteParams
 from agv_nodes.settings import parameters
 from agv_nodes.world.settings import Concic2Params
 
-LAYOUT = """\
-layout: parking_1991
-description: a straight tape, the truck 3 m along it
-vehicle: concic2
-kind: tape
-tapes:
-  - id: main
-    start: [0.0, 0.0, 0.0]
-    width: 0.058
-    segments:
-      - {straight: 12.0}
-start: {path: main, at: 3.0}
-"""
+LAYOUT = straight_tape('parking_1991', 'a straight tape, the truck 3 m along it', 12.0, 3.0)
 CLAIM = 0.005  # m: the thesis's 5 mm stop from parking speed, the bound on each leg's end
 
 

@@ -1,6 +1,7 @@
 """Tape tasks of the camera truck: the grammar, the itinerary and the legs' junction script."""
 
 import pytest
+from tape_floors import straight_tape
 
 from agv_nodes.communications.task_language import TaskError, parse_task
 from agv_nodes.executive.core import ExecutiveCore
@@ -218,19 +219,7 @@ def test_a_decision_the_sign_lacks_fails_the_task_and_stops_the_truck() -> None:
 
 # -- a room of one's own: agv-demo --truck concic2 --layout FILE --------------------------------
 
-OWN_ROOM = """\
-layout: own_room
-description: two metres of straight tape
-vehicle: concic2
-kind: tape
-tapes:
-  - id: main
-    start: [0.0, 0.0, 0.0]
-    width: 0.058
-    segments:
-      - {straight: 2.0}
-start: {path: main, at: 0.7}
-"""
+OWN_ROOM = straight_tape('own_room', 'two metres of straight tape', 2.0, 0.7)
 
 
 @pytest.mark.timeout(120)

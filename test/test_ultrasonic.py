@@ -18,6 +18,7 @@ from pathlib import Path
 import statistics
 
 import pytest
+from tape_floors import straight_tape
 
 from agv_nodes.harness import Harness, submit, truck
 from agv_nodes.route_following.obstacle_stop import ObstacleStop
@@ -185,19 +186,7 @@ def test_a_silent_sonar_latches_until_the_next_leg_and_an_unheard_one_is_said() 
 
 
 # -- the camera truck in lock step -------------------------------------------------------------
-LAYOUT = """\
-layout: boxes_1991
-description: a straight tape, the truck 1 m along it
-vehicle: concic2
-kind: tape
-tapes:
-  - id: main
-    start: [0.0, 0.0, 0.0]
-    width: 0.058
-    segments:
-      - {straight: 12.0}
-start: {path: main, at: 1.0}
-"""
+LAYOUT = straight_tape('boxes_1991', 'a straight tape, the truck 1 m along it', 12.0, 1.0)
 OBSTACLES = """\
 obstacles:
   - {name: pallet, x: 6.0, y: 0.0, size: 0.4}

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from graph_probe import GraphProbe
 import pytest
+from tape_floors import straight_tape
 
 from agv_nodes.route_following.settings import ObstacleStopParams, RouteParams
 from agv_nodes.settings import parameters
@@ -24,19 +25,7 @@ from agv_nodes.world.settings import Concic2Params, SonarParams, WorldNodeSettin
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
-LAYOUT = """\
-layout: boxes_1991
-description: a straight tape, the truck 1 m along it
-vehicle: concic2
-kind: tape
-tapes:
-  - id: main
-    start: [0.0, 0.0, 0.0]
-    width: 0.058
-    segments:
-      - {straight: 12.0}
-start: {path: main, at: 1.0}
-"""
+LAYOUT = straight_tape('boxes_1991', 'a straight tape, the truck 1 m along it', 12.0, 1.0)
 BOX = {'place': 'box', 'x': 5.0, 'y': 0.0, 'size': 0.3}  # on the tape, 4 m from the start
 CRUISE = 0.3  # m/s: under way (camera_speed 0.47)
 
