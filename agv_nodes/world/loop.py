@@ -131,11 +131,13 @@ class WorldLoop:
                 executor.spin_once(timeout_sec=0.02)
                 wall0, sim0 = time.monotonic(), self.time
                 continue
-            if control.step_requests:
-                control.step_requests -= 1
             if self._lagging():
                 self._catch_up(executor)
                 wall0, sim0 = time.monotonic(), self.time
+                if control.paused and control.step_requests == 0:
+                    continue  # paused while it waited: not one sample past the pause's time
+            if control.step_requests:
+                control.step_requests -= 1
             self.step_all()
             if self.s.duration and self.time >= self.s.duration:
                 self.get_logger().info(f'duration {self.s.duration:g} s reached')
