@@ -127,7 +127,14 @@ def test_a_plain_dds_driver_is_admitted_by_its_gid_and_foreign_without(named):
                                for record, writer in waiting.items()), 30,
                    f'the waiting inputs named: {waiting}')
         assert rows[-1][0].count('waiting for its writer') == len(waiting), rows[-1][0]
-        said = [line for line in sensor_out.lines if 'waiting for its writer' in line]
+
+        def said_lines() -> list[str]:
+            return [line for line in sensor_out.lines if 'waiting for its writer' in line]
+        # the log line and the row come from one check but reach this probe by two paths (the
+        # node's stdout, /diagnostics): wait for the log's lines, then count them
+        spin_until(lambda: len(said_lines()) >= len(waiting), 30, f'the log to name {waiting}')
+        executor.spin_once(timeout_sec=1.0)  # a line said twice would be there by now
+        said = said_lines()
         assert len(said) == len(waiting), said
         assert all(any(f'{record}: waiting' in line for line in said) for record in waiting), \
             said
