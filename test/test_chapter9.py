@@ -137,7 +137,7 @@ def test_options_off_are_the_plain_law() -> None:
 @pytest.mark.timeout(10)
 def test_speed_law_at_its_reference_speed_is_the_plain_law() -> None:
     """V / V_ref = 1 scales nothing; at 2 V_ref the P gains double (9.3)."""
-    steering = SteeringParams(predict=0.0, law='p')
+    steering = SteeringParams(predict=0.0, law='p', gain_theta=0.484375)
     scaled = SpeedScaledSteering(steering, 0.64, 0.47)
     assert _angles(scaled, 0.47) == _angles(CameraSteering(steering, 0.64), 0.47)
     m = Measurement(0.01, 0.02, Validity.NORMAL, 6.0, 64, False, False)
