@@ -6,8 +6,10 @@ keep 100 (0.3 s of the 340 Hz ADC): a Python node on a loaded two-core machine s
 ms, and a 10-deep best-effort queue (29 ms) then drops samples, breaking the run-length patterns a
 marker passage is recognised by (a location marker was missed so); the 1983 sensor never lost a
 sample. Stream writers keep 100 too: a reliable reader (the recorder, a FIFO /clock) loses a sample
-that leaves the writer's history before it acknowledged it, and with 10 the quick demo's bag held
-323 of 340 snapshots a second on a loaded machine.
+that leaves the writer's history before it acknowledged it: with 10 the quick demo's bag held
+323 of 340 snapshots a second on a loaded machine, and with 100 (0.1 s of wall time at the demo's
+3x) 330 of 340 on a slower one. A writer keeps 1000 (about 1 s of wall time at 3x): 16-byte
+records, so 16 kB a topic.
 """
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -25,7 +27,7 @@ def _keep_last(depth: int, *, reliable: bool = True, latched: bool = False) -> Q
 
 RECORD_WRITER = _keep_last(1, latched=True)
 RECORD_READER = _keep_last(50)
-STREAM_WRITER = _keep_last(100)
+STREAM_WRITER = _keep_last(1000)
 STREAM_READER = _keep_last(100, reliable=False)
 # A node's own FIFO /clock reader (core_node.ClockTimers, the executive's sent timeline): every
 # sample, in order - a lost one would leave the node's time and timers behind until the next.

@@ -54,6 +54,7 @@ def test_a_second_executive_is_a_named_duplicate_and_the_truck_stops(tmp_path, f
     from std_msgs.msg import String
 
     from agv_nodes import qos
+    from agv_nodes.ros_ports import parse_links
 
     g = GraphProbe(tmp_path / 'logs')
     second = None
@@ -62,6 +63,8 @@ def test_a_second_executive_is_a_named_duplicate_and_the_truck_stops(tmp_path, f
         g.node.create_subscription(String, 'graph/links', lambda m: links.append(m.data),
                                    qos.LATCHED)
         g.start_task(TASK)  # the first executive's line has come long before this returns
+        first_line = next(line for line in reversed(links) if parse_links(line)[0] == 'executive')
+        assert parse_links(first_line)[1], first_line  # its inputs, all matched by now
         speed = g.speed
         assert len(executive_endpoints(g)) == 1
 
@@ -71,13 +74,23 @@ def test_a_second_executive_is_a_named_duplicate_and_the_truck_stops(tmp_path, f
             second, lines = start_second(g, 'executive')
             g.spin_until(lambda: len(executive_endpoints(g)) == 2, 120,
                          'the second executive on the graph')
-            # the second's own line (the first's links do not change): its traction_command
-            # writer has matched traction's reader, so its records reach traction from the
-            # resume on
-            g.spin_until(lambda: any(line.split()[:1] == ['executive']
-                                     and 'traction_command>1' in line.split()
-                                     for line in links[before:]), 120,
-                         f"the second executive's traction_command matched: {links[before:]}")
+            # the second's own line (the first's links do not change): every input the first
+            # has matched, as the launcher waits for before the world moves (one that resumed
+            # short of a status would call it stale: a fault of its own, not the duplicate),
+            # and its traction_command writer matched traction's reader, so its records reach
+            # traction from the resume on
+            inputs = parse_links(first_line)[1]
+
+            def second_ready() -> bool:
+                for line in links[before:]:
+                    name, matched, outputs = parse_links(line)
+                    if name == 'executive' and inputs <= matched \
+                            and outputs.get('traction_command') == 1:
+                        return True
+                return False
+            g.spin_until(second_ready, 120,
+                         f"the second executive's inputs and traction_command matched: "
+                         f"{links[before:]}")
         lines: list[str] = []
         joined = g.at_exact_time(join)
         endpoints = executive_endpoints(g)

@@ -317,8 +317,10 @@ class MqttLink:
             callbacks = list(self._connection_callbacks)
         if gap_s is not None:
             _log.info('MQTT client %r back on %s after %.1f s', self.client_id, self.url, gap_s)
-        self._first_ready.set()
+        # the listeners first: connect(timeout) returns once they know (a truck's face then
+        # says ONLINE and its factsheet before its first state)
         self._report(callbacks, True)
+        self._first_ready.set()
 
     def _on_disconnect(self, client: Client, userdata: Any, flags: Any, reason_code: Any,
                        properties: Any) -> None:
