@@ -49,7 +49,7 @@ def one_stop(seed: int, demand: int, payload: float, mode: str,
         key = (nav.stop_view, link['reverse'], link['speed'], link['stop_in'])
         if key != last:
             last = key
-            _marker, along = h.world._nearest_stop_marker()
+            _marker, along = h.world.truth.nearest_stop_marker()
             trace.append(f'{h.now:7.3f} s  view {nav.stop_view}  link reverse {link["reverse"]} '
                          f'speed {link["speed"]:2d} stop_in {link["stop_in"]:3d}  truth '
                          f'{along * 1000:+6.1f} mm  v {h.world.vehicle.state.speed:+.3f} m/s')

@@ -233,13 +233,13 @@ def test_a_slow_creep_after_a_rest_ends_in_a_rest_of_its_own():
     world = WorldCore(layout('straight_track'), WorldParams(seed=5))
     for speed in (0.30, 0.10, 0.0, 0.0, 0.006, 0.003, 0.0, 0.0):
         world.vehicle.state.speed = speed
-        world._detect_stop()
+        world.truth.detect_stop()
     stops = [e for e in world.events if e['event'] == 'stopped']
     assert len(stops) == 2 and stops[0]['speed'] == 300 and stops[1]['speed'] == 6
     world.vehicle.state.speed = 0.0015  # drift below 2 mm/s is not moving
-    world._detect_stop()
+    world.truth.detect_stop()
     world.vehicle.state.speed = 0.0
-    world._detect_stop()
+    world.truth.detect_stop()
     assert len([e for e in world.events if e['event'] == 'stopped']) == 2
 
 

@@ -60,7 +60,7 @@ def blocked_marker(h: Harness, on: bool, marker: str) -> None:
     world.layout = dataclasses.replace(
         floor, markers=[m for m in floor.markers if m.name not in covered])
     # the world's cards-near-the-lens cache (agv_nodes.world.ground_truth) indexes the markers
-    world._near_at, world._card_side = None, {}
+    world.truth.forget_cards()
 
 
 def state(h: Harness) -> dict[str, object]:

@@ -22,9 +22,9 @@ from agv_nodes.world.camera import BinaryCamera
 from agv_nodes.world.concic2_dynamics import Concic2Dynamic
 from agv_nodes.world.contact import footprint
 from agv_nodes.world.conveyors import Conveyors
-from agv_nodes.world.ground_truth import GroundTruth
+from agv_nodes.world.ground_truth import GroundTruth, nearest_path_offset
 from agv_nodes.world.guide_wire import GuideWirePickup
-from agv_nodes.world.layout import Layout, Marker
+from agv_nodes.world.layout import Layout
 from agv_nodes.world.marker_sensor import MarkerSensorModel, lens_position
 from agv_nodes.world.obstacles import Obstacles
 from agv_nodes.world.safety_pal import SafetyPal, encoder_reading
@@ -65,8 +65,8 @@ class _Every:
         return fires
 
 
-class WorldCore(GroundTruth):
-    """The simulated hardware; see the module docstring (its events: GroundTruth)."""
+class WorldCore:
+    """The simulated hardware; see the module docstring (its events: its part `truth`)."""
 
     def __init__(self, layout: Layout, params: WorldParams | None = None, *,
                  start: tuple[str, float] | None = None,
@@ -125,14 +125,7 @@ class WorldCore(GroundTruth):
         self._odo_dist = [0.0, 0.0]  # m per driven wheel
         self._odo_time = 0.0
         self.events: list[dict[str, Any]] = []
-        self._event_count = 0
-        self._pushing = False
-        self._card_side: dict[int, float] = {}
-        self._near_at: tuple[float, float] | None = None  # lens position of the last _near
-        self._near: list[tuple[int, Marker]] = []  # (index, marker) the lens may reach
-        self._near_cards: list[Marker] = []
-        self._moving = False
-        self._peak_speed = 0.0
+        self.truth = GroundTruth(self)
         self._on_wire = True
         self._rig_s = layout.start_at
 
@@ -197,7 +190,7 @@ class WorldCore(GroundTruth):
         """
         if not self.bumper:
             self.bumper = True
-            self._event('collision')
+            self.truth.event('collision')
 
     def set_radio_stop(self, on: bool) -> None:
         """Set the radio-control stop input (hw/radio_stop): no drive torque while set."""
@@ -234,7 +227,7 @@ class WorldCore(GroundTruth):
             records['drive_status'] = self.pal.record(self.radio_stop)
         at_rest = abs(vehicle.state.speed) <= 0.01
         if (moved := self.conveyors.step(now, dt, at_rest, self.lens_pose)) is not None:
-            self._event('load_moved', marker=moved)
+            self.truth.event('load_moved', marker=moved)
         if sample >= (every := self._conv_every).next and every.due(sample):
             records['conveyor_status'] = self.conveyors.status(at_rest, self.lens_pose)
         frames = {}
@@ -251,8 +244,8 @@ class WorldCore(GroundTruth):
                 and every.due(sample) and self.p.sonar.enabled:
             s = vehicle.state
             sonar = self.sonar.ping(s.x, s.y, s.heading, self.obstacles)
-        self._detect_stop()
-        self._detect_drive_off()
+        self.truth.detect_stop()
+        self.truth.detect_drive_off()
         return {'records': records, 'frames': frames, 'events': self.events, 'sonar': sonar}
 
     def _apply_safety(self, now: float) -> None:
@@ -289,11 +282,12 @@ class WorldCore(GroundTruth):
         cos_h, sin_h, lateral = math.cos(h), math.sin(h), self.layout.sensor_lateral
         sx, sy = s.x + p.electruk.wheelbase * cos_h, s.y + p.electruk.wheelbase * sin_h
         lens = (sx + sin_h * lateral, sy - cos_h * lateral)
-        self._cards_near(lens)
-        lit, dark = self.sensor.snapshot(lens, h, self._near_cards,
+        truth = self.truth
+        truth.cards_near(lens)
+        lit, dark = self.sensor.snapshot(lens, h, truth.near_cards,
                                          p.electruk.payload / 1000.0 * p.ride_height_per_tonne)
-        if self._near:
-            self._marker_passages(lens, h)
+        if truth.near:
+            truth.marker_passages(lens, h)
         return snapshot_record(lit, dark)
 
     def _guide_wire(self) -> dict[str, int]:
@@ -305,7 +299,7 @@ class WorldCore(GroundTruth):
         on_wire = max(left, right) > 0.25 * self.p.pickup.nominal
         if on_wire != self._on_wire:
             self._on_wire = on_wire
-            self._event('wire_found' if on_wire else 'wire_lost')
+            self.truth.event('wire_found' if on_wire else 'wire_lost')
         return {'left_coil': left, 'right_coil': right,
                 'sample': self.counters['guide_wire'] & 0xFF}
 
@@ -348,11 +342,15 @@ class WorldCore(GroundTruth):
         st.x, st.y, st.heading, st.speed = x, y, h, float(rig.get('speed', 1.0))
         lit, dark = self.sensor.snapshot(lens, h, self.layout.markers,
                                          float(rig.get('height', 0.0)))
-        self._marker_passages(lens, h)
+        self.truth.marker_passages(lens, h)
         return {'records': {'adc_snapshot': snapshot_record(lit, dark)}, 'frames': {},
                 'events': self.events}
 
     # -- ground-truth views for the node ----------------------------------------------------
+    def nearest_path_offset(self, x: float, y: float) -> float:
+        """Signed lateral offset (m, + = left) of (x, y) from the nearest wire or tape."""
+        return nearest_path_offset(self.layout, x, y)
+
     def pose(self) -> tuple[float, float, float, float]:
         """(x, y, heading, speed) of the vehicle reference point."""
         s = self.vehicle.state

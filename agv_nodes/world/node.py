@@ -5,8 +5,8 @@ records to the core, steps it once per marker-sensor sample, and publishes the h
 records, camera frames, ground truth and (with use_sim_time) /clock. A hardware driver could
 replace it topic for topic (docs/records.md, docs/hardware.md).
 
-The world is the clock: it runs its own loop, not a ROS timer (agv_nodes/world/loop.py: waiting
-for the graph, pacing, stepping).
+The world is the clock: it runs its own loop, not a ROS timer (agv_nodes/world/loop.py, a part
+the node owns: waiting for the graph, pacing, stepping).
 
 With `trucks` set the world is a floor of several trucks, each a world node of its own in its
 truck's namespace, stepped together on one clock (agv_nodes/world/floor.py).
@@ -71,8 +71,8 @@ from agv_nodes.world.viz import camera_image, layout_messages, obstacle_markers,
 NODE = 'world'
 
 
-class WorldNode(WorldLoop, Node):
-    """See the module docstring; its loop is WorldLoop's (agv_nodes.world.loop)."""
+class WorldNode(Node):
+    """See the module docstring; its loop is its part `loop` (agv_nodes.world.loop)."""
 
     def __init__(self, namespace: str | None = None, place: Place | None = None) -> None:
         """Make the world of one truck; with `trucks` set and no `place`, the floor of all.
@@ -87,7 +87,8 @@ class WorldNode(WorldLoop, Node):
         self.executor_kind = s.executor
         self.layout = self._load_layout(s)
         self.control = place.control if place is not None else Control(paused=s.start_paused)
-        self._work = 0
+        self.work = 0  # callbacks run: the loop drains until this stops growing
+        self.loop = WorldLoop(self)
         self.floor: Floor | None = None
         self.core: WorldCore | None = None
         if s.trucks and place is None:  # the floor: a world node per truck, stepped here
@@ -209,13 +210,13 @@ class WorldNode(WorldLoop, Node):
     # -- callbacks --------------------------------------------------------------------------
     def _input(self, name: str):
         def on_record(fields: dict) -> None:
-            self._work += 1
+            self.work += 1
             self.core.on_record(name, fields, self.core.time)
         return on_record
 
     def _progress(self, node: str):
         def on_progress(raw: bytes) -> None:
-            self._work += 1
+            self.work += 1
             self.pacer.progress(node, clock_time_ns(raw) * 1e-9, self.core.time)
         return on_progress
 
@@ -248,7 +249,7 @@ class WorldNode(WorldLoop, Node):
         return SetParametersResult(successful=True)
 
     def _obstacle_command(self, msg: String) -> None:
-        self._work += 1
+        self.work += 1
         applied, line = self.obstacle_commands.take(msg.data, round(self.time * 1e9))
         if applied:
             self.obstacle_pub.publish(obstacle_markers(self.core.obstacles))
@@ -256,23 +257,23 @@ class WorldNode(WorldLoop, Node):
         (log.info if applied else log.warning)(f'{line} at {self.time:.3f} s')
 
     def _radio_stop(self, on: bool) -> None:
-        self._work += 1
+        self.work += 1
         self.core.set_radio_stop(on)
 
     def _service_pause(self, _req: Any, res: Any) -> Any:
-        self._work += 1
+        self.work += 1
         self.control.paused = True
         res.success, res.message = True, f'paused at {self.time:.3f} s'
         return res
 
     def _service_resume(self, _req: Any, res: Any) -> Any:
-        self._work += 1
+        self.work += 1
         self.control.paused = False
         res.success, res.message = True, f'resumed at {self.time:.3f} s'
         return res
 
     def _service_hardware_reset(self, _req: Any, res: Any) -> Any:
-        self._work += 1
+        self.work += 1
         for m in self.members:  # a floor's own node: every truck's reset
             m.core.hardware_reset()
         res.success = all(m.core.pal is not None for m in self.members)
@@ -281,7 +282,7 @@ class WorldNode(WorldLoop, Node):
         return res
 
     def _service_step(self, _req: Any, res: Any) -> Any:
-        self._work += 1
+        self.work += 1
         self.control.step_requests += 1
         res.success = self.control.paused
         res.message = 'one sample queued' if self.control.paused else 'not paused: ~/pause first'
@@ -345,7 +346,7 @@ class WorldNode(WorldLoop, Node):
 
 def main(args: list[str] | None = None) -> int:
     """Entry point: ros2 run agv_nodes world [--ros-args ...]."""
-    return spin_main(WorldNode, args, run=lambda node, executor: node.run(executor))
+    return spin_main(WorldNode, args, run=lambda node, executor: node.loop.run(executor))
 
 
 if __name__ == '__main__':
