@@ -69,7 +69,7 @@ __all__ = ['Dispatcher', 'TransportOrder']
 TRAIL = 12  # nodes of a truck's way kept behind it: enough for its footprint
 
 
-class Dispatcher(Rerouting):
+class Dispatcher:
     """Assign transport orders to trucks and drive them by VDA 5050 (see the module docstring)."""
 
     def __init__(self, graph: TrackGraph, trucks: list[str], *, manufacturer: str = 'agv_nodes',
@@ -87,9 +87,10 @@ class Dispatcher(Rerouting):
         self.reservations = Reservations(graph, blocks)
         self.parking = dict(parking or {})
         self.truck_length = truck_length
-        self.reroute_after = reroute_after
-        # (truck, order, blocks avoided, s waited): the watchdog's re-routings (fleet.reroute)
-        self.reroutes: list[tuple[str, str, list[str], float]] = []
+        # the watchdog's last resort (fleet.reroute); `reroutes` its (truck, order, blocks
+        # avoided, s waited) of each re-routing
+        self.rerouting = Rerouting(self.reservations, self._plan, self._stalled, reroute_after)
+        self.reroutes = self.rerouting.reroutes
         self.queue: deque[TransportOrder] = deque()
         self.assignments: dict[str, str] = {}  # transport id -> truck
         self.done: list[str] = []
@@ -177,7 +178,7 @@ class Dispatcher(Rerouting):
                 self._park_or_yield(t, out)
         stuck = {t.name for t in trucks if self._stalled(t) or self._idle(t)}
         self.deadlocks = [c for c in self.reservations.deadlocks() if stuck.issuperset(c)]
-        self._reroute(trucks, now)
+        self.rerouting.reroute(self._trucks.values(), trucks, self.deadlocks, now)
         return out
 
     def state_requests(self) -> list[tuple[str, str, BaseModel]]:

@@ -1,16 +1,18 @@
 """The watchdog's last resort: a truck that waits on trucks that cannot move takes another way.
 
-A mixin of the Dispatcher (agv_nodes.fleet.dispatcher), kept apart because it acts only when
-the grant policy has not been enough. A truck standing at its decision point whose next
-corridor is held by trucks that cannot move waits for nothing. Those are: a truck broken (its
-task failed where it stands), one off the broker (it is sent nothing), one of a deadlock (a
-cycle of the wait-for graph, each truck of it waiting for the next), and one that waits only
-on such trucks. After `reroute_after` s of that, the dispatcher plans the rest of the truck's
-job anew, its pick and drop where they were, on a way that enters none of the blocks it waits
-for. Where the floor has one (a second loop, a junction: agv_nodes.world.loops_floor), the
-way is released by an order update stitched at the decision point (VDA 5050 6.6.2), as any
-grant is. In a deadlock one truck of the cycle is re-routed at a time, the first by name: its
-leaving may be what frees the others.
+A part the Dispatcher (agv_nodes.fleet.dispatcher) owns, kept apart because it acts only when
+the grant policy has not been enough; it is given the dispatcher's reservations and its way
+planner and stall test, and is asked once a step with the trucks and the step's deadlocks.
+
+A truck standing at its decision point whose next corridor is held by trucks that cannot move
+waits for nothing. Those are: a truck broken (its task failed where it stands), one off the
+broker (it is sent nothing), one of a deadlock (a cycle of the wait-for graph, each truck of it
+waiting for the next), and one that waits only on such trucks. After `reroute_after` s of that,
+the dispatcher plans the rest of the truck's job anew, its pick and drop where they were, on a
+way that enters none of the blocks it waits for. Where the floor has one (a second loop, a
+junction: agv_nodes.world.loops_floor), the way is released by an order update stitched at the
+decision point (VDA 5050 6.6.2), as any grant is. In a deadlock one truck of the cycle is
+re-routed at a time, the first by name: its leaving may be what frees the others.
 
 The standard's other way, cancelOrder and a new order, is not taken: the truck stands at its
 decision point with the base done, so an update changes only the horizon, and the transport's
@@ -23,22 +25,40 @@ the truck waits on, and a deadlock stays in the dispatcher's `deadlocks` for who
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
+
+from agv_nodes.fleet.blocks import Reservations
 from agv_nodes.fleet.jobs import Job, Truck
 from agv_nodes.fleet.settings import DispatcherSettings
+from agv_nodes.vda5050.common import Action
 
 # s a truck waits on trucks that cannot move before it is re-routed (parameter reroute_after)
 REROUTE_AFTER: float = DispatcherSettings().reroute_after
+# (start, passed, [(stop node, its action)], nodes to avoid) -> (path, {path index: action})
+Planner = Callable[[str, bool, list[tuple[str, Action | None]], frozenset[str]],
+                   tuple[list[str], dict[int, Action]] | None]
 
 
 class Rerouting:
     """Re-routing of trucks stuck behind trucks that cannot move (see the module docstring)."""
 
-    reroute_after: float  # s; the Dispatcher's argument (default REROUTE_AFTER)
+    def __init__(self, reservations: Reservations, plan: Planner,
+                 stalled: Callable[[Truck], bool], reroute_after: float = REROUTE_AFTER) -> None:
+        self.reservations = reservations
+        self._plan = plan
+        self._stalled = stalled
+        self.reroute_after = reroute_after  # s
+        # (truck, order, blocks avoided, s waited) of each re-routing
+        self.reroutes: list[tuple[str, str, list[str], float]] = []
 
-    def _reroute(self, trucks: list[Truck], now: float) -> None:
-        """Re-route the first truck, by name, that has waited long enough on immovable ones."""
-        cannot_move = {t.name for t in self._trucks.values() if t.broken or t.offline}
-        cannot_move.update(name for cycle in self.deadlocks for name in cycle)
+    def reroute(self, fleet: Iterable[Truck], trucks: list[Truck],
+                deadlocks: list[list[str]], now: float) -> None:
+        """Re-route the first truck, by name, that has waited long enough on immovable ones.
+
+        `fleet`: every truck; `trucks`: those heard from this step; `deadlocks`: its cycles.
+        """
+        cannot_move = {t.name for t in fleet if t.broken or t.offline}
+        cannot_move.update(name for cycle in deadlocks for name in cycle)
         grown = True
         while grown:  # and those that wait only on such trucks, themselves stuck behind them
             stuck = {t.name for t in trucks if t.name not in cannot_move
