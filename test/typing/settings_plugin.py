@@ -43,7 +43,7 @@ def _section(path: Path, name: str) -> dict[str, Any] | None:
 
 
 def _entry_type(ctx: ClassDefContext, entry: Any) -> Type | None:
-    """The type of one entry; None while a nested class is not analysed yet."""
+    """Return the type of one entry; None while a nested class is not analysed yet."""
     api = ctx.api
     if isinstance(entry, str):  # a nested group: a settings class of the same module
         node = api.lookup_fully_qualified_or_none(f'{ctx.cls.info.module_name}.{entry}')
