@@ -1,6 +1,6 @@
 """Rajagopalan 1991, Chapter 9's extensions (system 15) beside route following's defaults.
 
-Run: .venv/bin/python bench/chapter9_bench.py [--seeds 2 3 4] [--out FILE]
+Run: .venv/bin/python bench/chapter9_bench.py [--seeds 2 3 4] [--jobs N] [--out FILE]
 
 Each run is the world core (camera windows rendered at the camera rate, specks of noise, the
 vehicle model: the kinematic Concic2 or Concic2Dynamic, App. G, by world concic2.model) with
@@ -23,9 +23,20 @@ from 20 s to 30 s (the circle), over the last 1 m of the final straight (the S-b
 stays within 5 mm to the end of the run.
 
 Configurations: the defaults (all chapter9 options off) and each option on alone:
-chapter9.speed_reference 0.47 (9.3: the P gains x V / 0.47 m/s, the thesis's normal
-industrial speed, 7.6) and chapter9.inflexion_curvature 0.3 per m, inflexion_frames 3 (9.5:
-the predictor's curvature restarted at a change of concavity).
+chapter9.speed_reference 0.47 m/s (9.3, the thesis's normal industrial speed, 7.6) in the two
+speed_form readings that change the law (the text's own, once, is the plain law): gains (the P
+gains x V / 0.47) and per_time (x 0.47 / V); chapter9.inflexion_curvature 0.3 per m,
+inflexion_frames 3 (9.5: the predictor's curvature restarted at a change of concavity); and on
+the dynamic model only (the kinematic one has no LM628 loops) the world's concic2.cross_coupling
+1.0 (9.2.1) and cross_coupling 1.0 with cartesian_gain 1.0 (9.2.2, the Cartesian loop on top of
+the cross-coupled one, as Fig. 9.2 draws them).
+
+Reference-point dual guidance (9.6): the dual-camera experiments of bench/dual_camera_bench.py
+(7.4, Table 5.4: both windows 0.05 m to one side, or -0.03 / +0.06 m, on a straight and on the
+R 3.0 m circle, set down at cruise 0.47 m/s, the thesis's dual law), with the gains' switch at
+the front end (the defaults) and at c = 0.64 m behind the leading window, the axle centre O
+(chapter9.reference_point). Quantities: each window's time until it stays within 10 mm, the
+larger overshoot past the tape of the two windows.
 
 "No worse": an option's value is within the defaults' value plus the defaults' seed-to-seed
 spread (largest minus smallest over the seeds) on that row and quantity, all seeds' means
@@ -39,22 +50,35 @@ from dataclasses import replace
 import math
 import multiprocessing
 from pathlib import Path
+import subprocess
 import sys
 import tempfile
 
 from agv_nodes.harness import CameraLegScript, Harness
+from agv_nodes.route_following.camera_guidance import ImageAnalyser
 from agv_nodes.route_following.core import RouteCore
+from agv_nodes.route_following.dual_camera import DualCameraGuidance
 from agv_nodes.route_following.settings import Chapter9Params, RouteParams
 from agv_nodes.world.core import WorldCore
 from agv_nodes.world.layout import Layout, load_layout
 from agv_nodes.world.settings import Concic2Params, WorldParams
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import dual_camera_bench as dual_bench  # noqa: E402  (bench/ is no package)
+
 MODELS = ('kinematic', 'dynamic')
 STEP, AT, BAND, FRAME = 0.065, 8.0, 0.005, 17  # m, m, m, world samples per 50 ms
-CONFIGS = {
-    'defaults': Chapter9Params(),
-    'speed law (9.3)': Chapter9Params(speed_reference=0.47),
-    'inflexion (9.5)': Chapter9Params(inflexion_curvature=0.3, inflexion_frames=3),
+# name: (route following's chapter9 options, the world's concic2 options, the models it acts on)
+CONFIGS: dict[str, tuple[Chapter9Params, dict, tuple[str, ...]]] = {
+    'defaults': (Chapter9Params(), {}, MODELS),
+    'speed law (9.3), gains': (Chapter9Params(speed_reference=0.47, speed_form='gains'), {},
+                               MODELS),
+    'speed law (9.3), per_time': (Chapter9Params(speed_reference=0.47, speed_form='per_time'),
+                                  {}, MODELS),
+    'inflexion (9.5)': (Chapter9Params(inflexion_curvature=0.3, inflexion_frames=3), {}, MODELS),
+    'cross-coupled (9.2.1)': (Chapter9Params(), {'cross_coupling': 1.0}, ('dynamic',)),
+    'Cartesian (9.2.2)': (Chapter9Params(), {'cross_coupling': 1.0, 'cartesian_gain': 1.0},
+                          ('dynamic',)),
 }
 # (name, kind, speed): the experiments of the module docstring.
 EXPERIMENTS = [(f'step 0.065 m at {v} m/s', 'step', v) for v in (0.31, 0.79)] + [
@@ -91,9 +115,12 @@ def settle(rows: list[tuple[float, float]], t0: float) -> float:
     return math.inf if outside[-1] >= rows[-1][0] - 1e-9 else outside[-1] - t0
 
 
-def run(kind: str, model: str, speed: float, options: Chapter9Params, seed: int
-        ) -> dict[str, float]:
-    """Return peak, steady (mm) and settle (s) of one experiment; all inf when the tape is lost."""
+def run(kind: str, model: str, speed: float, options: Chapter9Params, seed: int,
+        wheels: dict | None = None) -> dict[str, float]:
+    """Return peak, steady (mm) and settle (s) of one experiment; all inf when the tape is lost.
+
+    `wheels`: world concic2 options (the wheel loops of 9.2) over the defaults.
+    """
     if kind == 'step':
         lay = tapes(([-1.0, 0.0, 0.0], f'{{straight: {AT + 1.0}}}'),
                     ([AT, STEP, 0.0], '{straight: 40.0}'))
@@ -108,7 +135,8 @@ def run(kind: str, model: str, speed: float, options: Chapter9Params, seed: int
                      '{straight: 0.6}, {arc: 2.0, angle: -60.0}, {straight: 3.0}'))
         arcs = (1.5, 1.5 + math.pi + 0.6, 1.5 + math.pi + 0.6 + 2.0 * math.pi / 3.0)
         until = 2.0 * (arcs[2] + 2.2) / speed + 10.0  # a cap: the run ends 2.2 m past
-    world = TapeWorld(lay, WorldParams(seed=seed, concic2=Concic2Params(model=model)))
+    world = TapeWorld(lay, WorldParams(seed=seed, concic2=replace(Concic2Params(model=model),
+                                                                  **(wheels or {}))))
     params = replace(RouteParams(), vehicle='concic2', camera_speed=speed, chapter9=options)
     script = CameraLegScript()
     h = Harness(world, [script, RouteCore(params)], seed=seed)
@@ -153,6 +181,84 @@ def run(kind: str, model: str, speed: float, options: Chapter9Params, seed: int
             'steady': 1000.0 * sum(tail) / len(tail), 'settle': settle(errors, end)}
 
 
+# Reference-point dual guidance (9.6): the gains switch where the tape crosses c, here the
+# axle centre O (L1 = L2 = L_c, the middle of the axis), against the front end (the defaults).
+REFERENCE = 0.64  # m behind the leading window
+DUAL_QUANTITIES = ('front', 'rear', 'overshoot')
+
+
+def dual_run(radius: float, front: float, rear: float, model: str, reference: float, seed: int,
+             duration: float = 15.0) -> dict[str, float]:
+    """Return front and rear time within 0.01 m (s), the worse window's overshoot (mm).
+
+    The dual-camera experiments of bench/dual_camera_bench.py (Rajagopalan 1991, 7.4, Table
+    5.4): the truck set down at cruise 0.47 m/s with its windows `front` / `rear` m left of the
+    tape, the thesis's dual law (DualCameraParams' defaults) with the gains' switch at
+    `reference` m behind the leading window (0: the front end, the thesis's).
+    """
+    world = dual_bench.TapeWorld(dual_bench.tape_layout(radius),
+                                 WorldParams(seed=seed, rear_camera=True))
+    world.vehicle = dual_bench.VEHICLES[model](world.p.concic2)
+    dual_bench.place(world, front, rear, dual_bench.SPEED)
+    analysers = {'front': ImageAnalyser(RouteParams().image),
+                 'rear': ImageAnalyser(RouteParams().image)}
+    law = DualCameraGuidance()
+    law.reference_point = reference
+    trace, last = [], None
+    while world.time < duration:
+        frames = world.step()['frames']
+        if not frames:
+            continue
+        m = {name: analysers[name].analyse(frame) for name, frame in frames.items()}
+        dt = world.time - last if last is not None else 1.0 / world.p.camera_rate
+        last = world.time
+        theta = law.update(m['front'], m['rear'], dt)
+        if theta is None:
+            return {q: math.inf for q in DUAL_QUANTITIES}
+        left, right = law.wheel_speeds(dual_bench.SPEED, theta)
+        world.on_record('steering_command', {
+            'mode': 'wheel_speeds', 'angle': 0, 'enable': 1,
+            'left_speed': int(round(left * 1000)), 'right_speed': int(round(right * 1000))},
+            world.time)
+        trace.append((world.time, *dual_bench.window_offsets(world)))
+    return {'front': dual_bench.settle_time(trace, 1), 'rear': dual_bench.settle_time(trace, 2),
+            'overshoot': 1000.0 * float(max(dual_bench.overshoot(trace, 1),
+                                            dual_bench.overshoot(trace, 2)))}
+
+
+def _dual(task: tuple) -> dict[str, float]:
+    return dual_run(*task)
+
+
+def dual_table(seeds: list[int], jobs: int = 1, models: tuple = MODELS
+               ) -> tuple[list[str], int]:
+    """Run the dual experiments at the front end and at REFERENCE; the rows and worse count."""
+    tasks = [(radius, front, rear, model, reference, seed)
+             for _n, radius, front, rear, _t in dual_bench.SCENARIOS for model in models
+             for reference in (0.0, REFERENCE) for seed in seeds]
+    if jobs > 1:
+        with multiprocessing.Pool(jobs) as pool:
+            outs = iter(pool.map(_dual, tasks, chunksize=1))
+    else:
+        outs = (dual_run(*task) for task in tasks)
+    rows, worse = [], 0
+    for name, *_rest in dual_bench.SCENARIOS:
+        for model in models:
+            results = {}
+            for config in ('front end (defaults)', f'reference point c {REFERENCE} m (9.6)'):
+                out = [next(outs) for _seed in seeds]
+                results[config] = {q: [o[q] for o in out] for q in DUAL_QUANTITIES}
+                mark = ('' if config.startswith('front') else
+                        verdict(results[config], results['front end (defaults)'],
+                                DUAL_QUANTITIES))
+                worse += mark.startswith('**')
+                r = results[config]
+                rows.append(f'| {name} | {model} | {config} | {cell(r["front"], 2)} | '
+                            f'{cell(r["rear"], 2)} | {cell(r["overshoot"], 1)} | {mark} |')
+                print(rows[-1], flush=True)
+    return rows, worse
+
+
 def cell(values: list[float], digits: int) -> str:
     """Return the seeds' mean (and range when they differ) of one quantity."""
     if any(math.isinf(v) for v in values):
@@ -162,10 +268,11 @@ def cell(values: list[float], digits: int) -> str:
                                    if len(values) > 1 else '')
 
 
-def verdict(option: dict[str, list[float]], default: dict[str, list[float]]) -> str:
+def verdict(option: dict[str, list[float]], default: dict[str, list[float]],
+            quantities: tuple[str, ...] = QUANTITIES) -> str:
     """Return 'no worse' or the quantities worse beyond the defaults' seed spread."""
     worse = []
-    for q in QUANTITIES:
+    for q in quantities:
         a, b = option[q], default[q]
         if any(math.isinf(v) for v in a):
             if not all(math.isinf(v) for v in b):
@@ -186,8 +293,9 @@ def _run(task: tuple) -> dict[str, float]:
 def table(seeds: list[int], jobs: int = 1, experiments: list = EXPERIMENTS,
           models: tuple = MODELS) -> tuple[list[str], int]:
     """Run everything (`jobs` processes); return the table's rows and the worse count."""
-    tasks = [(kind, model, speed, options, seed) for _n, kind, speed in experiments
-             for model in models for options in CONFIGS.values() for seed in seeds]
+    tasks = [(kind, model, speed, options, seed, wheels) for _n, kind, speed in experiments
+             for model in models for options, wheels, acts in CONFIGS.values() if model in acts
+             for seed in seeds]
     if jobs > 1:
         with multiprocessing.Pool(jobs) as pool:
             outs = iter(pool.map(_run, tasks, chunksize=1))
@@ -197,7 +305,9 @@ def table(seeds: list[int], jobs: int = 1, experiments: list = EXPERIMENTS,
     for name, _kind, _speed in experiments:
         for model in models:
             results = {}
-            for config in CONFIGS:
+            for config, (_options, _wheels, acts) in CONFIGS.items():
+                if model not in acts:
+                    continue
                 out = [next(outs) for _seed in seeds]
                 results[config] = {q: [o[q] for o in out] for q in QUANTITIES}
                 mark = '' if config == 'defaults' else verdict(results[config],
@@ -210,6 +320,22 @@ def table(seeds: list[int], jobs: int = 1, experiments: list = EXPERIMENTS,
     return rows, worse
 
 
+def code_version() -> str:
+    """Return the commit the code was run at, and the files changed from it if any."""
+    root = Path(__file__).resolve().parents[1]
+    try:
+        head = subprocess.run(['git', 'rev-parse', '--short', 'HEAD'], cwd=root, text=True,
+                              capture_output=True, check=True).stdout.strip()
+        changed = subprocess.run(['git', 'status', '--porcelain', '--', 'agv_nodes', 'bench'],
+                                 cwd=root, text=True, capture_output=True,
+                                 check=True).stdout.split('\n')
+    except (OSError, subprocess.CalledProcessError):
+        return 'not a git checkout'
+    files = [line[3:] for line in changed if line.strip() and line[3:].endswith(('.py', '.yaml'))]
+    return f'commit {head}' + (f', with these files changed from it: {", ".join(files)}'
+                               if files else '')
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--seeds', type=int, nargs='+', default=[2, 3, 4])
@@ -219,15 +345,22 @@ def main(argv: list[str] | None = None) -> int:
     command = ('.venv/bin/python bench/chapter9_bench.py '
                + ' '.join(sys.argv[1:] if argv is None else argv)).strip()
     rows, worse = table(args.seeds, args.jobs)
+    dual_rows, dual_worse = dual_table(args.seeds, args.jobs)
     intro = __doc__.split('\n\n')[2:]
     lines = ['# Chapter 9 extensions against the defaults on both CONCIC-II models', '',
-             f'Command: `{command}`', '', *[' '.join(p.split()) + '\n' for p in intro],
+             f'Command: `{command}`', '', f'Code: {code_version()}', '',
+             *[' '.join(p.split()) + '\n' for p in intro],
              f'Seeds {", ".join(map(str, args.seeds))}: each cell the mean, in brackets the '
              'smallest and largest.', '',
              '| experiment | model | configuration | peak (mm) | steady (mm) | '
              'within 5 mm after (s) | against the defaults |',
              '|---|---|---|---|---|---|---|', *rows, '',
-             f'Rows worse than the defaults beyond their seed spread: {worse}.']
+             f'Rows worse than the defaults beyond their seed spread: {worse}.', '',
+             '## Reference-point dual guidance (9.6)', '',
+             '| start | model | gains switch at | front within 10 mm (s) | rear within 10 mm (s) '
+             '| overshoot (mm) | against the defaults |',
+             '|---|---|---|---|---|---|---|', *dual_rows, '',
+             f'Rows worse than the front end beyond its seed spread: {dual_worse}.']
     text = '\n'.join(lines) + '\n'
     print(text.splitlines()[-1])
     if args.out:

@@ -28,15 +28,17 @@ from agv_nodes.route_following.chapter9 import (
     InflexionDetector,
     InflexionPredictor,
     SpeedScaledSteering,
-    cartesian_error,
     concavity,
-    cross_coupled_error,
     reference_offset,
     reference_offset_thesis,
     speed_law_increments,
     steering_law,
 )
+from agv_nodes.route_following.dual_camera import DualCameraGuidance, Offsets
 from agv_nodes.route_following.settings import Chapter9Params, RouteParams, SteeringParams
+from agv_nodes.world.concic2_dynamics import Concic2Dynamic, Concic2DynamicParams
+from agv_nodes.world.lm628 import LM628
+from agv_nodes.world.wheel_loops import WheelLoops, cartesian_error, cross_coupled_error
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'bench'))
 import chapter9_bench as bench  # noqa: E402
@@ -144,6 +146,100 @@ def test_speed_law_at_its_reference_speed_is_the_plain_law() -> None:
     # Eq. 5.4 with 2 x 2.5 and 2 x 0.484375: 5.0 x 0.01 + 0.96875 x 0.02 = 0.069375 rad.
     theta = SpeedScaledSteering(steering, 0.64, 0.47).update(m, 0.05, 0.94)
     assert theta == pytest.approx(0.069375, abs=1e-12)
+    # per_time at 2 V_ref halves them: 1.25 x 0.01 + 0.2421875 x 0.02 = 0.01734375 rad.
+    theta = SpeedScaledSteering(steering, 0.64, 0.47, 'per_time').update(m, 0.05, 0.94)
+    assert theta == pytest.approx(0.01734375, abs=1e-12)
+
+
+@pytest.mark.timeout(10)
+def test_speed_law_as_derived_is_the_plain_law() -> None:
+    """speed_form once: Eq. 9.9-9.10's V is Eq. 5.15-5.16's, so the gains stay as they are."""
+    steering = SteeringParams()
+    once = steering_law(steering, 0.64, Chapter9Params(speed_reference=0.47))
+    assert type(once) is CameraSteering
+    assert _angles(once, 0.79) == _angles(CameraSteering(steering, 0.64), 0.79)
+    with pytest.raises(ValueError, match='speed_form'):
+        SpeedScaledSteering(steering, 0.64, 0.47, 'once')
+
+
+@pytest.mark.timeout(10)
+def test_cross_coupled_correction_by_hand() -> None:
+    """Errors 10 and 4 counts, coupling 0.5: 0.5 x (10 - 4) = 3 more on the left, 3 less right."""
+    left, right = LM628(1), LM628(1)
+    left.desired = right.desired = 100 << 16
+    assert WheelLoops(0.5, 0.0, 0.52, 1000.0).corrections(left, right, 90, 96) == (3, -3)
+    assert WheelLoops(0.0, 0.0, 0.52, 1000.0).corrections(left, right, 90, 96) == (0, 0)
+
+
+@pytest.mark.timeout(10)
+def test_cartesian_correction_by_hand() -> None:
+    """1000 counts a metre, span 0.5 m: both chips' desired 1 m on, the left wheel 0.99 m.
+
+    Reference: (1, 0, 0). Actual, midpoint rule: turn 0.01 / 0.5 = 0.02 rad, at 0.01 rad for
+    0.995 m: (0.99495025, 0.00994983, 0.02). In the truck's frame: along 0.00484976, across
+    -0.01004883, heading -0.02; turn -0.02 - 0.01004883 / 0.5 = -0.04009766. Gain 1: left
+    1000 (0.00484976 + 0.25 x 0.04009766) = 14.87 -> 15; right 1000 (0.00484976 - 0.01002442)
+    = -5.17 -> -5: the lagging left wheel pushes, and the truck turns back right.
+    """
+    left, right = LM628(1), LM628(1)
+    loops = WheelLoops(0.0, 1.0, 0.5, 1000.0)
+    assert loops.corrections(left, right, 0, 0) == (0, 0)
+    left.desired = right.desired = 1000 << 16
+    assert loops.corrections(left, right, 990, 1000) == (15, -5)
+    assert loops.actual == pytest.approx([0.99495025, 0.00994983, 0.02], abs=1e-8)
+
+
+def _knock(cross_coupling: float, cartesian_gain: float) -> tuple[float, float]:
+    """Return (largest |heading| mrad, final lateral offset mm) after a knock on the left wheel.
+
+    The dynamic CONCIC-II at 0.5 m/s straight on; at 3 s the left rim loses 0.2 m/s (a bump,
+    9.2's environmental errors); 3 s later the run ends.
+    """
+    truck = Concic2Dynamic(Concic2DynamicParams(cross_coupling=cross_coupling,
+                                                cartesian_gain=cartesian_gain))
+    truck.set_wheels(0.5, 0.5, True)
+    worst = 0.0
+    for k in range(6000):
+        if k == 3000:
+            truck.v1 -= 0.2
+        truck.step(0.001)
+        worst = max(worst, abs(truck.state.heading))
+    return 1000.0 * worst, 1000.0 * abs(truck.state.y)
+
+
+@pytest.mark.timeout(60)
+def test_wheel_loops_after_a_knock() -> None:
+    """9.2: the cross-coupled loop turns the truck less; the Cartesian one leaves less offset.
+
+    Independent loops bring each wheel back to its own desired position, so the heading comes
+    back but the sideways step taken meanwhile stays (9.2.2's lag in Cartesian terms). The
+    cross-coupled loop holds the other wheel back while one lags (9.2.1): less turn, less
+    step. The Cartesian loop steers the truck back onto the line its chips meant (9.2.2).
+    """
+    alone = _knock(0.0, 0.0)
+    coupled = _knock(1.0, 0.0)
+    cartesian = _knock(1.0, 1.0)
+    assert coupled[0] < alone[0] and coupled[1] < alone[1], (coupled, alone)
+    assert cartesian[1] < coupled[1], (cartesian, coupled)
+
+
+@pytest.mark.timeout(10)
+def test_reference_point_switches_the_gains_at_c() -> None:
+    """9.6: the high gains end where the tape crosses c, here the axle centre, not the lead.
+
+    Started with both windows left of the tape; then the lead 0.01 m right, the trail 0.05 m
+    left: the front end has crossed, c (halfway) has not: -0.01 + 0.06 / 2 = +0.02 m, still
+    left. Then the trail at 0.005 m: c at -0.0025 m has crossed.
+    """
+    start, lead, trail = Offsets(0.05, 0.0), Offsets(-0.01, 0.0), Offsets(0.05, 0.0)
+    front_end, at_c = DualCameraGuidance(), DualCameraGuidance()
+    at_c.reference_point = 0.64
+    for law in (front_end, at_c):
+        law.steer(start, start, 0.05)
+        law.steer(lead, trail, 0.05)
+    assert front_end.decision.crossed and not at_c.decision.crossed
+    at_c.steer(lead, Offsets(0.005, 0.0), 0.05)
+    assert at_c.decision.crossed
 
 
 @pytest.mark.timeout(10)

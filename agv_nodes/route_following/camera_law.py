@@ -90,6 +90,7 @@ class CameraLaw:
         self.single = steering_law(params.steering, params.turning.camera_ahead,
                                    params.chapter9)  # CameraSteering with chapter9 off
         self.dual = DualCameraGuidance(params.dual, params.steering, params.turning)
+        self.dual.reference_point = params.chapter9.reference_point  # 9.6 (0: the front end)
         # Always there: its pose follows the odometry, so a later leg can feed it or drive the
         # track it identified (dead reckoning, App. F.9); a leg's law says whether it steers.
         self.track = TrackGuidance(params)

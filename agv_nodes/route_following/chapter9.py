@@ -9,14 +9,14 @@ theta_s > 0 a left turn; wheel 1 is the left wheel, wheel 2 the right.
 Two of them steer when their option (route_following `chapter9.*`, all off by default) is on,
 each in place of one part of the single-camera law (`steering_law` builds it):
 
-- chapter9.speed_reference, the speed-dependent law of 9.3: the P terms' gains scaled by
-  V / V_ref, "to provide a variable corrective action as a function of speed";
+- chapter9.speed_reference, the speed-dependent law of 9.3, "to provide a variable corrective
+  action as a function of speed", in the reading chapter9.speed_form (SpeedScaledSteering);
 - chapter9.inflexion_curvature, the inflexion points of 9.5: the window predictor's curvature
   estimate restarts where the tape's concavity changes sign, instead of filtering through it.
 
 The rest are the equations alone, for benches and tests: the wheel-speed increments of
-Eq. 9.7-9.10, the reference point of 9.6 (Eq. 9.15-9.16), the cross-coupled wheel error of
-9.2.1 and the Cartesian reference point of 9.2.2.
+Eq. 9.7-9.10 and the reference point of 9.6 (Eq. 9.15-9.16). The wheel loops of 9.2 belong to
+the drive, not to route following: agv_nodes/world/wheel_loops.py, world options.
 """
 
 from __future__ import annotations
@@ -154,22 +154,34 @@ class InflexionPredictor(WindowPredictor):
 
 
 class SpeedScaledSteering(CameraSteering):
-    """The P terms' gains scaled by V / V_ref (Sec. 9.3), the integral's left as it is.
+    """The P terms' gains scaled with the cruise speed (Sec. 9.3), the integral's left as it is.
 
-    9.3 differentiates the P law (Eq. 9.1) and finds the closing rate of eps_d proportional to
-    the speed (Eq. 9.2), the wheel increments of Eq. 9.9-9.10 carrying V G1: the gains grow
-    with speed. At V_ref the law is the plain one.
+    9.3 differentiates the P law (Eq. 9.1), finds the closing rate of eps_d proportional to the
+    speed (Eq. 9.2) and the wheel increments of Eq. 9.9-9.10 carrying V G1. Eq. 5.15-5.16
+    already make the wheels' differential V tan(theta_s) / L_ae, so that V is the plain law's
+    (form once, which steering_law builds as the plain law). The two other readings, named:
+    `gains`, the gains x V / V_ref (V twice in the wheels); `per_time`, x V_ref / V (the loop's
+    time response the same at every speed). At V_ref both are the plain law.
     """
 
-    def __init__(self, params: SteeringParams, camera: float, reference: float) -> None:
+    def __init__(self, params: SteeringParams, camera: float, reference: float,
+                 form: str = 'gains') -> None:
         super().__init__(params, camera)
-        self.base, self.reference = self.p, reference
+        if form not in ('gains', 'per_time'):
+            raise ValueError(f'chapter9.speed_form {form!r}: scaled forms are gains, per_time')
+        self.base, self.reference, self.form = self.p, reference, form
         self._scaled: dict[float, SteeringParams] = {}
 
+    def factor(self, speed: float) -> float:
+        """Return the gains' factor at cruise `speed` (1 at rest: no yaw to scale)."""
+        if speed <= 0.0:
+            return 1.0
+        return speed / self.reference if self.form == 'gains' else self.reference / speed
+
     def update(self, m: Measurement, dt: float, speed: float = 0.0) -> float | None:
-        """Return the caster angle at cruise `speed` with the gains scaled by speed / V_ref."""
+        """Return the caster angle at cruise `speed` with the P gains scaled by the form."""
         if speed not in self._scaled:
-            k = speed / self.reference
+            k = self.factor(speed)
             self._scaled[speed] = replace(self.base, gain_d=self.base.gain_d * k,
                                           gain_theta=self.base.gain_theta * k)
         self.p = self._scaled[speed]
@@ -182,35 +194,9 @@ class SpeedScaledSteering(CameraSteering):
 def steering_law(steering: SteeringParams, camera: float, options: Chapter9Params
                  ) -> CameraSteering:
     """Return the single-camera law with the Chapter 9 options on; with all off, the plain one."""
-    law = (SpeedScaledSteering(steering, camera, options.speed_reference)
-           if options.speed_reference > 0 else CameraSteering(steering, camera))
+    scaled = options.speed_reference > 0 and options.speed_form != 'once'
+    law = (SpeedScaledSteering(steering, camera, options.speed_reference, options.speed_form)
+           if scaled else CameraSteering(steering, camera))
     if options.inflexion_curvature > 0:
         law.predictor = InflexionPredictor(steering, camera, options)
     return law
-
-
-def cross_coupled_error(left_error: float, right_error: float, left_share: float = 0.5
-                        ) -> float:
-    """Return the cross-coupling error of 9.2.1 (Fig. 9.1): each wheel's error fed to the other.
-
-    With the wheels' tracking errors (desired - actual position) e1, e2 and a path that needs
-    them in the ratio of their speeds, the contour error is e1 - e2 weighted by each wheel's
-    share of the motion (Borenstein and Koren's form for the thesis's equal wheels: e1 - e2).
-    Added to wheel 1's loop and subtracted from wheel 2's, it drives the pair back into step.
-    """
-    return 2.0 * ((1.0 - left_share) * left_error - left_share * right_error)
-
-
-def cartesian_error(pose: tuple[float, float, float], reference: tuple[float, float, float]
-                    ) -> tuple[float, float, float]:
-    """Return the pose error to the virtual reference point of 9.2.2, in the truck's frame.
-
-    (along, across, heading): the reference point moves along the track where the truck is
-    meant to be; its lead `along` > 0 is the servo lag the Cartesian loop takes out.
-    """
-    x, y, heading = pose
-    rx, ry, rheading = reference
-    c, s = math.cos(heading), math.sin(heading)
-    dx, dy = rx - x, ry - y
-    turn = math.atan2(math.sin(rheading - heading), math.cos(rheading - heading))
-    return c * dx + s * dy, -s * dx + c * dy, turn

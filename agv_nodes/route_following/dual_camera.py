@@ -37,6 +37,7 @@ import math
 from typing import NamedTuple
 
 from agv_nodes.route_following.camera_guidance import CameraSteering, Measurement, Validity
+from agv_nodes.route_following.chapter9 import reference_offset
 from agv_nodes.route_following.dual_pose_law import PoseLaw, pose_of
 from agv_nodes.route_following.settings import DualCameraParams, SteeringParams, TurningParams
 from agv_nodes.settings import build, values_of
@@ -105,6 +106,7 @@ class DualCameraGuidance:
         # L_c, both windows' distance from the axle centre (the junction turn's camera_ahead)
         self.camera_ahead = (turning or TurningParams()).camera_ahead
         self.pose_law = PoseLaw(self.p, self.steering.p, self.camera_ahead)
+        self.reference_point = 0.0  # m behind the lead: the gains' switch (chapter9.py, 9.6)
         self.direction = 1
         self.reset()
 
@@ -137,6 +139,9 @@ class DualCameraGuidance:
         s_lead, s_trail = sign(lead.eps_d), sign(trail.eps_d)
         if s_lead and s_trail:
             self.same_side = s_lead == s_trail
+        if self.reference_point:  # Rajagopalan 1991, 9.6: the switch at c, not the front end
+            s_lead = sign(reference_offset(lead.eps_d, trail.eps_d, self.reference_point,
+                                           2.0 * self.camera_ahead - self.reference_point))
         # Exactly on the tape, a window has no side: the last judgement stands.
         if not self.start_sign:
             self.start_sign = s_lead

@@ -84,6 +84,7 @@ from agv_nodes.world.lm628 import (
 )
 from agv_nodes.world.settings import Concic2Params
 from agv_nodes.world.vehicles import Concic2, VehicleState, advance_pose
+from agv_nodes.world.wheel_loops import WheelLoops
 
 G = 9.81
 TWO_PI = 2.0 * math.pi
@@ -134,6 +135,8 @@ class Concic2DynamicParams:
     il: int = 30
     derivative_interval: int = 16  # servo samples [A]
     output_shift: int = 16  # [A], see lm628
+    cross_coupling: float = 0.0  # 9.2.1, off (wheel_loops)
+    cartesian_gain: float = 0.0  # 9.2.2, off (wheel_loops)
 
     @classmethod
     def from_params(cls, p: Concic2Params) -> 'Concic2DynamicParams':
@@ -141,7 +144,8 @@ class Concic2DynamicParams:
         return cls(wheel_radius=p.wheel_radius, wheel_span=p.wheel_span,
                    caster_distance=p.caster_distance, caster_trail=p.caster_trail,
                    camera_distance=p.camera_distance, acceleration=p.acceleration,
-                   max_wheel_speed=p.max_wheel_speed)
+                   max_wheel_speed=p.max_wheel_speed, cross_coupling=p.cross_coupling,
+                   cartesian_gain=p.cartesian_gain)
 
 
 class Concic2Dynamic(Concic2):
@@ -173,6 +177,9 @@ class Concic2Dynamic(Concic2):
                                 p.output_shift)
         self._target1 = self._target2 = 0.0  # last amplifier input voltages, V
         self._caster_q = (0.0, 0.0)
+        self.loops = (WheelLoops(p.cross_coupling, p.cartesian_gain, p.wheel_span,
+                                 self.counts_per_m)
+                      if p.cross_coupling or p.cartesian_gain else None)
         self._constants()
 
     def _constants(self) -> None:
@@ -222,6 +229,8 @@ class Concic2Dynamic(Concic2):
         if not self.enable or self.radio_stop:
             self.left_chip.motor_off()
             self.right_chip.motor_off()
+            if self.loops is not None:
+                self.loops.reset()
             return False
         for chip, theta, v in ((self.left_chip, self.theta1, self.v1),
                                (self.right_chip, self.theta2, self.v2)):
@@ -262,8 +271,12 @@ class Concic2Dynamic(Concic2):
         remaining = dt
         while remaining > 1e-12:
             if phase <= 1e-12:  # a servo sample is due
-                self._target1 = table[left.sample(math.floor(th1 / rpc)) + 128]
-                self._target2 = table[right.sample(math.floor(th2 / rpc)) + 128]
+                pos1, pos2 = math.floor(th1 / rpc), math.floor(th2 / rpc)
+                if self.loops is not None and drive:  # 9.2: each chip's error corrected
+                    c1, c2 = self.loops.corrections(left, right, pos1, pos2)
+                    pos1, pos2 = pos1 - c1, pos2 - c2
+                self._target1 = table[left.sample(pos1) + 128]
+                self._target2 = table[right.sample(pos2) + 128]
                 if drive:
                     in1, in2 = self._target1, self._target2
             h = SAMPLE_PERIOD - phase if SAMPLE_PERIOD - phase <= remaining else remaining
