@@ -26,7 +26,9 @@ Configurations: the defaults (all chapter9 options off) and each option on alone
 chapter9.speed_reference 0.47 m/s (9.3, the thesis's normal industrial speed, 7.6) in the two
 speed_form readings that change the law (the text's own, once, is the plain law): gains (the P
 gains x V / 0.47) and per_time (x 0.47 / V); chapter9.inflexion_curvature 0.3 per m,
-inflexion_frames 3 (9.5: the predictor's curvature restarted at a change of concavity); and on
+inflexion_frames 3 (9.5: the window predictor's curvature restarted at a change of
+concavity), judged against route following's own predictor on (steering.predict 0.15 s, off by
+default, which the inflexion acts on: with it off the option changes nothing); and on
 the dynamic model only (the kinematic one has no LM628 loops) the world's concic2.cross_coupling
 1.0 (9.2.1) and cross_coupling 1.0 with cartesian_gain 1.0 (9.2.2, the Cartesian loop on top of
 the cross-coupled one, as Fig. 9.2 draws them).
@@ -46,7 +48,7 @@ compared; marked **worse** otherwise.
 from __future__ import annotations
 
 import argparse
-from dataclasses import replace
+from dataclasses import dataclass, replace
 import math
 import multiprocessing
 from pathlib import Path
@@ -68,17 +70,32 @@ import dual_camera_bench as dual_bench  # noqa: E402  (bench/ is no package)
 
 MODELS = ('kinematic', 'dynamic')
 STEP, AT, BAND, FRAME = 0.065, 8.0, 0.005, 17  # m, m, m, world samples per 50 ms
-# name: (route following's chapter9 options, the world's concic2 options, the models it acts on)
-CONFIGS: dict[str, tuple[Chapter9Params, dict, tuple[str, ...]]] = {
-    'defaults': (Chapter9Params(), {}, MODELS),
-    'speed law (9.3), gains': (Chapter9Params(speed_reference=0.47, speed_form='gains'), {},
-                               MODELS),
-    'speed law (9.3), per_time': (Chapter9Params(speed_reference=0.47, speed_form='per_time'),
-                                  {}, MODELS),
-    'inflexion (9.5)': (Chapter9Params(inflexion_curvature=0.3, inflexion_frames=3), {}, MODELS),
-    'cross-coupled (9.2.1)': (Chapter9Params(), {'cross_coupling': 1.0}, ('dynamic',)),
-    'Cartesian (9.2.2)': (Chapter9Params(), {'cross_coupling': 1.0, 'cartesian_gain': 1.0},
-                          ('dynamic',)),
+
+
+@dataclass(frozen=True)
+class Config:
+    """One configuration: options over the defaults, the models it acts on, what it is against."""
+
+    options: Chapter9Params = Chapter9Params()  # route following's chapter9
+    wheels: tuple[tuple[str, float], ...] = ()  # the world's concic2 (the wheel loops of 9.2)
+    steering: tuple[tuple[str, float], ...] = ()  # route following's steering
+    models: tuple[str, ...] = MODELS
+    against: str = 'defaults'  # the row it is judged against ('': a baseline, not judged)
+
+
+PREDICT = (('predict', 0.15),)  # s: route following's window predictor on (steering.predict)
+CONFIGS: dict[str, Config] = {
+    'defaults': Config(against=''),
+    'speed law (9.3), gains': Config(Chapter9Params(speed_reference=0.47, speed_form='gains')),
+    'speed law (9.3), per_time': Config(Chapter9Params(speed_reference=0.47,
+                                                       speed_form='per_time')),
+    'predictor (steering.predict 0.15 s)': Config(steering=PREDICT, against=''),
+    'inflexion (9.5) on the predictor': Config(
+        Chapter9Params(inflexion_curvature=0.3, inflexion_frames=3), steering=PREDICT,
+        against='predictor (steering.predict 0.15 s)'),
+    'cross-coupled (9.2.1)': Config(wheels=(('cross_coupling', 1.0),), models=('dynamic',)),
+    'Cartesian (9.2.2)': Config(wheels=(('cross_coupling', 1.0), ('cartesian_gain', 1.0)),
+                                models=('dynamic',)),
 }
 # (name, kind, speed): the experiments of the module docstring.
 EXPERIMENTS = [(f'step 0.065 m at {v} m/s', 'step', v) for v in (0.31, 0.79)] + [
@@ -116,10 +133,12 @@ def settle(rows: list[tuple[float, float]], t0: float) -> float:
 
 
 def run(kind: str, model: str, speed: float, options: Chapter9Params, seed: int,
-        wheels: dict | None = None) -> dict[str, float]:
+        wheels: tuple[tuple[str, float], ...] = (), steering: tuple[tuple[str, float], ...] = ()
+        ) -> dict[str, float]:
     """Return peak, steady (mm) and settle (s) of one experiment; all inf when the tape is lost.
 
-    `wheels`: world concic2 options (the wheel loops of 9.2) over the defaults.
+    `wheels`: world concic2 options (the wheel loops of 9.2), `steering`: route following's
+    steering options, each (key, value) over the defaults.
     """
     if kind == 'step':
         lay = tapes(([-1.0, 0.0, 0.0], f'{{straight: {AT + 1.0}}}'),
@@ -136,8 +155,9 @@ def run(kind: str, model: str, speed: float, options: Chapter9Params, seed: int,
         arcs = (1.5, 1.5 + math.pi + 0.6, 1.5 + math.pi + 0.6 + 2.0 * math.pi / 3.0)
         until = 2.0 * (arcs[2] + 2.2) / speed + 10.0  # a cap: the run ends 2.2 m past
     world = TapeWorld(lay, WorldParams(seed=seed, concic2=replace(Concic2Params(model=model),
-                                                                  **(wheels or {}))))
+                                                                  **dict(wheels))))
     params = replace(RouteParams(), vehicle='concic2', camera_speed=speed, chapter9=options)
+    params = replace(params, steering=replace(params.steering, **dict(steering)))
     script = CameraLegScript()
     h = Harness(world, [script, RouteCore(params)], seed=seed)
     lc = world.p.concic2.camera_distance
@@ -259,10 +279,19 @@ def dual_table(seeds: list[int], jobs: int = 1, models: tuple = MODELS
     return rows, worse
 
 
-def cell(values: list[float], digits: int) -> str:
-    """Return the seeds' mean (and range when they differ) of one quantity."""
+def held(result: dict[str, list[float]]) -> bool:
+    """Return whether every seed's run kept the tape (a peak measured)."""
+    return not any(math.isinf(v) for v in result['peak'])
+
+
+def cell(values: list[float], digits: int, held: bool = False) -> str:
+    """Return the seeds' mean (and range when they differ) of one quantity.
+
+    inf: 'lost' (the run lost the tape), or 'never' back within the band where the tape was
+    `held`; some seeds only: 'never'.
+    """
     if any(math.isinf(v) for v in values):
-        return 'lost' if all(math.isinf(v) for v in values) else 'never'
+        return 'lost' if all(math.isinf(v) for v in values) and not held else 'never'
     mean = sum(values) / len(values)
     return f'{mean:.{digits}f}' + (f' ({min(values):.{digits}f}-{max(values):.{digits}f})'
                                    if len(values) > 1 else '')
@@ -293,9 +322,9 @@ def _run(task: tuple) -> dict[str, float]:
 def table(seeds: list[int], jobs: int = 1, experiments: list = EXPERIMENTS,
           models: tuple = MODELS) -> tuple[list[str], int]:
     """Run everything (`jobs` processes); return the table's rows and the worse count."""
-    tasks = [(kind, model, speed, options, seed, wheels) for _n, kind, speed in experiments
-             for model in models for options, wheels, acts in CONFIGS.values() if model in acts
-             for seed in seeds]
+    tasks = [(kind, model, speed, c.options, seed, c.wheels, c.steering)
+             for _n, kind, speed in experiments for model in models
+             for c in CONFIGS.values() if model in c.models for seed in seeds]
     if jobs > 1:
         with multiprocessing.Pool(jobs) as pool:
             outs = iter(pool.map(_run, tasks, chunksize=1))
@@ -305,17 +334,17 @@ def table(seeds: list[int], jobs: int = 1, experiments: list = EXPERIMENTS,
     for name, _kind, _speed in experiments:
         for model in models:
             results = {}
-            for config, (_options, _wheels, acts) in CONFIGS.items():
-                if model not in acts:
+            for config, c in CONFIGS.items():
+                if model not in c.models:
                     continue
                 out = [next(outs) for _seed in seeds]
                 results[config] = {q: [o[q] for o in out] for q in QUANTITIES}
-                mark = '' if config == 'defaults' else verdict(results[config],
-                                                               results['defaults'])
+                mark = verdict(results[config], results[c.against]) if c.against else ''
                 worse += mark.startswith('**')
                 r = results[config]
                 rows.append(f'| {name} | {model} | {config} | {cell(r["peak"], 1)} | '
-                            f'{cell(r["steady"], 2)} | {cell(r["settle"], 2)} | {mark} |')
+                            f'{cell(r["steady"], 2)} | {cell(r["settle"], 2, held(r))} | '
+                            f'{mark} |')
                 print(rows[-1], flush=True)
     return rows, worse
 
