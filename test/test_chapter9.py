@@ -272,17 +272,79 @@ def test_inflexion_off_is_bit_identical_in_lock_step() -> None:
     assert a == b
 
 
-@pytest.mark.timeout(600)
-def test_inflexion_on_no_worse_on_the_s_bend() -> None:
-    """S-bend at 0.79 m/s on the dynamic model, seeds 2-4: peak and steady within the spread.
+@pytest.mark.timeout(240)
+def test_speed_law_as_derived_is_bit_identical_in_lock_step() -> None:
+    """speed_form once (the default form) with speed_reference on: the defaults, bit for bit."""
+    on = Chapter9Params(speed_reference=0.47)
+    assert bench.run('step', 'kinematic', 0.79, on, 2) == \
+        bench.run('step', 'kinematic', 0.79, Chapter9Params(), 2)
 
-    The case the predictor matters most for: the fastest speed, the model whose wheels lag
-    most. At 0.63 m/s on the kinematic model the bench finds the option worse (peak 5.0 against
-    4.0 mm, bench/results/chapter9_bench.md), which is why it is off by default.
+
+def _judged(config: str, kind: str, model: str, speed: float) -> tuple[str, list, list]:
+    """Run a bench configuration and the row it is judged against, seeds 2-4, in lock step.
+
+    Return the bench's verdict (its rule: the option's seeds' mean within the baseline's mean
+    plus the baseline's own seed spread) and both rows' results.
     """
-    on, off = bench.CONFIGS['inflexion (9.5)'], bench.CONFIGS['defaults']
-    a = [bench.run('sbend', 'dynamic', 0.79, on, seed) for seed in (2, 3, 4)]
-    b = [bench.run('sbend', 'dynamic', 0.79, off, seed) for seed in (2, 3, 4)]
-    for q in ('peak', 'steady'):
-        spread = max(r[q] for r in b) - min(r[q] for r in b)
-        assert sum(r[q] for r in a) / 3 <= sum(r[q] for r in b) / 3 + spread, (q, a, b)
+    c = bench.CONFIGS[config]
+    base = bench.CONFIGS[c.against]
+    rows = [[bench.run(kind, model, speed, x.options, seed, x.wheels, x.steering)
+             for seed in (2, 3, 4)] for x in (c, base)]
+    option, baseline = ({q: [r[q] for r in runs] for q in bench.QUANTITIES} for runs in rows)
+    return bench.verdict(option, baseline), rows[0], rows[1]
+
+
+# (configuration, experiment, model, speed): the rows of bench/results/chapter9_bench.md where
+# each option does no worse than what it is judged against; the rows where it is worse are
+# named in each test's docstring (and marked in the bench's table).
+NO_WORSE = [
+    ('speed law (9.3), per_time', 'circle', 'dynamic', 0.63),
+    ('speed law (9.3), per_time', 'step', 'kinematic', 0.31),
+    ('speed law (9.3), gains', 'sbend', 'dynamic', 0.79),
+    ('inflexion (9.5) on the predictor', 'sbend', 'dynamic', 0.79),
+    ('cross-coupled (9.2.1)', 'step', 'dynamic', 0.79),
+    ('Cartesian (9.2.2)', 'circle', 'dynamic', 0.63),
+    ('Cartesian (9.2.2)', 'step', 'dynamic', 0.79),
+]
+
+
+@pytest.mark.timeout(600)
+@pytest.mark.parametrize('config,kind,model,speed', NO_WORSE)
+def test_option_no_worse_where_the_bench_finds_it(config: str, kind: str, model: str,
+                                                  speed: float) -> None:
+    """Each Chapter 9 option, lock step, seeds 2-4, no worse on its representative rows.
+
+    Worse rows, by the bench (docs/chapter9.md says why): per_time on both S-bends and the
+    0.79 m/s step on the kinematic model; gains on the steps and the circle; the wheel loops
+    on the S-bends' steady error and the 0.31 m/s step, the cross-coupled one also on the
+    circle's peak. The option must also hold the tape on every seed.
+    """
+    mark, option, baseline = _judged(config, kind, model, speed)
+    assert mark == 'no worse', (mark, option, baseline)
+    assert all(math.isfinite(r['peak']) for r in option), option
+
+
+# (start, model): the dual-camera rows where the gains switched at c (the axle centre) do no
+# worse than at the front end (bench/results/chapter9_bench.md, the reference point's table).
+DUAL_NO_WORSE = [('straight, opposite sides', 'kinematic'),
+                 ('straight, opposite sides', 'dynamic'),
+                 ('circle R = 3.0 m, opposite sides', 'dynamic')]
+
+
+@pytest.mark.timeout(600)
+@pytest.mark.parametrize('start,model', DUAL_NO_WORSE)
+def test_reference_point_no_worse_where_the_bench_finds_it(start: str, model: str) -> None:
+    """9.6 at c = 0.64 m (the axle centre) against the front end, lock step, seeds 2-4.
+
+    Worse, by the bench (docs/chapter9.md): both same-side starts (the rear window takes
+    longer: the high start gain ends only once the middle of the truck has crossed) and the
+    opposite-sides start on the circle on the kinematic model.
+    """
+    name, radius, front, rear, _thesis = next(s for s in bench.dual_bench.SCENARIOS
+                                              if s[0] == start)
+    rows = [[bench.dual_run(radius, front, rear, model, reference, seed) for seed in (2, 3, 4)]
+            for reference in (bench.REFERENCE, 0.0)]
+    at_c, front_end = ({q: [r[q] for r in runs] for q in bench.DUAL_QUANTITIES}
+                       for runs in rows)
+    mark = bench.verdict(at_c, front_end, bench.DUAL_QUANTITIES)
+    assert mark == 'no worse', (name, mark, rows)
