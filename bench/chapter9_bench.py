@@ -76,7 +76,7 @@ STEP, AT, BAND, FRAME = 0.065, 8.0, 0.005, 17  # m, m, m, world samples per 50 m
 class Config:
     """One configuration: options over the defaults, the models it acts on, what it is against."""
 
-    options: Chapter9Params = field(default_factory=Chapter9Params)  # route following's
+    options: Chapter9Params = field(default_factory=Chapter9Params)  # route_following chapter9
     wheels: tuple[tuple[str, float], ...] = ()  # the world's concic2 (the wheel loops of 9.2)
     steering: tuple[tuple[str, float], ...] = ()  # route following's steering
     models: tuple[str, ...] = MODELS

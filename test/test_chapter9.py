@@ -164,11 +164,15 @@ def test_speed_law_as_derived_is_the_plain_law() -> None:
 
 @pytest.mark.timeout(10)
 def test_cross_coupled_correction_by_hand() -> None:
-    """Errors 10 and 4 counts, coupling 0.5: 0.5 x (10 - 4) = 3 more on the left, 3 less right."""
+    """Errors 10 and 4 counts, equal speeds, coupling 0.5: 0.5 x (10 - 4) = 3 on, 3 off."""
     left, right = LM628(1), LM628(1)
     left.desired = right.desired = 100 << 16
     assert WheelLoops(0.5, 0.0, 0.52, 1000.0).corrections(left, right, 90, 96) == (3, -3)
     assert WheelLoops(0.0, 0.0, 0.52, 1000.0).corrections(left, right, 90, 96) == (0, 0)
+    # In a turn, the left profile twice the right's: shares 2/3, 1/3 (Borenstein and Koren),
+    # 2 (1/3 x 10 - 2/3 x 4) = 1.333 counts, coupling 3: 4.
+    left.profile, right.profile = 2 << 16, 1 << 16
+    assert WheelLoops(3.0, 0.0, 0.52, 1000.0).corrections(left, right, 90, 96) == (4, -4)
 
 
 @pytest.mark.timeout(10)

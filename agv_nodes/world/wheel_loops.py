@@ -6,9 +6,10 @@ sample they shift what each chip reads of its encoder, so that the chip's positi
 its own plus a correction (counts): the chips' PID filters and gains stay the thesis's (7.3).
 
 - Cross-coupled loop (9.2.1, Fig. 9.1, after Borenstein and Koren 1987): "the error from wheel-2
-  is fed to the wheel-1 loop, and vice versa". The contour error e1 - e2 (equal wheels), times
-  cross_coupling, is added to wheel 1's error and taken from wheel 2's: the wheel that lags
-  pushes, the other waits, and the pair stays in step (at the cost of lag, 9.2.1).
+  is fed to the wheel-1 loop, and vice versa". The contour error, e1 - e2 weighted by each
+  wheel's share of the motion (cross_coupled_error), times cross_coupling, is added to wheel
+  1's error and taken from wheel 2's: the wheel that lags pushes, the other waits, and the pair
+  stays in step (at the cost of lag, 9.2.1).
 - Cartesian loop (9.2.2, Fig. 9.2): the virtual reference point moves along where the truck is
   meant to be. Here [A] it is the pose the chips' desired positions dead-reckon (the profile
   followed exactly), the actual pose the encoders'; both start where the chips start. The error
@@ -83,7 +84,11 @@ class WheelLoops:
         d1, d2 = left.desired >> 16, right.desired >> 16
         c1 = c2 = 0.0
         if self.cross_coupling:
-            cc = self.cross_coupling * cross_coupled_error(d1 - pos1, d2 - pos2)
+            # Each wheel's share of the motion (the profiles' speeds): a steady turn's lags,
+            # each in proportion to its wheel's speed, leave no contour error.
+            v1, v2 = abs(left.profile), abs(right.profile)
+            share = v1 / (v1 + v2) if v1 + v2 else 0.5
+            cc = self.cross_coupling * cross_coupled_error(d1 - pos1, d2 - pos2, share)
             c1, c2 = cc, -cc
         if self.cartesian_gain:
             if self.actual is None or self.reference is None:
