@@ -137,6 +137,7 @@ class CameraSteering:
     def __init__(self, params: SteeringParams | None = None, camera: float = 0.64) -> None:
         self.p = params or SteeringParams()
         self.integral = self.theta_s = 0.0
+        self.plain_theta = 0.0  # rad: eps_theta of the last frame with a plain tape
         self.absent = 0
         self.predictor = WindowPredictor(self.p, camera)
 
@@ -154,7 +155,15 @@ class CameraSteering:
         self.absent = 0
         if m.validity is Validity.SATURATED:
             return self.theta_s  # ignore the frame: steer from the previous data
-        eps_d, eps_theta = self.predictor.predict(m.eps_d, m.eps_theta, dt, speed)
+        eps_theta, plain = m.eps_theta, m.validity is Validity.NORMAL
+        if plain:
+            self.plain_theta = eps_theta
+        else:
+            # A road sign under the window (4.3): its patch and branches turn the fitted line by
+            # tens of degrees at a branch, which is not the tape's orientation; fed back, it
+            # steers the truck onto the branch. The last plain frame's orientation stands.
+            eps_theta = self.plain_theta
+        eps_d, eps_theta = self.predictor.predict(m.eps_d, eps_theta, dt, speed, plain)
         if p.law == 'pi':  # Eq 5.6 (G1 on eps_theta, G2 on eps_d, G3 on the integral)
             if not p.integral_band or abs(m.eps_d) < p.integral_band:
                 self.integral += (dt if p.integral_form == 'with_dt' else 1.0) * m.eps_d
@@ -213,21 +222,25 @@ class WindowPredictor:
         else:
             self.rate = self.command
 
-    def predict(self, eps_d: float, eps_theta: float, dt: float, speed: float
-                ) -> tuple[float, float]:
-        """Return (eps_d, eps_theta) `predict` s on; as measured with predict 0."""
+    def predict(self, eps_d: float, eps_theta: float, dt: float, speed: float,
+                plain: bool = True) -> tuple[float, float]:
+        """Return (eps_d, eps_theta) `predict` s on; as measured with predict 0.
+
+        `plain`: the frame shows plain tape. Over a road sign no curvature is read (the patch
+        turns the fit, not the tape), and the next plain frame starts the reading afresh.
+        """
         p = self.p
-        if p.predict <= 0 or speed <= 0:
-            self._alpha = eps_theta
-            return eps_d, eps_theta
-        if self._alpha is not None:
+        ahead = p.predict > 0 and speed > 0
+        if ahead and plain and self._alpha is not None:
             reading = ((eps_theta - self._alpha) / dt + self.rate) / speed
             # A road sign's patch and branches turn the fitted line by degrees in a frame: a
             # reading of tens per m. No tape the window can stay on is curved beyond 1 / L_c.
             bound = 1.0 / self.camera
             reading = max(-bound, min(bound, reading))
             self.kappa += p.curvature_filter * (reading - self.kappa)
-        self._alpha = eps_theta
+        self._alpha = eps_theta if plain else None
+        if not ahead:
+            return eps_d, eps_theta
         h = p.predict
         alpha = eps_theta + h * (self.kappa * speed - self.rate)
         eps_d += h * (speed * math.sin(0.5 * (eps_theta + alpha)) - self.camera * self.rate)
