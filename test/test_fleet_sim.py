@@ -33,7 +33,6 @@ import pytest
 from agv_nodes.fleet.fleet_sim import SLICE, FleetSim
 from agv_nodes.fleet.fleet_sim_control import CommandError, from_json, from_line
 from agv_nodes.fleet.fleet_sim_options import SimOptions
-from agv_nodes.world.settings import WorldParams
 
 sys.path.insert(0, str(Path(__file__).parent))
 from vda5050_master import Master, path  # noqa: E402 - a helper module beside the tests
@@ -98,11 +97,12 @@ class Tap:
             return [(t, m) for t, tr, n, m in self.seen if tr == truck and n == name]
 
 
-def _running(url: str, serials: tuple[str, ...], starts: tuple[str, ...], processes: int
-             ) -> Iterator[tuple[FleetSim, Tap, str]]:
+def _running(url: str, serials: tuple[str, ...], starts: tuple[str, ...], processes: int,
+             **settings: Any) -> Iterator[tuple[FleetSim, Tap, str]]:
     options = SimOptions(layout='fleet_1983', serials=serials, starts=starts, time_factor=0.0,
-                         processes=processes, visualization_period=0.1, status_period=2.0,
-                         state_interval=STATE_INTERVAL)
+                         processes=processes, **{'visualization_period': 0.1,
+                                                 'status_period': 2.0,
+                                                 'state_interval': STATE_INTERVAL, **settings})
     lines: list[str] = []
     sim = FleetSim(options, url, log=lines.append)
     tap = Tap()
@@ -157,13 +157,12 @@ def test_a_master_drives_a_truck_to_the_end_of_its_order(fleet_sim, master):
     done = master.wait_for('state', _idle('A3.1', 'o1'), WALL, 'order o1 done at A3.1')
     assert done['errors'] == []
     # the truck is where the layout has A3.1, at rest: its visualization from the world
-    # (the reference point, the wheelbase behind the marker sensor over the card)
+    # (the reference point: the front axle centre, where the marker sensor reads the card)
     x, y = _marker_xy('A3.1')
     now, vis = tap.of('agv1', 'visualization')[-1]
-    p, ahead = vis['agvPosition'], WorldParams().electruk.wheelbase
+    p = vis['agvPosition']
     assert abs(vis['velocity']['vx']) < AT_REST
-    sensor = (p['x'] + ahead * math.cos(p['theta']), p['y'] + ahead * math.sin(p['theta']))
-    assert math.dist(sensor, (x, y)) < STOP_WITHIN, (sensor, x, y)
+    assert math.dist((p['x'], p['y']), (x, y)) < STOP_WITHIN, (p, x, y)
     assert master.received['factsheet'] and master.received['connection'][0][
         'connectionState'] == 'ONLINE'
     # the others stood still: nothing was sent to them
@@ -325,10 +324,9 @@ def test_a_blocked_stop_marker_ends_at_the_positioning_limit_with_an_error(fleet
     _wait(lambda: (tap.of('agv1', 'visualization')[-1][0] > sim.now - 1.0
                    and abs(tap.of('agv1', 'visualization')[-1][1]['velocity']['vx']) < AT_REST),
           'agv1 at rest')
-    p = tap.of('agv1', 'visualization')[-1][1]['agvPosition']
+    p = tap.of('agv1', 'visualization')[-1][1]['agvPosition']  # the sensor's point
     x, _y = _marker_xy('A2.1')
-    sensor = p['x'] + WorldParams().electruk.wheelbase * math.cos(p['theta'])
-    assert x < sensor < x + limit, (sensor, x)
+    assert x < p['x'] < x + limit, (p['x'], x)
 
 
 @pytest.mark.parametrize(('line', 'problem'), [

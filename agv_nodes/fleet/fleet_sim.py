@@ -31,10 +31,12 @@ import sys
 import threading
 import time
 from typing import Any
+import uuid
 
 from pydantic import BaseModel
 
 from agv_nodes.fleet import fleet_sim_faults as faults
+from agv_nodes.fleet import fleet_sim_records as records
 from agv_nodes.fleet.fleet_sim_control import Command, CommandError, from_json, from_line
 from agv_nodes.fleet.fleet_sim_options import SimOptions, options_from_args, parser, start_of
 from agv_nodes.fleet.fleet_sim_truck import TruckFace
@@ -81,6 +83,7 @@ class FleetSim:
         self._next_visualization = 0.0
         self.ratio = 0.0  # simulated s per wall s over the last status period
         self.control: MqttLink | None = None
+        self.owner = uuid.uuid4().hex  # names this simulator's record taps in every process
 
     @property
     def now(self) -> float:
@@ -106,6 +109,7 @@ class FleetSim:
                          interface=self.o.interface, map_id=self.layout.name,
                          state_interval=self.o.state_interval)
         self.faces[name], self.faults[name] = face, set()
+        self.fleet.query(name, records.tap, self.owner, name)
         face.connect(wait=wait)
         home = {'headerId': 0, 'timestamp': utc_now().isoformat(timespec='milliseconds'),
                 'version': VERSION, 'manufacturer': self.o.manufacturer, 'serialNumber': name,
@@ -121,6 +125,7 @@ class FleetSim:
         if self.control is not None:
             self.control.close()
         self.fleet.close()
+        records.forget(self.owner)
 
     # --- running ---------------------------------------------------------------------------
 
@@ -157,13 +162,14 @@ class FleetSim:
         visualize = now + 1e-9 >= self._next_visualization
         if visualize:
             self._next_visualization = now + self.o.visualization_period
+        tapped = records.take_all(fleet.query, list(self.faces), self.owner)
         for name, face in list(self.faces.items()):
-            out = Outbox()
+            out = face.poll(now)  # first: a link just up says ONLINE before any state
+            out.extend(face.read(tapped.get(name, ()), now))
             for text in fleet.take_notes(name):
                 out.extend(face.bridge.on_report(text, now))
-            out.extend(face.poll(now))
             if visualize:
-                out.extend(face.visualization(fleet.query(name, faults.pose)))
+                out.extend(face.visualization(fleet.query(name, faults.reference_pose)))
             self._apply(name, out)
         while not self._commands.empty():
             kind, payload = self._commands.get_nowait()
@@ -173,7 +179,7 @@ class FleetSim:
         for text in out.tasks:
             self.fleet.submit(name, text)
         face = self.faces[name]
-        if face.link is not None:
+        if face.link is not None and face.up:  # what is published
             for tap in self.taps:
                 for topic_name, message in out.messages:
                     tap(name, topic_name, message, self.now)
@@ -216,6 +222,7 @@ class FleetSim:
         face, on = self.faces[c.truck], c.verb == 'fault'
         if c.verb == 'remove':
             face.close()
+            self.fleet.query(c.truck, records.untap, self.owner, c.truck)
             self.fleet.remove(c.truck)
             del self.faces[c.truck], self.faults[c.truck]
         elif c.fault == 'brokerLink':
@@ -236,6 +243,8 @@ class FleetSim:
                 'linksUp': sum(f.link is not None and f.link.connected
                                for f in self.faces.values()),
                 'collisions': len(self.fleet.collisions), **self.counts,
+                'recordsRejected': sum(r.rejected for f in self.faces.values()
+                                       for r in f.records.readers.values()),
                 'lastCommand': self.last_command, 'lastRejection': self.last_rejection}
 
     def publish_status(self) -> None:

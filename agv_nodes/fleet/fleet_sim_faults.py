@@ -72,5 +72,18 @@ def state(h: Harness) -> dict[str, object]:
 
 
 def pose(h: Harness) -> tuple[float, float, float, float]:
-    """Return the truck's ground-truth (x, y, heading, speed), for its visualization."""
+    """Return the truck's ground-truth (x, y, heading, speed) of the world's vehicle point."""
     return h.world.pose()
+
+
+def reference_pose(h: Harness) -> tuple[float, float, float, float]:
+    """Return the ground truth of the truck's reference point, for its visualization.
+
+    The world's vehicle point is the driven (rear) axle centre; the reference point of the
+    factsheet's geometry and of agvPosition is the front axle centre, where the guide-wire
+    coils and the marker sensor are (agv_nodes.vda5050.truck_factsheet; VDA 5050 6.7: the
+    vehicle reference point is the origin of the vehicle frame the factsheet describes).
+    """
+    _x, _y, heading, speed = h.world.pose()
+    x, y = h.world.vehicle.sensor_point
+    return x, y, heading, speed

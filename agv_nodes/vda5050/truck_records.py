@@ -82,8 +82,17 @@ class RecordTap:
 
     def __call__(self, record: str, raw: bytes, now: float) -> None:
         """Take one record as the harness delivers it (its 16 bytes, at sim time `now`)."""
+        self.read(record, raw, now, now)
+
+    def read(self, record: str, raw: bytes, sent_at: float, now: float) -> None:
+        """Take one record sent at `sent_at` on the truck's clock, for the core at `now`.
+
+        The reader judges it on the truck's clock; the core takes it on its own (a fleet's
+        added truck counts from its power-on, its bridge from the simulator's start).
+        """
         reader = self.readers.get(record)
-        if reader is not None and (fields := reader.accept(raw, round(now * 1e9))) is not None:
+        if reader is not None and \
+                (fields := reader.accept(raw, round(sent_at * 1e9))) is not None:
             self._out.extend(self.core.on_record(record, fields, now))
 
     def take(self) -> Outbox:
