@@ -68,7 +68,7 @@ class TrackPolyline:
     def at(self, a: float) -> np.ndarray:
         """Return the point at arc length `a` (clamped to the ends)."""
         a = min(max(a, 0.0), self.length)
-        k = int(min(np.searchsorted(self.arc, a, side='right') - 1, len(self.arc) - 2))
+        k = min(int(np.searchsorted(self.arc, a, side='right')) - 1, len(self.arc) - 2)
         span = self.arc[k + 1] - self.arc[k]
         t = 0.0 if span <= 0.0 else (a - self.arc[k]) / span
         return self.points[k] + t * (self.points[k + 1] - self.points[k])

@@ -85,6 +85,13 @@ class _Fit:
         self._cache: tuple[np.ndarray | None] | None = None
 
     @property
+    def _base(self) -> Sample:
+        """The origin the sums are taken about: the first sample kept."""
+        if self._origin is None:
+            raise RuntimeError('a fit without samples has no origin')
+        return self._origin
+
+    @property
     def n(self) -> int:
         """Samples in the fit."""
         return round(self._sums[0, 0])
@@ -104,7 +111,7 @@ class _Fit:
         while p.s - self._kept[0].s > self.window:
             z = self._row(self._kept.popleft())
             self._sums -= np.outer(z, z)
-        if self._kept[0].s - self._origin.s > self.window:
+        if self._kept[0].s - self._base.s > self.window:
             self._origin = self._kept[0]
             rows = np.array([self._row(q) for q in self._kept])
             self._sums = rows.T @ rows
@@ -159,19 +166,23 @@ class _Parametric(_Fit):
         raise NotImplementedError
 
     def _row(self, p: Sample) -> np.ndarray:
-        return np.array([1.0, *self._g(p), p.x - self._origin.x, p.y - self._origin.y])
+        origin = self._base
+        return np.array([1.0, *self._g(p), p.x - origin.x, p.y - origin.y])
 
     def _at(self, p: Sample) -> tuple[float, float] | None:
         c = self._solution()
         if c is None:
             return None
         x, y = np.array([1.0, *self._g(p)]) @ c
-        return float(self._origin.x + x), float(self._origin.y + y)
+        return float(self._base.x + x), float(self._base.y + y)
 
     def _absolute(self, shift: np.ndarray) -> tuple[float, float, float, float, float, float]:
         """(a0, a1, a2, b0, b1, b2) from those about the origin, `shift` moving g's origin."""
-        c = shift @ self._solution() + [[self._origin.x, self._origin.y], [0.0, 0.0], [0.0, 0.0]]
-        return tuple(float(v) for v in c.T.ravel())
+        if (solution := self._solution()) is None:
+            raise RuntimeError('coefficients of a fit without a solution')
+        c = shift @ solution + [[self._base.x, self._base.y], [0.0, 0.0], [0.0, 0.0]]
+        a0, a1, a2, b0, b1, b2 = (float(v) for v in c.T.ravel())
+        return a0, a1, a2, b0, b1, b2
 
     def error(self, p: Sample) -> float | None:
         """Distance of the sample's point from the fitted point at its s or theta, m."""
@@ -186,7 +197,7 @@ class PolynomialFit(_Parametric):
     """
 
     def _g(self, p: Sample) -> tuple[float, float]:
-        ds = p.s - self._origin.s
+        ds = p.s - self._base.s
         return ds, ds * ds
 
     def add(self, x: float, y: float, s: float) -> None:
@@ -198,7 +209,7 @@ class PolynomialFit(_Parametric):
         """Return (a0, a1, a2, b0, b1, b2) in the caller's s, or None while unsolvable."""
         if not self.ready:
             return None
-        s0 = self._origin.s
+        s0 = self._base.s
         return self._absolute(np.array([[1.0, -s0, s0 * s0], [0.0, 1.0, -2 * s0], [0, 0, 1.0]]))
 
     def point(self, s: float) -> tuple[float, float] | None:
@@ -209,7 +220,7 @@ class PolynomialFit(_Parametric):
         """Return (dx/ds, dy/ds, d2x/ds2, d2y/ds2) of the fitted curve at s."""
         if (c := self._solution()) is None:
             return None
-        (dx, dy), (ddx, ddy) = c[1] + 2 * c[2] * (s - self._origin.s), 2 * c[2]
+        (dx, dy), (ddx, ddy) = c[1] + 2 * c[2] * (s - self._base.s), 2 * c[2]
         return float(dx), float(dy), float(ddx), float(ddy)
 
     def implicit(self) -> Conic | None:
@@ -234,8 +245,9 @@ class PolynomialFit(_Parametric):
             k = a2 * b0 - b2 * a0
             conic = (b2 * b2, -2 * a2 * b2, a2 * a2, 2 * k * b2 + d1 * b1,
                      -2 * k * a2 - d1 * a1, k * k + d1 * (a1 * b0 - b1 * a0))
-        out = np.array(shift_conic(conic, self._origin.x, self._origin.y))
-        return tuple(float(v) for v in out / np.linalg.norm(out))
+        out = np.array(shift_conic(conic, self._base.x, self._base.y))
+        A, B, C, D, E, F = (float(v) for v in out / np.linalg.norm(out))
+        return A, B, C, D, E, F
 
 
 class ConicFit(_Parametric):
@@ -308,7 +320,8 @@ class LineFit(_Fit):
         super().__init__(window, max_condition)
 
     def _row(self, p: Sample) -> np.ndarray:
-        return np.array([1.0, p.x - self._origin.x, p.y - self._origin.y])
+        origin = self._base
+        return np.array([1.0, p.x - origin.x, p.y - origin.y])
 
     def add(self, x: float, y: float, s: float) -> None:
         """Take the point P = (x, y) reached at travelled distance s."""
@@ -353,7 +366,7 @@ class LineFit(_Fit):
         if (c := self._solution()) is None:
             return None
         nx, ny, d = (float(v) for v in c[:3])
-        return nx, ny, d + nx * self._origin.x + ny * self._origin.y
+        return nx, ny, d + nx * self._base.x + ny * self._base.y
 
     @property
     def slope_intercept(self) -> tuple[float, float] | None:
@@ -370,7 +383,10 @@ class LineFit(_Fit):
         if (line := self.normal_form) is None:
             return None
         dx, dy = line[1], -line[0]
-        if dx * (self._last.x - self._origin.x) + dy * (self._last.y - self._origin.y) < 0.0:
+        origin, last = self._base, self._last
+        if last is None:  # set with the origin, by the first sample
+            raise RuntimeError('a fit with an origin but no latest sample')
+        if dx * (last.x - origin.x) + dy * (last.y - origin.y) < 0.0:
             dx, dy = -dx, -dy
         return math.atan2(dy, dx)
 

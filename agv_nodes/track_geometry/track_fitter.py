@@ -90,10 +90,10 @@ class TrackFitter:
         """
         if (fit := self.fit) is None or (conic := fit.implicit()) is None:
             return None
-        A, B, C, D, E, _ = conic
+        A, B, C, D, E, F = conic
         x, y, theta = self._latest
         fx, fy = 2 * A * x + B * y + D, B * x + 2 * C * y + E
-        return tuple(-c for c in conic) if fy * math.cos(theta) < fx * math.sin(theta) else conic
+        return (-A, -B, -C, -D, -E, -F) if fy * math.cos(theta) < fx * math.sin(theta) else conic
 
     @property
     def residual_rms(self) -> float | None:
