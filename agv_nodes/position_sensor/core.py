@@ -176,8 +176,8 @@ class PositionSensorCore(SubsystemCore):
                 code, held[d] = code << 1 | 1, 1
             elif (total >> 8 <= black[d] >> 8) if as_listed else (total <= black[d]):
                 code, held[d] = code << 1, 0
-            elif hold and held[d] is not None:
-                code = code << 1 | held[d]  # in the band: the detector's last decision
+            elif hold and (kept := held[d]) is not None:
+                code = code << 1 | kept  # in the band: the detector's last decision
                 decisive = False
             else:
                 valid = False

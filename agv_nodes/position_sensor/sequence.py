@@ -21,6 +21,7 @@ nothing (it only reverses positioning).
 """
 
 from dataclasses import dataclass, field
+from itertools import pairwise
 
 ELEMENTS = 4  # elements of a navigating-table card along the track (Baker 1983, 4.3)
 LEVEL = 0.5  # the middle of the invalid band, in band units (0 = THROFF, 1 = THRON)
@@ -88,7 +89,7 @@ class SequenceDecoder:
             if col.rise is None:
                 if p <= LEVEL:
                     col.armed = True
-                elif col.armed and last is not None and last <= LEVEL:
+                elif col.armed and before is not None and last is not None and last <= LEVEL:
                     if self._open == 0:
                         self._new_passage()
                     col.rise = i - 1 + (LEVEL - last) / (p - last)
@@ -100,6 +101,8 @@ class SequenceDecoder:
                     self._all_armed = False  # white since before it was armed
                 continue
             col.rows.append(pair)
+            if last is None:  # a window opens only on a snapshot that had one before it
+                raise RuntimeError('sequence decoder: an open window without a snapshot before')
             if p > LEVEL:
                 col.fall, col.low = None, 0
                 if len(col.rows) > LONGEST:  # at rest on a card: give the window up
@@ -111,8 +114,8 @@ class SequenceDecoder:
             col.low += 1
             # A card may be black in both rows for one element inside (the stop centre view):
             # the window closes after 1.5 elements of black.
-            if col.low > 1.5 * self._element(col) + 1:
-                self._reads.append((self._read(col), col.fall - col.rise))
+            if col.low > 1.5 * self._element(col.rise, col.fall) + 1:
+                self._reads.append((self._read(col, col.rise, col.fall), col.fall - col.rise))
                 col.rise = None
                 self._open -= 1
                 out = self._verdict() if out is None else out
@@ -121,26 +124,24 @@ class SequenceDecoder:
     def _column_delay(self) -> float | None:
         """Snapshots between adjacent columns' windows opening (one element's travel)."""
         r = self._rises
-        gaps = [r[c + 1] - r[c] for c in range(3)
-                if r[c] is not None and r[c + 1] is not None and r[c + 1] > r[c]]
+        gaps = [b - a for a, b in pairwise(r) if a is not None and b is not None and b > a]
         return sum(gaps) / len(gaps) if gaps else None
 
-    def _element(self, col: _Column) -> float:
+    def _element(self, rise: float, fall: float) -> float:
         """Snapshots per element: the column delay, or a quarter of this window so far."""
         delay = self._column_delay()
-        return delay if delay is not None else \
-            ((col.fall if col.fall is not None else col.rise) - col.rise) / ELEMENTS
+        return delay if delay is not None else (fall - rise) / ELEMENTS
 
-    def _read(self, col: _Column) -> int | None:
+    def _read(self, col: _Column, rise: float, fall: float) -> int | None:
         """Return one column's CODE (C1 in each nibble's bit 3); None if unsure (`margin`)."""
-        length = col.fall - col.rise
+        length = fall - rise
         if length < 2.0:
             return None
         element, code = length / ELEMENTS, 0
         for row in (0, 1):
             bits = 0
             for j in range(ELEMENTS):  # time order: C4's element first
-                t = col.rise + (j + 0.5) * element - col.start
+                t = rise + (j + 0.5) * element - col.start
                 k = int(t)
                 if k + 1 >= len(col.rows):
                     return None
@@ -161,7 +162,7 @@ class SequenceDecoder:
             return None
         delay = self._column_delay()
         r = self._rises
-        gaps = [r[c + 1] - r[c] for c in range(3) if r[c] is not None and r[c + 1] is not None]
+        gaps = [b - a for a, b in pairwise(r) if a is not None and b is not None]
         if len(gaps) > 1 and max(gaps) > DELAY_SPREAD * min(gaps):
             return None
         if delay is None or any(not 1.0 / self.stretch <= n / (ELEMENTS * delay) <= self.stretch
