@@ -23,6 +23,7 @@ from agv_nodes.fleet.track_graph import TrackGraph, track_graph
 from agv_nodes.vda5050 import VERSION, common
 from agv_nodes.vda5050.order import Order
 from agv_nodes.vda5050.order_flow import OrderFlow
+from agv_nodes.vda5050.order_tasks import TASK_FAILED
 from agv_nodes.vda5050.state import (
     ActionStatus,
     BatteryState,
@@ -356,6 +357,25 @@ def test_the_nearest_idle_truck_is_chosen(graph):
     floor.step()
     assert floor.dispatcher.assignments['t2'] == 'c'  # W2.1 to W1.1: 13 m; a: a lap
     floor.run(lambda: len(floor.dispatcher.done) == 2)
+
+
+def test_a_failed_action_alone_is_told_in_the_truck_s_words(graph):
+    """A FAILED action of the order, with no taskFailed error: its resultDescription is why."""
+    floor = Floor(graph, {'a': 'W1.1', 'b': 'W0.1'})
+    truck = floor.trucks['a']
+    truck.fail_next = ('load failed (load)', 'act')
+    with_errors = truck.state
+
+    def without_task_failed() -> State:
+        state = with_errors()
+        return state.model_copy(update={'errors': [
+            e for e in state.errors if e.error_type != TASK_FAILED]})
+    truck.state = without_task_failed
+    floor.dispatcher.submit(TransportOrder('t1', 'W3', 'W2'))
+    floor.step()
+    floor.run(lambda: floor.dispatcher.failed == ['t1'])
+    assert not truck.state().errors
+    assert 'load failed (load)' in floor.dispatcher.failures['t1']
 
 
 def test_a_truck_whose_task_failed_gets_no_work_until_its_errors_clear(graph):

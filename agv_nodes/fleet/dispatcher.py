@@ -133,7 +133,8 @@ class Dispatcher:
                 job.over = job.failed = True
                 if job.transport is not None:
                     self.failed.append(job.transport.id)
-                    self.failures[job.transport.id] = failure_words(state, set(job.actions))
+                    self.failures[job.transport.id] = failure_words(
+                        state, {a.action_id for a in job.actions.values()})
             elif not job.over and state.order_update_id == job.update_id \
                     and t.pos == len(job.path) - 1 and not state.node_states \
                     and all(s == ActionStatus.FINISHED for s in mine):
