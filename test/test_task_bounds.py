@@ -72,7 +72,7 @@ def test_a_full_queue_refuses_each_task_with_a_line_but_never_an_abort():
     assert out['comms_status']['op'] == 'abort' and len(comms.queue) == 1
     assert comms.notes.texts()[-1] == f'task {MAX_QUEUE + 1} abort: queue of {MAX_QUEUE} dropped'
     assert dict(comms.counts) == {
-        'queued': MAX_QUEUE, 'aborts': 1, 'queries': 1, 'rejected': 0,
+        'queued': MAX_QUEUE, 'aborts': 1, 'queries': 1, 'pauses': 0, 'rejected': 0,
         'refused too long': 0, 'refused queue full': 3, 'lost': 0}
 
 

@@ -16,12 +16,24 @@ task), so the record carries the number's residue (`record_id`): 255 wraps to 1.
 tells a new task by a changed record id, and communications matches the executive's word to the
 head of its queue; both need only the ids of the tasks queued at once, and of the abort that
 replaces them, to differ, which a queue of at most 254 guarantees.
+
+Pause (modern: VDA 5050 startPause / stopPause): `pause` and `resume` are commands, not tasks,
+counted as `pauses`. Communications holds the pause and sends it in every comms_status
+(`paused`), with whatever task heads the queue; the executive brings the truck to rest and keeps
+the task. The executive's word on it (comms_command `pause`) becomes a line of its own each time
+it changes (report_line.PAUSE_WORDS), as the truck, not the request, is what a master is told.
 """
 
 from collections import Counter
 from typing import Any
 
-from agv_nodes.communications.report_line import FINAL, abort_line, progress_line, queued_line
+from agv_nodes.communications.report_line import (
+    FINAL,
+    abort_line,
+    pause_line,
+    progress_line,
+    queued_line,
+)
 from agv_nodes.communications.task_language import Task, TaskError, parse_task
 from agv_nodes.records import codec
 from agv_nodes.records.ports import DUPLICATE_WRITER
@@ -30,9 +42,9 @@ from agv_nodes.subsystem import SubsystemCore
 
 RECORD_IDS = codec()['comms_status'].field('task_id').hi  # 255: the record's ids are 1..255
 # What `counts` counts, in /diagnostics order: every message taken is exactly one of the first
-# six; `lost` are messages a writer sent that never reached communications.
-COUNTS = ('queued', 'aborts', 'queries', 'rejected', 'refused too long', 'refused queue full',
-          'lost')
+# seven; `lost` are messages a writer sent that never reached communications.
+COUNTS = ('queued', 'aborts', 'queries', 'pauses', 'rejected', 'refused too long',
+          'refused queue full', 'lost')
 
 
 @settings_class
@@ -58,6 +70,8 @@ class CommunicationsCore(SubsystemCore):
         self._next_number = 1
         self._last: tuple | None = None
         self._sequence: dict[Any, int] = {}  # writer -> its last sequence number taken
+        self.paused = False  # asked by `pause`, until `resume`
+        self._pause = 'none'  # the executive's last word on it (comms_command pause)
 
     def on_task(self, text: str, now: float, writer: Any = None,
                 sequence: int | None = None) -> dict | None:
@@ -85,6 +99,13 @@ class CommunicationsCore(SubsystemCore):
                 if self.queue else ''
             self.notes.add(now, f'comms: status: {len(self.queue)} in queue{head}')
             return None
+        if task.op in ('pause', 'resume'):  # a command: held, never queued
+            self.counts['pauses'] += 1
+            self.paused = task.op == 'pause'
+            head = f'; task {self.queue[0].number} kept' if self.queue else ''
+            self.notes.add(now, f'comms: {task.op}: sent to the executive ({len(self.queue)} in '
+                                f'queue{head})')
+            return self.tick(now)
         # an abort is never refused: it stops the truck and replaces the queue
         if task.op != 'abort' and len(self.queue) >= self.p.max_queue:
             self.counts['refused queue full'] += 1
@@ -130,6 +151,10 @@ class CommunicationsCore(SubsystemCore):
 
     def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None:
         """comms_command: the executive's word on a task."""
+        pause = fields.get('pause', 'none')
+        if pause != self._pause:  # the truck's pause, whatever task it is about
+            self._pause = pause
+            self.notes.add(now, pause_line(pause))
         # the location too: a line for each location marker passed tells a master control
         # (the VDA 5050 bridge) which node the truck has reached
         key = (fields['task_id'], fields['state'], fields['step'], fields['cause'],
@@ -148,9 +173,8 @@ class CommunicationsCore(SubsystemCore):
 
     def tick(self, now: float) -> dict:
         """Return the head of the queue (or no task) as comms_status."""
-        if self.queue:
-            return {'comms_status': self.queue[0].record()}
-        return {'comms_status': Task('', 'none').record()}
+        task = self.queue[0] if self.queue else Task('', 'none')
+        return {'comms_status': {**task.record(), 'paused': int(self.paused)}}
 
     def task_report(self, refused_before: int = 0) -> tuple[int, str, dict[str, str]]:
         """Return the task counts for /diagnostics: (level 0 OK / 1 WARN, message, values).

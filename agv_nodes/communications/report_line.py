@@ -8,6 +8,10 @@ lines, and a program that directs the truck through it (the VDA 5050 bridge) rea
     task 7 abort: queue of 2 dropped
     task 6 'load at 1': running (step 0) [last marker L2]
     task 6 'load at 1': FAILED: lost wire (route) [last marker L0]
+    truck paused: at rest until resume
+
+The last kind is the executive's pause (comms_command `pause`, a modern addition for VDA 5050
+startPause / stopPause), one line each time it changes, whatever task runs.
 """
 
 from __future__ import annotations
@@ -20,6 +24,12 @@ STATE_WORDS = {'accepted': 'accepted', 'running': 'running', 'step_done': 'step 
                'completed': 'completed', 'failed': 'FAILED', 'rejected': 'rejected'}
 _STATES = {words: state for state, words in STATE_WORDS.items()}
 FINAL = ('completed', 'failed', 'rejected')
+# The executive's pause (comms_command `pause`), as the line that says it changed.
+PAUSE_WORDS = {'none': 'truck resumed: it drives as its task asks',
+               'stopping': 'truck pausing: coming to rest, its task kept',
+               'paused': 'truck paused: at rest until resume',
+               'unable': 'truck cannot pause: its executive has no pause for this guidance'}
+_PAUSES = {words: pause for pause, words in PAUSE_WORDS.items()}
 
 _TEXT = r"('(?:[^'\\]|\\.)*'|\"(?:[^\"\\]|\\.)*\")"  # a Python repr of the task text
 _QUEUED = re.compile(rf'^task (\d+) queued: {_TEXT} \((\d+) in queue\)$')
@@ -43,6 +53,13 @@ class Aborted:
 
     task_id: int
     dropped: int
+
+
+@dataclass(frozen=True)
+class Paused:
+    """The executive's pause changed: none, stopping, paused or unable (comms_command)."""
+
+    pause: str
 
 
 @dataclass(frozen=True)
@@ -70,6 +87,11 @@ def queued_line(task_id: int, text: str, in_queue: int) -> str:
 def abort_line(task_id: int, dropped: int) -> str:
     """Return the line for an abort."""
     return f'task {task_id} abort: queue of {dropped} dropped'
+
+
+def pause_line(pause: str) -> str:
+    """Return the line for the executive's pause `pause` (a comms_command `pause` value)."""
+    return PAUSE_WORDS[pause]
 
 
 def no_branch_text(junction: int, flags: tuple[int, int, int], decision: str) -> str:
@@ -107,8 +129,10 @@ def progress_line(task_id: int, text: str, fields: dict) -> str:
     return line
 
 
-def read_report(line: str) -> Queued | Aborted | Progress | None:
-    """Return what a comms/report line says about a task (None: another kind of line)."""
+def read_report(line: str) -> Queued | Aborted | Progress | Paused | None:
+    """Return what a comms/report line says about a task or the pause (None: another kind)."""
+    if line in _PAUSES:
+        return Paused(_PAUSES[line])
     if m := _QUEUED.match(line):
         return Queued(int(m[1]), ast.literal_eval(m[2]), int(m[3]))
     if m := _ABORT.match(line):

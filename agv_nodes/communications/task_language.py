@@ -6,8 +6,9 @@ scripts and law (Rajagopalan 1991, App. F.5-F.7) and its dead-reckoning legs alo
 trajectory (App. F.9), its manual mode driven from cmd_vel (App. F.4, `manual [for T s]`) and its
 camera calibration (App. F.3, `calibrate [front|rear]`). `at N [first|second]` is a modern
 addition: it tells a truck set down by hand (or by a fleet, VDA 5050 initPosition) at which stop
-marker it stands. A text that does
-not parse raises TaskError naming the column and the reason.
+marker it stands; so are `pause` and `resume` (VDA 5050 startPause / stopPause), commands like
+`abort` and `status`, never queued. A text that does not parse raises TaskError naming the
+column and the reason.
 """
 
 from dataclasses import dataclass, field
@@ -131,7 +132,7 @@ def parse_task(text: str, locations: tuple[int, ...] = (0, 1, 2, 3)) -> Task:
     t = _Tokens(text)
     verb = t.peek()
     verbs = ('load', 'unload', 'wait', 'stop', 'srm', 'leave', 'at', 'pass', 'tape', 'reckon',
-             'manual', 'calibrate', 'abort', 'status')
+             'manual', 'calibrate', 'abort', 'status', 'pause', 'resume')
     if verb not in verbs:
         what = 'empty task' if verb is None else f'unknown task {verb!r}'
         raise TaskError(text, t.column(), f'{what} (expected one of {", ".join(verbs)})')
@@ -145,7 +146,7 @@ def parse_task(text: str, locations: tuple[int, ...] = (0, 1, 2, 3)) -> Task:
                             f'{", ".join(map(str, locations))})')
         return n
 
-    if verb in ('abort', 'status'):
+    if verb in ('abort', 'status', 'pause', 'resume'):  # pause, resume: commands (modern)
         task = Task(text, verb)
     elif verb == 'tape':
         task = _tape(t)

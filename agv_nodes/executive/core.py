@@ -14,10 +14,11 @@ At each location marker reported the route map decides continue or SRM (the demo
 L1 and L3 every lap); wire changes run at `srm_demand`, slow until the next landmark (thesis 7.2).
 An `at` task (agv_nodes.executive.set_down; modern) runs no itinerary: it tells a truck set down
 by hand at which stop marker it stands, so that it leaves there as from a stop of its own.
-Traction's byte 2 stays non-zero while navigation positions the truck. Faults - wire or marker
-sensor lost, a stale status, over `reject_limit` rejected records in a second, a sub-system fault
-(traction tripped, radio stop, load failed) or restart (its status from a new writer: whatever it
-knew of the task is gone), a step longer than `route_limit` - give an emergency
+Traction's byte 2 stays non-zero while navigation positions the truck. A pause (modern:
+agv_nodes.executive.pause) holds the truck at rest, its task kept, until resumed. Faults - wire
+or marker sensor lost, a stale status, over `reject_limit` rejected records in a second, a
+sub-system fault (traction tripped, radio stop, load failed) or restart (its status from a new
+writer: whatever it knew of the task is gone), a step longer than `route_limit` - give an emergency
 stop (traction byte 2 = 00H) and fail the task naming cause and sub-system until a new task.
 
 A status is stale when older than `status_timeout` *and* `stale_confirm` records from the others
@@ -30,6 +31,7 @@ from typing import Any
 
 from agv_nodes.executive.faults import SUBSYSTEM_OF, SUBSYSTEMS, FaultSupervision
 from agv_nodes.executive.itinerary import NO_TASK, Step, itinerary
+from agv_nodes.executive.pause import Pause
 from agv_nodes.executive.set_down import SetDown
 from agv_nodes.executive.settings import ExecutiveParams, parse_srm_map
 from agv_nodes.executive.tape_legs import NO_BRANCH_FIELDS, TapeLegs
@@ -41,7 +43,7 @@ TAPE_STEPS = ('tape', 'tape_reverse', 'reckon')
 CAMERA_OPS = ('tape', 'reckon', 'manual', 'calibrate')  # the camera truck's tasks
 
 
-class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
+class ExecutiveCore(FaultSupervision, SetDown, Pause, SubsystemCore):
     """See the module docstring."""
 
     node, settings_type, period_setting = 'executive', ExecutiveParams, 'period'
@@ -99,6 +101,7 @@ class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
             self.arrivals += 1
             self.arrivals_at[sub] = self.arrivals
             if sub == 'communications':
+                self._pause_record(fields, now)
                 self._task_record(fields, now)
             elif sub == 'navigation':
                 self._navigation(fields, now)
@@ -382,6 +385,7 @@ class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
                 self.arm_until = now + 2 * self.p.period
         if self.mode == 'running':
             self._run_step(now)
+        self._update_pause(now)
         route = self.status.get('route') or {}
         if self.route['mode'] == 'srm' and route.get('manoeuvre') == self.route['manoeuvre'] \
                 and route.get('state') == 'following':
@@ -401,6 +405,7 @@ class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
                 speed = request & 0x1F
                 # 0 would be an emergency stop; 1 % is below breakaway
                 demand = (-speed if request & 0x20 else speed) or 1
+        demand, priority = self._paused_drive(demand, priority)
         return {
             'traction_command': {'manual': 0, 'manual_speed': 0, 'reverse': 0, 'demand': demand,
                                  'executive_priority': priority},
@@ -408,6 +413,7 @@ class ExecutiveCore(FaultSupervision, SetDown, SubsystemCore):
             'route_command': dict(self.route),
             'load_command': dict(self.load),
             'comms_command': {'task_id': self.task_id, 'state': self.report['state'],
+                              'pause': self.pause,
                               'step': self.index if self.mode == 'running' else 0,
                               'cause': self.report['cause'], 'subsystem': self.report['subsystem'],
                               'detail': self.report.get('detail', 'none'),

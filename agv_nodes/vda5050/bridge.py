@@ -43,6 +43,7 @@ from pydantic import BaseModel
 from agv_nodes.communications.report_line import (
     STATE_WORDS,
     Aborted,
+    Paused,
     Progress,
     Queued,
     read_report,
@@ -166,6 +167,8 @@ class BridgeCore:
         if report is None:
             return Outbox()
         self.counts['reports'] += 1
+        if isinstance(report, Paused):  # the executive's word, not the request (startPause)
+            return self._state(now) if self.flow.truck_paused(report.pause) else Outbox()
         if isinstance(report, Queued | Aborted):
             text = report.text if isinstance(report, Queued) else 'abort'
             return self._state(now) if self.flow.task_queued(report.task_id, text) else Outbox()

@@ -2,9 +2,16 @@
 
 cancelOrder sends `abort` and is RUNNING until the abort task has ended (6.6.3); initPosition
 at a stop marker sets lastNodeId and tells the truck by the task `at N M` (docs/tasks.md);
-stateRequest and factsheetRequest ask the bridge to publish; the truck has no pause
-(startPause and stopPause FAIL); any other type FAILS with an error. Every one is echoed in
-actionStates. A mixin of agv_nodes.vda5050.order_flow.OrderFlow, whose state it shares.
+startPause sends `pause` and stopPause `resume` (commands of the task language, not queued
+tasks), each RUNNING until the truck's executive says it is at rest in its pause, or driving
+again (truck_paused: its report lines, not the request, move them; 6.8.2's table); stateRequest
+and factsheetRequest ask the bridge to publish; any other type FAILS with an error. Every one is
+echoed in actionStates. A mixin of agv_nodes.vda5050.order_flow.OrderFlow, whose state it
+shares.
+
+The pause stops driving only: a pick, drop or wait in hand goes on (6.8.2: "Actions can
+continue"), so no actionState is ever PAUSED, the status 6.11 names and the 2.1.0 state
+schema's enum lacks (agv_nodes.vda5050.state keeps it, as the text does).
 """
 
 from __future__ import annotations
@@ -19,6 +26,8 @@ from agv_nodes.vda5050.order_tasks import (
     CANNOT_PAUSE,
     INSTANT_ACTION_ERROR,
     NO_ORDER_TO_CANCEL,
+    PAUSE,
+    RESUME,
     AbortTask,
     Outcome,
     PositionTask,
@@ -41,6 +50,8 @@ class InstantActionFlow:
     last_node_id: str
     last_node_sequence_id: int
     errors: list[Error]
+    pause: str
+    _pause_actions: dict[str, str]
     _actions: dict[str, ActionState]
     _instant: set[str]
     _sent: deque[tuple[str, Sent]]
@@ -81,20 +92,63 @@ class InstantActionFlow:
             elif kind == 'initPosition':
                 self._init_position(action, state, action_refs, out)
             elif kind in ('startPause', 'stopPause'):
-                # The 1983 executive has no pause; not an error of the truck (6.8.2).
-                state.action_status = ActionStatus.FAILED
-                state.result_description = CANNOT_PAUSE
+                self._pause_action(action.action_id, kind, state, out)
             else:
                 state.action_status = ActionStatus.FAILED
                 out.errors.append(make_error(
                     INSTANT_ACTION_ERROR, f'instant action type {kind!r} is not one this truck '
-                    'can do (it can: cancelOrder, initPosition, stateRequest, '
-                    'factsheetRequest)',
+                    'can do (it can: cancelOrder, initPosition, startPause, stopPause, '
+                    'stateRequest, factsheetRequest)',
                     action_refs))
             self._actions[action.action_id] = state
             self._instant.add(action.action_id)
         self.errors.extend(e for e in out.errors if e not in self.errors)
         return out
+
+    def _pause_action(self, action_id: str, kind: str, state: ActionState,
+                      out: Outcome) -> None:
+        """Take startPause or stopPause (6.8.2): send `pause` or `resume` to the truck.
+
+        FINISHED at once when the truck already is where it asks (at rest in its pause, or not
+        paused), else RUNNING until it says so. One of the other kind still RUNNING is
+        overtaken: FAILED, as it will not come to pass.
+        """
+        for other, other_kind in list(self._pause_actions.items()):
+            if other_kind != kind:
+                self._end_pause_action(other, ActionStatus.FAILED,
+                                       f'overtaken by {kind} {action_id}')
+        out.tasks.append(PAUSE if kind == 'startPause' else RESUME)
+        if self.pause == 'unable':
+            state.action_status, state.result_description = ActionStatus.FAILED, CANNOT_PAUSE
+        elif self.pause == ('paused' if kind == 'startPause' else 'none'):
+            state.action_status = ActionStatus.FINISHED
+        else:
+            state.action_status = ActionStatus.RUNNING
+            self._pause_actions[action_id] = kind
+
+    def truck_paused(self, pause: str) -> bool:
+        """Take the executive's word on the pause; return True when the state changed.
+
+        `pause`: comms_command's none, stopping, paused or unable. At rest in the pause ends a
+        startPause (FINISHED, paused true), driving again a stopPause; unable fails either.
+        """
+        changed = pause != self.pause
+        self.pause = pause
+        for action_id, kind in list(self._pause_actions.items()):
+            if pause == 'unable':
+                self._end_pause_action(action_id, ActionStatus.FAILED, CANNOT_PAUSE)
+            elif pause == ('paused' if kind == 'startPause' else 'none'):
+                self._end_pause_action(action_id, ActionStatus.FINISHED)
+            else:
+                continue
+            changed = True
+        return changed
+
+    def _end_pause_action(self, action_id: str, status: ActionStatus, why: str = '') -> None:
+        del self._pause_actions[action_id]
+        state = self._actions.get(action_id)
+        if state is not None:
+            state.action_status, state.result_description = status, why or None
 
     def _init_position(self, action: Any, state: ActionState, refs: list[tuple[str, str]],
                        out: Outcome) -> None:

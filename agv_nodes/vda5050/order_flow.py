@@ -95,6 +95,8 @@ class OrderFlow(InstantActionFlow):
         self._tasks: dict[int, Sent] = {}  # by the truck's task id
         self._base_end: tuple[str, int] | None = None  # the decision point (6.6.2)
         self._base_end_passed = True  # False: it is the start node, not reached yet
+        self.pause = 'none'  # the truck's pause, as its executive last said (comms_command)
+        self._pause_actions: dict[str, str] = {}  # startPause/stopPause actionId -> type
 
     # -- orders (6.6) ----------------------------------------------------------------------
     def on_order(self, order: Order) -> Outcome:
@@ -375,8 +377,9 @@ class OrderFlow(InstantActionFlow):
             'last_node_sequence_id': self.last_node_sequence_id,
             'node_states': [node_state(n) for n in self._nodes],
             'edge_states': [edge_state(e) for e in self._edges],
-            'driving': self.driving,
-            'paused': False,
+            # 6.10.6: paused once the truck is at rest in its pause (the executive's word)
+            'driving': self.driving and self.pause != 'paused',
+            'paused': self.pause == 'paused',
             # 6.10.3: on the way to the decision point with a horizon, ask for the next base.
             'new_base_request': horizon and len(ahead) <= 1,
             'action_states': [a.model_copy() for a in self._actions.values()],

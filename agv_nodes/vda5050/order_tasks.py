@@ -42,6 +42,8 @@ DONE = (ActionStatus.FINISHED, ActionStatus.FAILED)
 # the words of the truck's report lines (communications' own) for a task's states
 TASK_STATES = tuple(STATE_WORDS[s] for s in ('running', 'step_done', 'completed', 'failed',
                                              'rejected'))
+# The task language's pause commands (startPause, stopPause): not tasks, never queued.
+PAUSE, RESUME = 'pause', 'resume'
 CANNOT_PAUSE = 'this truck cannot pause'
 
 # The node actions the task language can carry out, and the task verb of each.

@@ -75,8 +75,8 @@ DEFAULT_STATE_INTERVAL = 30.0
 
 # The node action types the bridge turns into tasks, and the instant actions it takes.
 ACTIONS = frozenset(TASK_VERBS)
-INSTANT_ACTIONS = frozenset({'cancelOrder', 'initPosition', 'stateRequest',
-                             'factsheetRequest'})
+INSTANT_ACTIONS = frozenset({'cancelOrder', 'initPosition', 'startPause', 'stopPause',
+                             'stateRequest', 'factsheetRequest'})
 
 _CONVEYOR_CHOICE = 'start_loaded'  # the world parameter whose choices name the conveyors
 
@@ -132,6 +132,17 @@ def _agv_actions() -> list[AgvAction]:
                       key='lastNodeId', value_data_type=ValueDataType.STRING,
                       description='a stop marker node of the track graph',
                       is_optional=False)],
+                  blocking_types=[BlockingType.HARD]),
+        # The task language's pause and resume: traction ramps to rest, the task is kept.
+        AgvAction(action_type='startPause', action_scopes=[ActionScope.INSTANT],
+                  action_description='come to rest where the truck is by a controlled stop; '
+                  'the order is kept, and a load or wait in hand goes on',
+                  result_description='FINISHED once the truck is at rest (paused true)',
+                  blocking_types=[BlockingType.HARD]),
+        AgvAction(action_type='stopPause', action_scopes=[ActionScope.INSTANT],
+                  action_description='drive on with the order as if never paused',
+                  result_description='FINISHED once the truck drives as its task asks '
+                  '(paused false)',
                   blocking_types=[BlockingType.HARD]),
         AgvAction(action_type='stateRequest', action_scopes=[ActionScope.INSTANT],
                   action_description='send a state message now',
