@@ -17,6 +17,7 @@ import pytest
 
 from agv_nodes.communications.core import CommunicationsCore
 from agv_nodes.communications.task_language import TaskError, parse_task
+from agv_nodes.executive.diagnostics import HealthMonitor
 from agv_nodes.executive.settings import ExecutiveParams
 from agv_nodes.harness import Harness, submit, truck
 from agv_nodes.records import codec
@@ -207,6 +208,8 @@ def test_pause_and_resume_with_no_task():
     # at rest already: paused once rest_time has passed, within one executive period
     assert watch.run(2.0, until=lambda: ex.pause == 'paused')
     assert h.now - asked <= EXECUTIVE.rest_time + 2 * EXECUTIVE.period
+    row = HealthMonitor._executive_row(ex)  # /diagnostics: the executive's row says it
+    assert row.values['pause'] == 'paused' and row.message == 'idle, pause paused'
     submit(h, 'resume')
     assert watch.run(1.0, until=lambda: ex.pause == 'none')
     assert watch.travelled == 0.0 and ex.mode == 'idle'
@@ -215,3 +218,13 @@ def test_pause_and_resume_with_no_task():
         'truck pausing: coming to rest, its task kept', 'truck paused: at rest until resume',
         'comms: resume: sent to the executive (0 in queue)',
         'truck resumed: it drives as its task asks']
+
+
+def test_the_camera_truck_answers_that_it_cannot_pause():
+    h = truck('tape_1991', seed=1)
+    ex = h.cores['executive']
+    h.run(0.5)
+    submit(h, 'pause')
+    h.run(1.0)
+    assert ex.pause == 'unable' and not ex.pausing()
+    assert lines(h)[-1] == 'truck cannot pause: its executive has no pause for this guidance'

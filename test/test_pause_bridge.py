@@ -16,7 +16,10 @@ from typing import Any
 import pytest
 from test_vda5050_truck_state import WAY, BridgedTruck, order
 
+from agv_nodes.fleet.track_graph import track_graph
 from agv_nodes.report import final_stops
+from agv_nodes.vda5050.bridge import BridgeCore
+from agv_nodes.world.layout import layout_path, load_layout
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -85,3 +88,17 @@ def test_stop_pause_without_a_pause_finishes_at_once_and_a_repeat_start_pause_to
     t.run(0.5)
     assert status_of(t.states[-1], 'p2') == 'FINISHED' and t.states[-1]['paused'] is True
     assert not t.invalid
+
+
+def test_a_truck_that_cannot_pause_fails_start_pause():
+    """The executive's `unable` (the camera truck's) fails a startPause RUNNING or new."""
+    core = BridgeCore(track_graph(load_layout(layout_path('demo_1983'))), 'agv_nodes', 'agv1')
+    core.on_message('instantActions', instant(('startPause', 'p1')), 0.0)
+    assert core.state().action_states[0].action_status == 'RUNNING'
+    core.on_report('truck cannot pause: its executive has no pause for this guidance', 1.0)
+    core.on_message('instantActions', instant(('startPause', 'p2'), header_id=1), 2.0)
+    state = core.state()
+    assert [(a.action_id, a.action_status, a.result_description)
+            for a in state.action_states] == [('p1', 'FAILED', 'this truck cannot pause'),
+                                              ('p2', 'FAILED', 'this truck cannot pause')]
+    assert state.paused is False

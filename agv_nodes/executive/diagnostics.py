@@ -128,9 +128,12 @@ class HealthMonitor:
     def _executive_row(executive: Any) -> SubsystemHealth:
         step = executive.step
         values = {'mode': executive.mode, 'task': str(executive.task_id),
-                  'step': step.name if step else '-', 'report': executive.report['state']}
+                  'step': step.name if step else '-', 'report': executive.report['state'],
+                  'pause': executive.pause}
         if executive.fault:
             cause, sub = executive.fault
             return SubsystemHealth('executive', ERROR, f'{cause.replace("_", " ")} ({sub})',
                                    values)
-        return SubsystemHealth('executive', OK, executive.mode, values)
+        paused = f'{executive.mode}, pause {executive.pause}' if executive.pause != 'none' \
+            else executive.mode
+        return SubsystemHealth('executive', OK, paused, values)
