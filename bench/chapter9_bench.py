@@ -373,11 +373,12 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     command = ('.venv/bin/python bench/chapter9_bench.py '
                + ' '.join(sys.argv[1:] if argv is None else argv)).strip()
+    code = code_version()  # what the runs load, before they start
     rows, worse = table(args.seeds, args.jobs)
     dual_rows, dual_worse = dual_table(args.seeds, args.jobs)
     intro = __doc__.split('\n\n')[2:]
     lines = ['# Chapter 9 extensions against the defaults on both CONCIC-II models', '',
-             f'Command: `{command}`', '', f'Code: {code_version()}', '',
+             f'Command: `{command}`', '', f'Code: {code}', '',
              *[' '.join(p.split()) + '\n' for p in intro],
              f'Seeds {", ".join(map(str, args.seeds))}: each cell the mean, in brackets the '
              'smallest and largest.', '',

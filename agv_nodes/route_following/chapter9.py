@@ -142,15 +142,19 @@ class InflexionPredictor(WindowPredictor):
         super().reset()
         self.detector.reset()
 
-    def predict(self, eps_d: float, eps_theta: float, dt: float, speed: float
-                ) -> tuple[float, float]:
-        """Return (eps_d, eps_theta) `predict` s on, the curvature restarted at an inflexion."""
-        if self.p.predict > 0 and speed > 0 and self._alpha is not None:
-            reading = ((eps_theta - self._alpha) / dt + self.rate) / speed  # as the parent's
-            if self.detector.update(reading):
+    def predict(self, eps_d: float, eps_theta: float, dt: float, speed: float,
+                plain: bool = True) -> tuple[float, float]:
+        """Return (eps_d, eps_theta) `predict` s on, the curvature restarted at an inflexion.
+
+        `plain`: the frame shows plain tape (a road sign's frame is no reading, as the parent's).
+        """
+        if self.p.predict > 0 and speed > 0 and plain and self._alpha is not None:
+            reading = ((eps_theta - self._alpha) / dt + self.rate) / speed  # as the parent's,
+            bound = 1.0 / self.camera  # within the parent's bound
+            if self.detector.update(max(-bound, min(bound, reading))):
                 # The confirming readings' mean; the parent's filter then moves it on.
                 self.kappa = self.detector.mean
-        return super().predict(eps_d, eps_theta, dt, speed)
+        return super().predict(eps_d, eps_theta, dt, speed, plain)
 
 
 class SpeedScaledSteering(CameraSteering):
