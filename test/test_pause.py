@@ -48,6 +48,15 @@ def test_pause_and_resume_are_commands_carried_in_the_comms_status_record():
     assert comms.counts['pauses'] == 2 and comms.counts['queued'] == 1
 
 
+def test_a_pause_is_never_refused_for_a_full_queue():
+    comms = CommunicationsCore()
+    for n in range(comms.p.max_queue + 1):
+        comms.on_task(f'wait at 0 for {n} s', float(n))
+    assert comms.counts['refused queue full'] == 1
+    assert comms.on_task('pause', 100.0)['comms_status']['paused'] == 1
+    assert comms.counts['pauses'] == 1 and comms.counts['refused queue full'] == 1
+
+
 @pytest.mark.parametrize('text, column', [('pause now', 7), ('resume 2', 8)])
 def test_a_pause_with_more_words_is_rejected_naming_the_column(text, column):
     with pytest.raises(TaskError) as info:
