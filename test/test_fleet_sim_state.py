@@ -18,10 +18,20 @@ from collections.abc import Iterator
 import math
 from pathlib import Path
 import sys
+from typing import Any
 
 import pytest
+import yaml
 
+from agv_nodes.fleet import fleet_sim_records as records
 from agv_nodes.fleet.fleet_sim import SLICE, FleetSim
+from agv_nodes.fleet.fleet_sim_options import start_of
+from agv_nodes.fleet.fleet_sim_truck import TruckFace
+from agv_nodes.fleet.lockstep import Fleet
+from agv_nodes.fleet.track_graph import track_graph
+from agv_nodes.harness import truck
+from agv_nodes.vda5050.truck_records import RECORDS
+from agv_nodes.world.layout import layout_path, load_layout
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_fleet_sim import (  # noqa: E402 - the simulator's fixtures, one place
@@ -156,3 +166,69 @@ def test_a_radio_stop_is_a_remote_e_stop_at_rest_and_clears(pair, truck):
     first = next(i for i, (_t, e) in enumerate(since) if e == 'REMOTE')
     assert {e for _t, e in since[first:]} == {'REMOTE'}, since
     assert since[first][0] - at < REST_WITHIN, since[:first + 1]
+
+
+# --- the taps without a broker: one round trip per process, bad records counted -------------
+
+def _schema(record: str) -> dict:
+    return yaml.safe_load((Path(__file__).parent.parent / 'msg_schemas' / f'{record}.yaml')
+                          .read_text(encoding='utf-8'))
+
+
+@pytest.mark.timeout(120)
+def test_each_process_hands_over_its_trucks_records_in_one_round_trip():
+    lay = load_layout(layout_path('fleet_1983'))
+    names = ['agv1', 'agv2', 'agv3']
+    with Fleet('fleet_1983', [start_of(lay, m) for m in ('A1.1', 'B1.1', 'B5.1')], seed=1,
+               names=names, processes=2) as fleet:
+        for name in names:
+            fleet.query(name, records.tap, 'sim', name)
+            fleet.query(name, records.tap, 'other', name)  # another simulator's, apart
+        asked: list[str] = []
+
+        def query(name: str, fn: Any, *args: Any) -> Any:
+            asked.append(name)
+            return fleet.query(name, fn, *args)
+
+        fleet.run(1.0)
+        got = records.take_all(query, names, 'sim')
+        assert len(asked) == 2, asked  # one per process
+        assert sorted(got) == names
+        period = _schema('wheel_odometry')['period_ms'] / 1000.0
+        for name in names:
+            assert {r for r, _raw, _t in got[name]} <= set(RECORDS)
+            wheels = [t for r, _raw, t in got[name] if r == 'wheel_odometry']
+            # every one the truck wrote in the second, none twice (msg_schemas period)
+            assert abs(len(wheels) - fleet.now / period) <= 1, (name, len(wheels))
+            assert len(set(wheels)) == len(wheels)
+        assert all(kept == [] for kept in records.take_all(fleet.query, names, 'sim').values())
+        # the other simulator's taps kept their own copy
+        assert all(got[n] == kept for n, kept in
+                   records.take_all(fleet.query, names, 'other').items())
+        fleet.query('agv2', records.untap, 'sim', 'agv2')
+        fleet.run(0.1)
+        assert sorted(records.take_all(fleet.query, names, 'sim')) == ['agv1', 'agv3']
+        records.forget('sim')
+        records.forget('other')
+
+
+@pytest.mark.timeout(60)
+def test_a_corrupted_record_is_counted_and_not_acted_on():
+    h = truck('fleet_1983', start=None)
+    kept: list[tuple[str, bytes, float]] = []
+    h.taps.append(lambda record, raw, t: kept.append((record, raw, t)))
+    h.run(0.2)
+    face = TruckFace('agv1', 'mqtt://127.0.0.1:1', track_graph(load_layout(
+        layout_path('fleet_1983'))), manufacturer='agv_nodes', interface='uagv',
+        map_id='fleet_1983', state_interval=30.0)
+    loads = [(r, raw, t) for r, raw, t in kept if r == 'load_status']
+    face.read(loads[:1], 0.0)
+    assert face.bridge.state().loads == []  # the conveyors empty, as the world has them
+    # load_first: byte 3 bit 0 (msg_schemas/load_status.yaml), set without a new CRC
+    bit = next(f for f in _schema('load_status')['fields'] if f['name'] == 'load_first')
+    record, raw, t = loads[1]
+    bad = bytearray(raw)
+    bad[bit['byte']] ^= 1 << int(str(bit['bits']).split('-')[0])
+    out = face.read([(record, bytes(bad), t)], 0.05)
+    assert face.records.readers['load_status'].rejected == 1
+    assert out.messages == [] and face.bridge.state().loads == []
