@@ -38,8 +38,7 @@ class RecordFacts:
 
     def feed(self, core: BridgeCore, name: str, fields: dict[str, Any], now: float) -> Outbox:
         """Give `core` what record `name` (decoded `fields`) says."""
-        from agv_nodes.vda5050.bridge import Outbox  # the bridge imports this module
-        if name == 'wheel_odometry':
+        if name == 'wheel_odometry':  # first: half the records a bridge reads
             return core.on_wheels(fields['left_distance'], fields['right_distance'],
                                   fields['left_speed'], fields['right_speed'], now)
         if name == 'position_sensor_status':
@@ -48,6 +47,7 @@ class RecordFacts:
             identity = fields['identity']
             new = count != before if before is not None else bool(fields['recognised'])
             if not new or fields['table'] != 'navigating' or identity == NONE:
+                from agv_nodes.vda5050.bridge import Outbox  # the bridge imports this module
                 return Outbox()
             self.reads += 1
             return core.on_marker_read(None if identity == EDIM else identity, now)
