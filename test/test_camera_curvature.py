@@ -1,4 +1,4 @@
-"""The camera truck with its default settings on curvature that changes, by the world's truth.
+"""The camera truck with our curve settings on curvature that changes, by the world's truth.
 
 The goals are the issue's: on S-bends of R 2-3 m arcs joined by straights under 1 m, at
 0.31-0.79 m/s, the camera window's peak error on every arc at most 15 mm; on circles of R 2.0-3.0
@@ -23,7 +23,7 @@ from agv_nodes.route_following.settings import SteeringParams
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'bench'))
 import concic2_curvature_bench as bench  # noqa: E402
 
-DEFAULTS = bench.LAWS['defaults']
+OURS = bench.LAWS['ours']  # our curve settings (not the defaults: the road signs, see the bench)
 PEAK, STEADY = 15.0, 2.0  # mm, the issue's goals
 
 
@@ -51,7 +51,7 @@ def test_predictor_reads_the_curvature_under_the_window() -> None:
 @pytest.mark.parametrize('model', ['kinematic', 'dynamic'])
 def test_s_bend_peak_per_arc(model: str) -> None:
     """R 3.0 m left, 0.3 m of straight, R 2.0 m right at 0.79 m/s: each arc's peak <= 15 mm."""
-    peaks = bench.bend(3.0, 0.3, 2.0, model, 0.79, DEFAULTS)
+    peaks = bench.bend(3.0, 0.3, 2.0, model, 0.79, OURS)
     assert peaks is not None, 'the tape left the window: motor-off stop'
     assert max(peaks) <= PEAK, peaks
 
@@ -59,7 +59,7 @@ def test_s_bend_peak_per_arc(model: str) -> None:
 @pytest.mark.timeout(300)
 def test_s_bend_other_order() -> None:
     """R 2.0 m left, 0.3 m of straight, R 3.0 m right at 0.79 m/s on the dynamic model."""
-    peaks = bench.bend(2.0, 0.3, 3.0, 'dynamic', 0.79, DEFAULTS)
+    peaks = bench.bend(2.0, 0.3, 3.0, 'dynamic', 0.79, OURS)
     assert peaks is not None, 'the tape left the window: motor-off stop'
     assert max(peaks) <= PEAK, peaks
 
@@ -68,7 +68,7 @@ def test_s_bend_other_order() -> None:
 @pytest.mark.parametrize('speed', [0.31, 0.79])
 def test_circle_r2_steady(speed: float) -> None:
     """The R 2.0 m circle on the dynamic model: mean |error| from 20 s to 30 s <= 2 mm."""
-    got = bench.circle(2.0, 'dynamic', speed, DEFAULTS)
+    got = bench.circle(2.0, 'dynamic', speed, OURS)
     assert got is not None, 'the tape left the window: motor-off stop'
     assert got[0] <= STEADY, got
 
