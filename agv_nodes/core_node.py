@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 import random
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
@@ -42,8 +42,12 @@ from agv_nodes.ros_ports import (
 )
 from agv_nodes.settings import NodeSettings
 from agv_nodes.stop_switches import switch_inputs
+from agv_nodes.subsystem import SubsystemCore
 
 __all__ = ['ClockTimers', 'CoreNode', 'SimProgress', 'spin_main']
+
+
+CoreT = TypeVar('CoreT', bound=SubsystemCore)  # a node's core (executive/core.py's, ...)
 
 
 class SimProgress:
@@ -67,7 +71,7 @@ class SimProgress:
             self._pub.publish(clock_cdr(now_ns))
 
 
-class CoreNode(Node):
+class CoreNode(Node, Generic[CoreT]):
     """A node around one core (see the module docstring).
 
     Subclasses add what a node has besides its records (camera frames, text topics,
@@ -76,10 +80,10 @@ class CoreNode(Node):
 
     sent_stamps = False  # (msg, info) readers: see RecordSubscription
 
-    def __init__(self, core_type: type, name: str | None = None) -> None:
+    def __init__(self, core_type: type[CoreT], name: str | None = None) -> None:
         super().__init__(name or core_type.node)
         self.node_settings = declare(self, NodeSettings)
-        self.core = core_type(declare(self, core_type.settings_type))
+        self.core: CoreT = core_type(declare(self, core_type.settings_type))
         self.extend()
         refuse_unknown(self)
         self.executor_kind = self.node_settings.executor
@@ -91,9 +95,9 @@ class CoreNode(Node):
                                              full_name(self, self.node_settings.clock_writer),
                                              self.node_settings.clock_jump_limit, self._jumped)
         elif progress is not None:  # rclpy's timers: a /clock reader only for the progress
-            self.create_subscription(Clock, '/clock',
-                                     lambda raw: progress.handled(clock_time_ns(raw)),
-                                     qos.CLOCK_READER, raw=True)
+            def on_clock(raw: bytes) -> None:
+                progress.handled(clock_time_ns(raw))
+            self.create_subscription(Clock, '/clock', on_clock, qos.CLOCK_READER, raw=True)
         self._attach(progress)
 
     def extend(self) -> None:
@@ -130,7 +134,7 @@ class CoreNode(Node):
         self.switches = switch_inputs(self)
         if self.core.period:
             self.periodic(self.core.period, self._tick)
-        if getattr(self.core, 'supervision_period', None):
+        if self.core.supervision_period:
             self.periodic(self.core.supervision_period,
                           lambda: self.publish(self.core.supervise(self.now_s())))
         if ns.fault_record and ns.fault_delay:
@@ -184,7 +188,9 @@ class CoreNode(Node):
 
     def _jumped(self, jump: Jump) -> None:
         """Say that the genuine /clock jumped and tell the core (the executive fails the task)."""
-        self.get_logger().error(f'{jump.text()} (/clock from {self._clock_timers.writer}): '
+        timers = self._clock_timers  # the one that calls this
+        writer = timers.writer if timers is not None else self.node_settings.clock_writer
+        self.get_logger().error(f'{jump.text()} (/clock from {writer}): '
                                 'a fault of the clock, not of any input')
         handler = getattr(self.core, 'on_clock_jump', None)
         if handler is not None:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import math
 from pathlib import Path
 import random
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 import warnings
 
 from agv_nodes.harness_timers import fire_timers
@@ -27,6 +27,9 @@ from agv_nodes.records.codec import Codec
 from agv_nodes.records.codec import codec as installed_codec
 from agv_nodes.records.ports import RecordReader, RecordWriter
 from agv_nodes.world.core import WorldCore
+
+if TYPE_CHECKING:  # imported where used: `truck` builds the cores
+    from agv_nodes.communications.core import CommunicationsCore
 
 # Records sent in answer to records, nested, before the harness calls it a loop (a real chain
 # is a few deep: a sensor record, the navigation's answer, traction's).
@@ -51,6 +54,9 @@ class NodeCore(Protocol):
 
     node: str
     period: float | None
+    p: Any  # its settings: each core's own settings class
+
+    def __init__(self, params: Any = None) -> None: ...
 
     def on_record(self, record: str, fields: dict[str, Any], now: float) -> dict | None: ...
 
@@ -84,6 +90,10 @@ def _answer(out: list | None, m: _Member, outputs: dict) -> list:
 class Harness:
     """Steps a WorldCore and node cores in lock step; see the module docstring."""
 
+    # the truck's cores by node name, set by `truck` (each core's own class: callers pick one
+    # by name and use its own interface, e.g. communications' on_task)
+    cores: dict[str, Any]
+
     def __init__(self, world: WorldCore, cores: Iterable[NodeCore], *, integrity: str = 'e2e',
                  codec: Codec | None = None, seed: int = 0) -> None:
         self.world = world
@@ -104,7 +114,8 @@ class Harness:
         # record -> (world's reader, [(member, reader)], decode), built on first delivery after
         # an add() (`_route`)
         self._routes: dict[str, tuple] = {}
-        self._ns_of, self._now_ns = None, 0  # the sim time _now_ns (ns) is of
+        self._ns_of: float | None = None  # the sim time _now_ns (ns) is of
+        self._now_ns = 0
         self._depth = 0  # records delivered in answer to records, nested
         self._timers_due = -math.inf  # no node timer is due before this sim time
         for core in cores:
@@ -430,7 +441,7 @@ def _check(layout: Any, world_params: Any) -> None:
 
 def submit(h: Harness, text: str) -> None:
     """Hand a task to communications (what a comms/task message does in the graph)."""
-    comms = h.cores['communications']
+    comms: CommunicationsCore = h.cores['communications']
     for m in h.members:
         if m.core is comms:
             h._publish(m, comms.on_task(text, h.now))

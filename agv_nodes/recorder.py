@@ -190,7 +190,7 @@ class Recorder(Node):
         self.writer.open()
         self.connections = {}
         self.bytes = 0
-        storage = getattr(self.writer, 'storage', None)
+        storage: Any = getattr(self.writer, 'storage', None)  # rosbags' untyped internals
         if hasattr(storage, 'bio') and hasattr(storage, 'close_chunk'):
             storage.bio = CommittedFile(storage.bio, self.space_limit)
             self.checkpoint(force=True)
@@ -213,16 +213,18 @@ class Recorder(Node):
             self._stop(exc)
 
     def _checkpoint(self, force: bool) -> None:
-        storage = getattr(self.writer, 'storage', None)
+        writer = self.writer
+        # rosbags' MCAP storage: its file, chunk and close are beyond the typed StorageProtocol
+        storage: Any = getattr(writer, 'storage', None)
         bag_file = getattr(storage, 'bio', None)
-        if not isinstance(bag_file, CommittedFile):
+        if writer is None or not isinstance(bag_file, CommittedFile):
             return
         if storage.chunk.bio.tell():
             storage.close_chunk()
         if not (force or bag_file.has_new_data):
             return
         bag_file.mark()
-        topics = len(self.writer.connections)
+        topics = len(writer.connections)
         if force or topics != self._metadata[0] or self._metadata[1] >= METADATA_EVERY:
             close = storage.close
 
@@ -231,13 +233,13 @@ class Recorder(Node):
                 close(version, metadata)
             storage.close = keep
             try:
-                self.writer.close()
+                writer.close()
             finally:
                 del storage.close  # the class's own again
-                self.writer.storage = storage
+                writer.storage = storage
         else:
             self._metadata = (topics, self._metadata[1] + 1, self._metadata[2])
-            storage.close(self.writer.version, self._metadata[2])
+            storage.close(writer.version, self._metadata[2])
         self.committed = self.written
 
     def _stop(self, exc: OSError) -> None:
@@ -344,10 +346,10 @@ class Recorder(Node):
         if self.get_parameter('use_sim_time').value:
             self._time_source_fed = drop_clock_reader(self)
 
-    def _connection(self, topic: str) -> Any:
+    def _connection(self, writer: Writer, topic: str) -> Any:
         conn = self.connections.get(topic)
         if conn is None:
-            conn = self.writer.add_connection(topic, self.types[topic], typestore=self.typestore,
+            conn = writer.add_connection(topic, self.types[topic], typestore=self.typestore,
                                               offered_qos_profiles=self._offered[topic])
             self.connections[topic] = conn
         return conn
@@ -427,14 +429,14 @@ class Recorder(Node):
             return
         if stamp is None:
             stamp = self.get_clock().now().nanoseconds
-        self.writer.write(self._connection(topic), stamp, raw)
+        self.writer.write(self._connection(self.writer, topic), stamp, raw)
         self.bytes += len(raw)
         self.counts[topic] += 1
         self.written += 1
         if self.views is not None:
-            self._write_views(topic, raw, stamp)
+            self._write_views(self.writer, topic, raw, stamp)
 
-    def _write_views(self, topic: str, raw: bytes, stamp: int) -> None:
+    def _write_views(self, writer: Writer, topic: str, raw: bytes, stamp: int) -> None:
         """Decode a record into decoded.mcap; put the frames it moves into the bag."""
         try:
             added = self.views.take(topic, raw, stamp)
@@ -448,7 +450,7 @@ class Recorder(Node):
                 self._offered[extra] = [to_bag_qos(qos.LATCHED if extra == '/tf_static'
                                                    else qos.EVENTS)]
                 self.counts.setdefault(extra, 0)
-            self.writer.write(self._connection(extra), stamp, data)
+            writer.write(self._connection(writer, extra), stamp, data)
             self.bytes += len(data)
             self.counts[extra] += 1
             self.written += 1

@@ -23,6 +23,7 @@ from agv_nodes.records.carrier import clock_ns, uint8_array_cdr, uint8_array_dat
 from agv_nodes.records.ports import (
     DUPLICATE_WRITER,
     FOREIGN_WRITER,
+    CountedInput,
     RecordReader,
     RecordWriter,
     WriterCheck,
@@ -117,8 +118,8 @@ def writer_name(node: Node, schema: RecordSchema | str, default: str | None = No
     name (`default` its writer), unless the node's `record_writers` setting names another (a
     hardware driver in its place: a node, or `gid:<hex>`).
     """
-    settings = getattr(node, 'node_settings', None)
-    named = settings.writer_nodes() if hasattr(settings, 'writer_nodes') else {}
+    writer_nodes = getattr(getattr(node, 'node_settings', None), 'writer_nodes', None)
+    named = writer_nodes() if writer_nodes is not None else {}
     if isinstance(schema, str):
         return full_name(node, named.get(schema, default or ''))
     return full_name(node, named.get(schema.name, schema.writer))
@@ -147,7 +148,7 @@ class WriterWatch:
 
     def __init__(self, node: Node, port: Any, name: str, topic: str) -> None:
         self._node, self._port, self._name, self._topic = node, port, name, topic
-        self._since = None
+        self._since: float | None = None
         self._said = False
         self._steady = RosClock(clock_type=ClockType.STEADY_TIME)
         self._timer = node.create_timer(1.0, self.poll, clock=self._steady)
@@ -208,9 +209,10 @@ class RecordSubscription(RecordReader):
         if self._tagged is None:
             # Only a reader that ages records from their send asks for the message info:
             # rclpy 7.1.6's EventsExecutor fails ("SystemError: null argument") on (msg, info)
-            # callbacks.
+            # callbacks. rclpy's annotation has only the one-argument callback it also takes.
             self._sub = node.create_subscription(
-                UInt8MultiArray, schema.topic, self._on_msg_info if sent_stamps else self._on_msg,
+                UInt8MultiArray, schema.topic,
+                self._on_msg_info if sent_stamps else self._on_msg,  # type: ignore[arg-type]
                 qos.reader_qos(schema), raw=True)
         self.watch = WriterWatch(node, self, schema.name, schema.topic)
 
@@ -316,7 +318,7 @@ class InputDiagnostics:
     and a node whose executive has gone silent still says so.
     """
 
-    def __init__(self, node: Node, readers: Mapping[str, RecordReader], period: float = 1.0,
+    def __init__(self, node: Node, readers: Mapping[str, CountedInput], period: float = 1.0,
                  health: Callable[[], tuple[int, str]] | None = None) -> None:
         self._node = node
         self._readers = readers

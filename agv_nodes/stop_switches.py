@@ -41,7 +41,10 @@ class SwitchSubscription(SwitchInput):
         self._now_ns = node_time(node)
         self._tagged = writer_tagged_subscription(node, Bool, topic, profile, self._on_sample)
         if self._tagged is None:
-            node.create_subscription(Bool, topic, lambda msg: self._unchecked(msg.data), profile)
+            node.create_subscription(Bool, topic, self._on_msg, profile)
+
+    def _on_msg(self, msg: Bool) -> None:
+        self._unchecked(msg.data)
 
     def identity(self) -> str:
         """Say whose switch this is (its /diagnostics `writer` value)."""

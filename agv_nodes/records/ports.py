@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import Any, Protocol
 
 from agv_nodes.records.e2e import Sequence, SequenceCheck
 from agv_nodes.records.errors import RecordError, Reject
@@ -42,7 +42,7 @@ from agv_nodes.records.writer_check import (
 __all__ = ['CORRUPT', 'DUPLICATE_WRITER', 'FOREIGN_WRITER', 'GID_PREFIX', 'UNKNOWN_NODE',
            'CheckedInput', 'RecordReader', 'RecordWriter', 'SwitchInput', 'WriterCheck',
            'gid_writer',
-           'inputs_report', 'node_name']
+           'inputs_report', 'node_name', 'CountedInput']
 
 
 class RecordWriter:
@@ -207,7 +207,34 @@ class RecordReader:
         self.last_reason = reason
 
 
-def inputs_report(readers: Mapping[str, RecordReader], rejected_before: int = 0,
+class CountedInput(Protocol):
+    """What inputs_report reads of an input: a RecordReader, or a CheckedInput's stream."""
+
+    accepted: int
+    rejects: Counter[str]
+    last_error: str
+    duplicate: str  # while two endpoints both write as the named writer: who
+
+    @property
+    def rejected(self) -> int:
+        """Return the records refused."""
+        ...
+
+    @property
+    def lost(self) -> int:
+        """Return the records missed in counter gaps (0 where there are no counters)."""
+        ...
+
+    def age_s(self, now_ns: int) -> float:
+        """Return the seconds since the last one acted on (inf if none yet)."""
+        ...
+
+    def identity(self) -> str:
+        """Say whose input this is (its /diagnostics `writer` value)."""
+        ...
+
+
+def inputs_report(readers: Mapping[str, CountedInput], rejected_before: int = 0,
                   now_ns: int | None = None,
                   health: tuple[int, str] | None = None) -> tuple[int, str, dict[str, str]]:
     """One node's record inputs for /diagnostics: (level 0 OK / 1 WARN / 2 ERROR, message, values).
