@@ -15,6 +15,7 @@ import math
 from agv_nodes.world.settings import ElectrukParams
 
 Point = tuple[float, float]
+Pose = tuple[float, float, float, float]  # x, y, heading, speed
 
 
 def footprint(x: float, y: float, heading: float, p: ElectrukParams) -> list[Point]:
@@ -77,7 +78,7 @@ class ContactWatch:
         self.touching: set[tuple[str, str]] = set()
         self.collisions: list[Collision] = []
 
-    def contacts(self, bodies: Mapping[str, tuple[tuple[float, ...], ElectrukParams]]
+    def contacts(self, bodies: Mapping[str, tuple[Pose, ElectrukParams]]
                  ) -> set[tuple[str, str]]:
         """Return the pairs (in `names` order) whose footprints touch or overlap.
 
@@ -108,7 +109,7 @@ class ContactWatch:
                     out.add((a, b))
         return out
 
-    def check(self, bodies: Mapping[str, tuple[tuple[float, ...], ElectrukParams]],
+    def check(self, bodies: Mapping[str, tuple[Pose, ElectrukParams]],
               now: float) -> list[Collision]:
         """Return the contacts new since the last check (kept in `collisions` too)."""
         touching = self.contacts(bodies)

@@ -208,7 +208,7 @@ class WorldCore:
         now = sample * dt  # self.time
         self._apply_safety(now)
         sub = dt / p.substeps
-        if self._electruk:  # a sample's substeps in one call
+        if isinstance(vehicle, Electruk):  # a sample's substeps in one call
             vehicle.step(sub, p.substeps)
         else:
             for _ in range(p.substeps):
@@ -219,7 +219,7 @@ class WorldCore:
         # Each record's clock is tested here before its due() is called: most samples send none.
         if self.pickup is not None and sample >= (every := self._wire_every).next \
                 and every.due(sample):
-            records['guide_wire'] = self._guide_wire()
+            records['guide_wire'] = self._guide_wire(self.pickup)
         if sample >= (every := self._odo_every).next and every.due(sample):
             records['wheel_odometry'] = self._odometry()
         if self.pal is not None and sample >= (every := self._drive_every).next \
@@ -233,7 +233,7 @@ class WorldCore:
         frames = {}
         if self.camera is not None and sample >= (every := self._cam_every).next \
                 and every.due(sample):
-            frames = self._frames()
+            frames = self._frames(self.camera)
         if self._electruk and self.obstacles.by_name and not self.bumper:
             # The tug has no sonar: its bumper finds an obstacle, as it finds another truck.
             s = vehicle.state
@@ -251,7 +251,7 @@ class WorldCore:
     def _apply_safety(self, now: float) -> None:
         v = self.vehicle
         v.radio_stop = self.radio_stop or self.bumper
-        if self._electruk:
+        if isinstance(v, Electruk):
             # The trip relay's monostable: no watchdog change for 200 ms releases the relay and
             # with it the main contactor; retriggering closes it again (Baker 1983, B.2.1).
             v.relay_closed = now - self._watchdog_time <= self.p.drive_watchdog
@@ -290,9 +290,9 @@ class WorldCore:
             truth.marker_passages(lens, h)
         return snapshot_record(lit, dark)
 
-    def _guide_wire(self) -> dict[str, int]:
+    def _guide_wire(self, pickup: GuideWirePickup) -> dict[str, int]:
         sx, sy = self.vehicle.sensor_point
-        left, right = self.pickup.coils(sx, sy, self.vehicle.state.heading)
+        left, right = pickup.coils(sx, sy, self.vehicle.state.heading)
         if not self.wire_powered:  # generator off: the coils pick up nothing
             left = right = 0
         self.counters['guide_wire'] += 1
@@ -317,7 +317,7 @@ class WorldCore:
                 'right_distance': int(round(self._odo_dist[1] * 1000)) & 0xFFFF,
                 'sample': self.counters['wheel_odometry'] & 0xFF}
 
-    def _frames(self) -> dict[str, np.ndarray]:
+    def _frames(self, camera: BinaryCamera) -> dict[str, np.ndarray]:
         s = self.vehicle.state
         lc = self.p.concic2.camera_distance
         frames = {}
@@ -327,7 +327,7 @@ class WorldCore:
             cx = s.x + sign * lc * math.cos(s.heading)
             cy = s.y + sign * lc * math.sin(s.heading)
             heading = s.heading if sign > 0 else s.heading + math.pi
-            frames[name] = self.camera.render(cx, cy, heading)
+            frames[name] = camera.render(cx, cy, heading)
         return frames
 
     # -- the belt rig (Baker 1983, 7.1.1) ---------------------------------------------------

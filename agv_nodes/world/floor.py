@@ -20,13 +20,14 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 import re
-from typing import Any
-
-from rclpy.node import Node
+from typing import TYPE_CHECKING, Any
 
 from agv_nodes.params import parameter_error
-from agv_nodes.world.contact import ContactWatch
-from agv_nodes.world.settings import WorldNodeSettings, WorldParams
+from agv_nodes.world.contact import ContactWatch, Pose
+from agv_nodes.world.settings import ElectrukParams, WorldNodeSettings, WorldParams
+
+if TYPE_CHECKING:  # the node module builds floors
+    from agv_nodes.world.node import WorldNode
 
 TRUCK_NAME = re.compile(r'[A-Za-z][A-Za-z0-9_]*\Z')  # one ROS namespace level
 
@@ -50,7 +51,7 @@ class Place:
     control: Control
 
 
-def set_down(node: Node, s: WorldNodeSettings, place: Place | None
+def set_down(node: WorldNode, s: WorldNodeSettings, place: Place | None
              ) -> tuple[str, float] | None:
     """Return (path, at) of the stop marker the truck is set down at; None: the layout's start.
 
@@ -101,7 +102,7 @@ class Floor:
             raise parameter_error(root, 'set_down', places[:len(names)],
                                   f'trucks {a} and {b} touch where they are set down')
 
-    def _bodies(self) -> dict[str, tuple[tuple[float, ...], Any]]:
+    def _bodies(self) -> dict[str, tuple[Pose, ElectrukParams]]:
         return {name: (m.core.pose(), m.core.p.electruk)
                 for name, m in zip(self.names, self.members, strict=True)}
 

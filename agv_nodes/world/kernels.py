@@ -16,7 +16,8 @@ from types import ModuleType
 from agv_nodes import kernel_choice
 
 try:
-    from agv_nodes.world import _kernels as compiled
+    # a C extension setup.py builds, with no stub: mypy reads no .so
+    from agv_nodes.world import _kernels as compiled  # type: ignore[attr-defined]
 except ImportError:  # not built (no C compiler at install): the Python code runs
     compiled = None
 

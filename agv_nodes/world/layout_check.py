@@ -271,6 +271,8 @@ class _Drive:
         wire_every = _Every(world.guide_wire_rate, world.sample_rate)
         odo_every = _Every(world.odometry_rate, world.sample_rate)
         next_tick, manoeuvre, speed, odo, sample = 0.0, 0, CRUISE, [0.0, 0.0], 0
+        if (period := core.period) is None:  # route following always has its timer
+            raise ValueError('layout check: a route-following core without a period')
         last_point = truck.sensor_point
         while st.distance < distance:
             sample += 1
@@ -309,8 +311,10 @@ class _Drive:
                     'left_distance': round(odo[0] * 1000) & 0xFFFF,
                     'right_distance': round(odo[1] * 1000) & 0xFFFF}, now)
             while next_tick <= now + 1e-12:
-                next_tick += core.period
-                command = core.tick(now)['steering_command']
+                next_tick += period
+                if (out := core.tick(now)) is None:  # its tick always steers
+                    raise ValueError('layout check: route following sent no steering command')
+                command = out['steering_command']
                 truck.steer_demand = command['angle'] / 1000.0
                 truck.steer_enable = bool(command['enable'])
             if core.state == 'lost':

@@ -218,12 +218,12 @@ class MarkerSensorModel:
                        height: float) -> list[tuple[int, tuple[float, float]]]:
         """_look() in C (agv_nodes.world.kernels): the cards within 0.6 m, packed once."""
         lx, ly = lens
-        near = []
+        nearby = []
         for card in cards:  # the test _look makes first, as it makes it
             dx, dy = card.centre[0] - lx, card.centre[1] - ly
             if dx * dx + dy * dy <= 0.36:
-                near.append(card)
-        near = tuple(near)
+                nearby.append(card)
+        near = tuple(nearby)
         if not near:
             return []
         packed = self._packed
@@ -238,7 +238,10 @@ class MarkerSensorModel:
             optics = self._optics = (key, np.array(
                 [*key[:6], p.row_pitch / 2.0, ELEMENT_HEIGHT, *offsets, first, last],
                 dtype=float))
-        return self._look_kernel(packed[1], optics[1], lx, ly, heading, height)
+        kernel = self._look_kernel
+        if kernel is None:  # _look asks only where the kernels were built
+            raise RuntimeError('marker sensor: no compiled kernel to look with')
+        return kernel(packed[1], optics[1], lx, ly, heading, height)
 
     # -- electronics ----------------------------------------------------------------------
     def signals(self, optics: list[tuple[float, float]]) -> list[float]:

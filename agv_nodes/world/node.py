@@ -26,6 +26,7 @@ the obstacles standing, re-sent whole on every change.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 import math
 import sys
@@ -69,6 +70,11 @@ from agv_nodes.world.settings import WorldNodeSettings, WorldParams
 from agv_nodes.world.viz import camera_image, layout_messages, obstacle_markers, pose_message
 
 NODE = 'world'
+
+
+def _readers_of(writer: RecordPublisher) -> Callable[[], int]:
+    """Return the count of a record writer's matched readers, as LinkWatch polls it."""
+    return lambda: writer.subscription_count
 
 
 class WorldNode(Node):
@@ -135,7 +141,7 @@ class WorldNode(Node):
         # a truck of a floor: the floor writes /clock, and its root node waits for its readers
         self.clock_pub = place.clock_pub if place is not None else \
             self.create_publisher(Clock, '/clock', qos.STREAM_WRITER)
-        own_writers = {name: (lambda w=w: w.subscription_count) for name, w in self.out.items()}
+        own_writers = {name: _readers_of(w) for name, w in self.out.items()}
         if place is None:
             own_writers[sim_progress.CLOCK_LINK] = self.clock_pub.get_subscription_count
         self.peers = LinkWatch(self, self._links(s, s.pace_nodes), own_readers, own_writers)
@@ -207,17 +213,24 @@ class WorldNode(Node):
         layout.markers = [m for m in layout.markers if m.name not in s.remove_markers]
         return layout
 
+    @property
+    def truck(self) -> WorldCore:
+        """Return this truck's world (a floor's own node has none: its trucks' nodes have)."""
+        if self.core is None:
+            raise RuntimeError(f'{self.get_name()}: a floor node has no truck of its own')
+        return self.core
+
     # -- callbacks --------------------------------------------------------------------------
     def _input(self, name: str):
         def on_record(fields: dict) -> None:
             self.work += 1
-            self.core.on_record(name, fields, self.core.time)
+            self.truck.on_record(name, fields, self.truck.time)
         return on_record
 
     def _progress(self, node: str):
         def on_progress(raw: bytes) -> None:
             self.work += 1
-            self.pacer.progress(node, clock_time_ns(raw) * 1e-9, self.core.time)
+            self.pacer.progress(node, clock_time_ns(raw) * 1e-9, self.truck.time)
         return on_progress
 
     def _set_at_run_time(self, params: list) -> SetParametersResult:
@@ -252,13 +265,13 @@ class WorldNode(Node):
         self.work += 1
         applied, line = self.obstacle_commands.take(msg.data, round(self.time * 1e9))
         if applied:
-            self.obstacle_pub.publish(obstacle_markers(self.core.obstacles))
+            self.obstacle_pub.publish(obstacle_markers(self.truck.obstacles))
         log = self.get_logger()
         (log.info if applied else log.warning)(f'{line} at {self.time:.3f} s')
 
     def _radio_stop(self, on: bool) -> None:
         self.work += 1
-        self.core.set_radio_stop(on)
+        self.truck.set_radio_stop(on)
 
     def _service_pause(self, _req: Any, res: Any) -> Any:
         self.work += 1
@@ -316,13 +329,13 @@ class WorldNode(Node):
             self.out['world_event'].publish({**{k: event[k] for k in (
                 'event', 'marker_kind', 'identity', 'error', 'speed', 'lateral', 'count',
                 'station')}, 'time_ms': round(event['time'] * 1000) & 0xFFFF})
-        if self.core.bumper != self._bumper:  # the bumper switch, to traction
-            self._bumper = self.core.bumper
+        if self.truck.bumper != self._bumper:  # the bumper switch, to traction
+            self._bumper = self.truck.bumper
             self.bumper_pub.publish(Bool(data=self._bumper))
 
     def _range(self, reading: float) -> Range:
         """hw/sonar: one ping as REP 117 has it (+inf: no echo, -inf: nearer than min_range)."""
-        p = self.core.p.sonar
+        p = self.truck.p.sonar
         msg = Range(radiation_type=Range.ULTRASOUND, field_of_view=math.radians(p.beam),
                     min_range=p.min_range, max_range=p.max_range, range=reading)
         msg.header.stamp, msg.header.frame_id = self.stamp(), 'sonar_front'
@@ -333,14 +346,14 @@ class WorldNode(Node):
         for name, fields in out['records'].items():
             self.out[name].publish(fields)
         self.publish_events(out['events'])
-        pose_due = self.core.sample % self._pose_every == 0
+        pose_due = self.truck.sample % self._pose_every == 0
         stamp = self.stamp() if out['frames'] or pose_due else None
         for name, frame in out['frames'].items():
             self.camera_pubs[name].publish(camera_image(frame, name, stamp))
         if out.get('sonar') is not None and self.sonar_pub is not None:
             self.sonar_pub.publish(self._range(out['sonar']))
         if pose_due:
-            x, y, h, _v = self.core.pose()
+            x, y, h, _v = self.truck.pose()
             self.pose_pub.publish(pose_message(x, y, h, stamp))
 
 

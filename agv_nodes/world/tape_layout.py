@@ -80,7 +80,7 @@ class Path2D:
         return float(self.s[i] + t[i] * seg), lateral, heading
 
 
-def build_path(pid: str, start: list, segments: list, step: float, file: Path, key: str,
+def build_path(pid: str, start: object, segments: object, step: float, file: Path, key: str,
                width: float = 0.0, current: float = 1.0) -> Path2D:
     """Sample a start pose + straight/arc segments into a polyline."""
     if not (isinstance(start, list) and len(start) == 3
