@@ -15,6 +15,7 @@ messages to send as (truck, topic name, message): the dispatcher
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import partial
 from typing import Any, Protocol
 
 from pydantic import BaseModel
@@ -47,8 +48,7 @@ class BridgedFleet:
         self.fleet, self.master = fleet, master
         self.graph = graph or track_graph(load_layout(layout_path(layout_name)))
         self.bridges = {name: BridgeCore(self.graph, MANUFACTURER, name,
-                                         factsheet=lambda n, s=name: truck_factsheet(
-                                             MANUFACTURER, s, n))
+                                         factsheet=partial(truck_factsheet, MANUFACTURER, name))
                         for name in fleet.names}
         self.master_period = master_period  # s of sim time between the master's steps
         self._next_master = 0.0

@@ -34,8 +34,9 @@ from agv_nodes.fleet.truck_processes import (
     merge_load_changes,
 )
 from agv_nodes.harness import Harness, run_for, submit, truck
-from agv_nodes.world.contact import Collision, ContactWatch
+from agv_nodes.world.contact import Collision, ContactWatch, Pose
 from agv_nodes.world.layout import LayoutError, layout_path, load_layout
+from agv_nodes.world.settings import ElectrukParams
 
 __all__ = ['Collision', 'Fleet']
 
@@ -79,7 +80,7 @@ class Fleet:
         self.contacts = ContactWatch(self.names)
         self.collisions: list[Collision] = self.contacts.collisions
         # a far truck's body: its outline, and its pose as its process last answered
-        self._far: dict[str, tuple[tuple[float, ...], Any]] = {}
+        self._far: dict[str, tuple[Pose, ElectrukParams]] = {}
         if touching := self.contacts.contacts(self._bodies()):
             raise ValueError(f'trucks {sorted(touching)[0]} touch at the start: place them '
                              'further apart')
@@ -147,7 +148,7 @@ class Fleet:
             return worker.query(name, fn, *args)
         return fn(self.trucks[name], *args)
 
-    def _bodies(self) -> dict[str, tuple[tuple[float, ...], Any]]:
+    def _bodies(self) -> dict[str, tuple[Pose, ElectrukParams]]:
         far = self._far
         return {name: far[name] if name in far else
                 (self.trucks[name].world.pose(), self.trucks[name].world.p.electruk)

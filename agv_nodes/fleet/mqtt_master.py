@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Collection
+from functools import partial
 import queue
 import re
 
@@ -43,7 +44,7 @@ from agv_nodes.vda5050.state import State
 from agv_nodes.vda5050.topics import TOPICS, topic
 
 TRANSPORT_SYNTAX = "'[ID:] SOURCE to DESTINATION' (stations), e.g. 'W0 to W2' or 'job7: W0 to W2'"
-INBOUND = {'state': State, 'connection': Connection}
+INBOUND: dict[str, type[State | Connection]] = {'state': State, 'connection': Connection}
 OUTBOUND = ('order', 'instantActions')
 # The dispatcher's own order ids (parking, making way, initPosition): no transport may take one.
 RESERVED_PREFIXES = ('park-', 'yield-', 'init-')
@@ -126,8 +127,11 @@ class MqttMaster:
             for name in INBOUND:
                 # on paho's thread: only hand the payload over (see the module docstring)
                 self.link.subscribe(self._topics[truck][name], TOPICS[name].qos,
-                                    lambda _topic, payload, truck=truck, name=name:
-                                    self._inbox.put((truck, name, payload)))
+                                    partial(self._hand_over, truck, name))
+
+    def _hand_over(self, truck: str, name: str, _topic: str, payload: bytes) -> None:
+        """On paho's thread: only hand the payload over (see the module docstring)."""
+        self._inbox.put((truck, name, payload))
 
     # -- transports ----------------------------------------------------------------------------
     def submit(self, text: str) -> str:

@@ -23,7 +23,7 @@ hundred microseconds, and a blocked process takes tens of microseconds to wake.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping, MutableMapping, Sequence
 import multiprocessing
 from multiprocessing.connection import Connection
 import time
@@ -74,7 +74,7 @@ def receive(conn: Connection) -> Any:
     return conn.recv()
 
 
-def _apply(trucks: Mapping[str, Harness], loads: dict[str, int], ops: Sequence[Op]) -> None:
+def _apply(trucks: MutableMapping[str, Harness], loads: dict[str, int], ops: Sequence[Op]) -> None:
     for op in ops:
         if op[0] == 'loads':
             loads.update(op[1])
