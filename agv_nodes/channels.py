@@ -109,7 +109,9 @@ def read_channels(bag: Path) -> list[list[float]]:
         connections = [c for c in reader.connections
                        if c.topic == '/' + TOPIC or c.topic.endswith('/' + TOPIC)]
         for conn, _stamp, raw in reader.messages(connections=connections):
-            data = [float(v) for v in reader.deserialize(raw, conn.msgtype).data]
+            # rosbags deserializes to `object`: the class is the connection's msgtype's
+            msg: Any = reader.deserialize(raw, conn.msgtype)
+            data = [float(v) for v in msg.data]
             if len(data) != 1 + len(CHANNELS):
                 raise ValueError(f'{conn.topic}: a sample of {len(data)} values, not '
                                  f'{1 + len(CHANNELS)} (time and the 12 channels)')

@@ -10,7 +10,7 @@ import functools
 import os
 from pathlib import Path
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import yaml
 
@@ -52,7 +52,10 @@ def config_dir() -> Path:
 
 # libyaml's parser where PyYAML was built with it (the PyPI wheels are): the pure-Python one
 # spent about half a second of every node's start-up on the record schemas and parameter files.
-_SafeLoader = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
+if TYPE_CHECKING:  # the checker takes the two for one: the same interface
+    from yaml import SafeLoader as _SafeLoader
+else:
+    _SafeLoader = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 
 
 class _UniqueKeyLoader(_SafeLoader):

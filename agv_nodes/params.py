@@ -53,7 +53,7 @@ def descriptor(p: Parameter) -> ParameterDescriptor:
         # default takes its type from what it is given (build() checks it)
         desc.dynamic_typing = True
     elif p.kind is tuple:
-        desc.type = _ARRAYS[p.item]
+        desc.type = _ARRAYS[p.element]
     elif p.kind is float:
         desc.dynamic_typing = True  # `-p x:=2` gives an integer; build() takes it as 2.0
     else:

@@ -64,7 +64,7 @@ def drop_clock_reader(node: Any) -> Any | None:
     check_version()
     time_source = getattr(node, '_time_source', None)
     own = getattr(time_source, '_clock_sub', None)
-    if own is None:
+    if own is None or time_source is None:
         return None
     node.destroy_subscription(own)
     time_source._clock_sub = None
@@ -134,7 +134,7 @@ class _Uint8Array(ctypes.Structure):  # rcutils_uint8_array_t = rcl_serialized_m
 
 
 @functools.cache
-def _libraries() -> tuple[Any, Any] | str:
+def _libraries() -> tuple[ctypes.CDLL, ctypes.CDLL] | str:
     """(librcl, librcutils) with the functions typed, or why they cannot be used."""
     try:
         rcl = ctypes.CDLL('librcl.so')  # the copy rclpy loaded (same soname)
@@ -165,7 +165,8 @@ def _libraries() -> tuple[Any, Any] | str:
 def writer_identity_unavailable() -> str:
     """Return why per-sample writer identity cannot be had here ('' when it can); said once."""
     check_version()
-    why = _libraries() if isinstance(_libraries(), str) else ''
+    libraries = _libraries()
+    why = libraries if isinstance(libraries, str) else ''
     if not why:
         try:
             from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -198,7 +199,10 @@ class WriterTaggedSubscription:
         from rclpy.waitable import NumberOfEntities, Waitable
 
         check_is_valid_msg_type(msg_type)  # also loads its type support, as rclpy does
-        rcl, rcutils = _libraries()  # type: ignore[misc]
+        libraries = _libraries()
+        if isinstance(libraries, str):  # writer_tagged_subscription asks first
+            raise RuntimeError(f'writer tagged subscription: {libraries}')
+        rcl, rcutils = libraries
         self._take_fn = rcl.rcl_take_serialized_message
         self._rcutils = rcutils
         self._node = node

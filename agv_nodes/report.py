@@ -81,6 +81,7 @@ def read_bag(bag: Path) -> dict[str, Any]:
     route_read = False
     paths = [bag] + sorted(bag.parent.glob(f'{bag.name}_[0-9]*'))
     schemas: dict[str, Any] = {}  # topic -> record schema (None: not a record topic)
+    msg: Any  # rosbags deserializes to `object`: the class is the connection's msgtype's
     with AnyReader(paths) as reader:
         for conn, stamp, raw in reader.messages():
             t = stamp * 1e-9
@@ -96,7 +97,8 @@ def read_bag(bag: Path) -> dict[str, Any]:
                     continue
                 record = uint8_array_data(raw)
                 if record is None:
-                    record = bytes(reader.deserialize(raw, conn.msgtype).data)
+                    msg = reader.deserialize(raw, conn.msgtype)
+                    record = bytes(msg.data)
                 try:
                     fields = schema.decode(record, integrity='none' if not
                                            schema.protected else record_integrity(record))

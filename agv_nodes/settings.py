@@ -19,6 +19,7 @@ import functools
 from pathlib import Path
 import re
 import sys
+import types
 import typing
 from typing import Any
 
@@ -83,7 +84,7 @@ def _declaration(where: str, entry: Any) -> tuple[Any, Any, Spec]:
         if item is None or not all(type(v) is item for v in default):
             raise DefinitionError(f'{where}: a list default needs a type, one of '
                                   f'{", ".join(_ARRAY_TYPES)}, that its items have')
-        hint: Any = tuple[item, ...]
+        hint: Any = types.GenericAlias(tuple, (item, ...))  # tuple[item, ...]
         default = tuple(default)
     elif type(default) in SCALARS and 'type' not in entry:
         hint = type(default)
@@ -114,7 +115,7 @@ def settings_class(cls: type) -> type:
         where = f'{path}: {cls.__name__}.{name}'
         if isinstance(entry, str):  # a nested group: the settings class of that name
             group = getattr(module, entry, None)
-            if not is_dataclass(group):
+            if not (isinstance(group, type) and is_dataclass(group)):
                 raise DefinitionError(f'{where}: {entry!r} is no settings class of '
                                       f'{cls.__module__}')
             annotations[name] = group
@@ -135,6 +136,13 @@ class Parameter:
     item: type | None  # the element type of a tuple
     default: Any
     spec: Spec
+
+    @property
+    def element(self) -> type:
+        """Return the element type of a list setting."""
+        if self.item is None:
+            raise TypeError(f'settings: {self.name} is no list')
+        return self.item
 
 
 class SettingError(ValueError):
@@ -169,7 +177,11 @@ def parameters(cls: type, prefix: str = '') -> tuple[Parameter, ...]:
 
 
 def _default(f: Field) -> Any:
-    return f.default if f.default is not MISSING else f.default_factory()
+    if f.default is not MISSING:
+        return f.default
+    if not callable(f.default_factory):  # every settings field has one or the other
+        raise DefinitionError(f'{f.name}: a settings field without a default')
+    return f.default_factory()
 
 
 def _scalar(p: Parameter, kind: type, value: Any) -> Any:
@@ -180,7 +192,7 @@ def _scalar(p: Parameter, kind: type, value: Any) -> Any:
     if isinstance(value, bool) or not isinstance(value, (int, float) if kind is float else kind):
         raise SettingError(p.name, value, {int: 'must be an integer', float: 'must be a number',
                                            str: 'must be a string'}[kind])
-    if kind is float:
+    if kind is float and isinstance(value, (int, float)):  # it is (checked above)
         value = float(value)
     if p.spec.choices and value not in p.spec.choices:
         raise SettingError(p.name, value, f'not one of {list(p.spec.choices)}')
@@ -198,7 +210,7 @@ def convert(p: Parameter, value: Any) -> Any:
         return ()
     if not isinstance(value, (list, tuple)):
         raise SettingError(p.name, value, 'must be a list')
-    items = tuple(_scalar(p, p.item, v) for v in value)
+    items = tuple(_scalar(p, p.element, v) for v in value)
     if p.spec.length is not None and items and len(items) != p.spec.length:
         raise SettingError(p.name, list(value), f'needs exactly {p.spec.length} values')
     return items
@@ -238,7 +250,8 @@ def _assemble(cls: type, values: Mapping[str, Any], prefix: str) -> Any:
 def values_of(obj: Any) -> dict[str, Any]:
     """Return the parameter values an instance holds, by dotted name (lists as lists)."""
     out = {}
-    for p in parameters(type(obj)):
+    cls: type = type(obj)
+    for p in parameters(cls):
         value: Any = obj
         for part in p.name.split('.'):
             value = getattr(value, part)

@@ -280,7 +280,10 @@ def floor_parameters(graph: Graph, spec: NodeSpec, options: Options,
     common.update(trucks=names, set_down=list(options.set_down))
     truck_links, root_links = [], []
     recording = options.bag is not None
-    for link in common['wait_for_links']:
+    waits = common['wait_for_links']
+    if not isinstance(waits, list):  # override_parameters lists them
+        raise TypeError(f'wait_for_links: {waits!r} is no list')
+    for link in waits:
         node, _, rest = link.partition('>')
         if rest.startswith(f'{CLOCK}:'):  # this truck's readers of /clock, times N trucks
             readers = int(rest.partition(':')[2]) - recording
@@ -289,7 +292,8 @@ def floor_parameters(graph: Graph, spec: NodeSpec, options: Options,
             root_links.append(link)
         else:
             truck_links.append(link)
-    out = {'/world': {'ros__parameters': {**common, 'wait_for_links': root_links}}}
+    out: dict[str, object] = {
+        '/world': {'ros__parameters': {**common, 'wait_for_links': root_links}}}
     for name in names:
         out[f'/{name}/world'] = {'ros__parameters': {**common, 'wait_for_links': truck_links}}
     return out

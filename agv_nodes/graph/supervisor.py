@@ -29,7 +29,7 @@ import sys
 import tempfile
 import threading
 import time
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 from agv_nodes.discovery import use_localhost_discovery
 from agv_nodes.graph.claim import claim_domain, claim_graph
@@ -48,6 +48,9 @@ from agv_nodes.graph.parameters import (
     silent_records,
     truck_graph,
 )
+
+if TYPE_CHECKING:  # imported where the broker starts
+    from agv_nodes.mqtt.broker import EmbeddedBroker, Mosquitto
 
 CHILD = 'agv_nodes.graph.child'
 
@@ -90,12 +93,12 @@ class Launch:
         if not self.params.is_file():
             raise GraphError(f'parameter file {self.params} not found')
         self.domain, self._lock = claim_domain(options.domain_id)
-        self._graph_lock = None
+        self._graph_lock: TextIO | None = None
         self.claimed = False
         self.env = dict(os.environ, ROS_DOMAIN_ID=str(self.domain), PYTHONUNBUFFERED='1')
         use_localhost_discovery(self.env)
         self.procs: dict[str, subprocess.Popen] = {}  # by label (units())
-        self.exits: dict[str, int] = {}
+        self.exits: dict[str, int | None] = {}  # None: still running when given up on
         self.stopping = False
         self.failed: list[str] = []
         self.escalated: dict[str, str] = {}  # node -> the signal it took to stop (not SIGINT)
@@ -106,7 +109,8 @@ class Launch:
         self.ready_file = self._overrides / 'world.ready'
         self.moving = ReadyFile(self.ready_file)
         self._units = {label: (spec, ns) for label, spec, ns in self.units()}
-        self.broker = None  # the MQTT broker the launcher runs, if it runs one
+        # the MQTT broker the launcher runs, if it runs one
+        self.broker: Mosquitto | EmbeddedBroker | None = None
         if options.vda5050:
             self._start_broker()
 
@@ -333,7 +337,7 @@ class Launch:
                 code = 1
                 break
             if self.world_done():
-                code = self.exits.get('world', 0)
+                code = self.exits.get('world') or 0  # done: its code is in
                 break
             if duration and time.monotonic() - t0 > duration:
                 break

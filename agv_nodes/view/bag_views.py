@@ -112,7 +112,7 @@ class BagViews:
 
     def _pose(self, ns: str, raw: bytes, stamp_ns: int) -> list[tuple[str, str, bytes]]:
         frames, out = self._truck(ns)
-        msg = self.typestore.deserialize_cdr(raw, POSE_TYPE)
+        msg: Any = self.typestore.deserialize_cdr(raw, POSE_TYPE)  # rosbags: `object`
         q = msg.pose.orientation
         frames.on_truth(msg.pose.position.x, msg.pose.position.y, 2.0 * math.atan2(q.z, q.w))
         return out

@@ -23,6 +23,7 @@ frames on `/tf`; the recorder writes them into bags either way (rosbags knows th
 
 from __future__ import annotations
 
+from functools import partial
 import importlib
 import math
 import sys
@@ -107,16 +108,15 @@ class TruckView:
             self.channels[schema.name] = (reader, channel)
             node.create_subscription(
                 UInt8MultiArray, f'{self.prefix}/{schema.topic.lstrip("/")}',
-                lambda raw, name=schema.name: self.on_record(name, raw),
+                partial(self.on_record, schema.name),
                 qos.reader_qos(schema), raw=True)
         node.create_subscription(PoseStamped, f'{self.prefix}/world/pose', self.on_pose,
                                  qos.STREAM_READER)
         node.create_subscription(String, f'{self.prefix}/comms/report',
-                                 lambda m: self.log(LogLevel.Info, 'comms/report', m.data),
-                                 qos.EVENTS)
+                                 self.on_report, qos.EVENTS)
         for name in self.images:
             node.create_subscription(Image, f'{self.prefix}/hw/camera/{name}',
-                                     lambda m, name=name: self.on_image(name, m),
+                                     partial(self.on_image, name),
                                      qos.STREAM_READER)
 
     def now(self) -> float:
@@ -151,6 +151,10 @@ class TruckView:
                                                self.frames.name('base_link')))
         self.view.send_transforms([transform(t, *f) for f in
                                    self.frames.moving() + self.frames.fixed()], t)
+
+    def on_report(self, msg: String) -> None:
+        """Log a comms/report line."""
+        self.log(LogLevel.Info, 'comms/report', msg.data)
 
     def on_pose(self, msg: PoseStamped) -> None:
         """Take the world's ground truth; publish it as Odometry in `map`."""
