@@ -302,10 +302,10 @@ def _judged(config: str, kind: str, model: str, speed: float) -> tuple[str, list
 # each option does no worse than what it is judged against; the rows where it is worse are
 # named in each test's docstring (and marked in the bench's table).
 NO_WORSE = [
-    ('speed law (9.3), per_time', 'step', 'dynamic', 0.31),
-    ('inflexion (9.5) on the predictor', 'sbend', 'dynamic', 0.79),
-    ('cross-coupled (9.2.1)', 'step', 'dynamic', 0.31),
-    ('Cartesian (9.2.2)', 'sbend', 'dynamic', 0.79),
+    ('speed law (9.3), per_time', 'circle', 'dynamic', 0.63),
+    ('speed law (9.3), gains', 'sbend', 'dynamic', 0.79),
+    ('inflexion (9.5) on the predictor', 'step', 'kinematic', 0.31),
+    ('Cartesian (9.2.2)', 'circle', 'dynamic', 0.63),
 ]
 
 
@@ -313,13 +313,16 @@ NO_WORSE = [
 @pytest.mark.parametrize('config,kind,model,speed', NO_WORSE)
 def test_option_no_worse_where_the_bench_finds_it(config: str, kind: str, model: str,
                                                   speed: float) -> None:
-    """Each Chapter 9 option, lock step, seeds 2-4, no worse on its representative rows.
+    """Each Chapter 9 option, lock step, seeds 2-4, no worse on a representative row.
 
-    Worse rows, by the bench (docs/chapter9.md says why): speed_form gains on every row (so it
-    has none here); per_time on all but the two steps on the dynamic model; the inflexion on
-    the S-bend at 0.63 m/s on the kinematic model; the cross-coupled loop on all but the
-    0.31 m/s step; the Cartesian loop on all but the S-bend at 0.79 m/s. The option must also
-    hold the tape on every seed.
+    Judged against the defaults of the code run (the thesis's law at commit 97935b2). Worse
+    rows, not asserted (docs/chapter9.md): at the thesis's law, gains on the steps and the
+    circle, per_time on the S-bends, and the cross-coupled loop alone on every row tried (on
+    the 0.79 m/s step, dynamic model, it loses the tape; its test is the knock above). At the
+    curve settings (bench/results/chapter9_bench.md, commit d573354): gains on every row,
+    per_time on all but the dynamic model's steps, the inflexion on the kinematic S-bend at
+    0.63 m/s, the cross-coupled loop on all but the 0.31 m/s step, the Cartesian loop on all
+    but the S-bend at 0.79 m/s. The option must also hold the tape on every seed.
     """
     mark, option, baseline = _judged(config, kind, model, speed)
     assert mark == 'no worse', (mark, option, baseline)
