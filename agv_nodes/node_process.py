@@ -68,7 +68,8 @@ class _StopRequest:
             raise KeyboardInterrupt
         self.requested = True
         # a node asked to stop is gone within STOP_LIMIT whatever holds it: faulthandler's
-        # watchdog is a C thread, so it fires even while a blocked call holds the GIL
+        # watchdog is a C thread, so it fires even while a blocked call holds the GIL (as rclpy
+        # does in Fast DDS's entity deletion, where the teardown_limit thread cannot run)
         faulthandler.dump_traceback_later(STOP_LIMIT, exit=True)
 
 
@@ -91,7 +92,7 @@ def _shutting_down(wait: float = 0.5) -> bool:
 
 
 TEARDOWN_LIMIT = 2.0  # s: a node's DDS teardown normally takes well under 0.5 s
-STOP_LIMIT = 12.0  # s from SIGINT/SIGTERM to exit, teardown included, before the watchdog's exit
+STOP_LIMIT = 15.0  # s from SIGINT/SIGTERM to exit, teardown included, before the watchdog's exit
 
 
 def _teardown(node: Node | None, spinner: Any, code: int, limit: float = TEARDOWN_LIMIT) -> None:
@@ -117,9 +118,6 @@ def _teardown(node: Node | None, spinner: Any, code: int, limit: float = TEARDOW
         sys.stdout.flush()
         os._exit(code)
     threading.Thread(target=give_up, name='teardown_limit', daemon=True).start()
-    # the thread above needs the GIL, which rclpy keeps while Fast DDS deletes an entity: the
-    # C watchdog ends a teardown deadlocked there (status 1, every thread's stack on stderr)
-    faulthandler.dump_traceback_later(limit + 2.0, exit=True)
     try:
         if spinner is not None:
             spinner.shutdown()
@@ -128,7 +126,6 @@ def _teardown(node: Node | None, spinner: Any, code: int, limit: float = TEARDOW
         rclpy.try_shutdown()
     finally:
         done.set()
-        faulthandler.cancel_dump_traceback_later()
 
 
 PR_SET_PDEATHSIG = 1
