@@ -82,22 +82,26 @@ def silence_bound(g: GraphProbe, victim: str) -> tuple[float, float, str]:
             '+ sample')
     # the executive supervises the status (aged from its send), its e-stop cuts the armature
     # the moment it reaches traction
-    supervised = ex.status_timeout + ex.supervision_period + step + step + world
+    stale = stale_after(g, victim)
+    supervised = stale + ex.supervision_period + step + step + world
     if victim == 'position_sensor':  # navigation's sensor watchdog, then its status
-        worst = nav.sensor_timeout + nav.period + step + step + supervised - ex.status_timeout
+        worst = nav.sensor_timeout + nav.period + step + step + supervised - stale
         return nav.sensor_timeout - trail, worst, (
             f'sensor_timeout {nav.sensor_timeout:g} + period + step + step + '
             'supervision_period + step + step + max_lag + sample')
     return ex.status_timeout, supervised, (
-        f'status_timeout {ex.status_timeout:g} + supervision_period + step + step + max_lag '
-        '+ sample')
+        f'stale after {stale:.4f} (status_timeout {ex.status_timeout:g}, or stale_confirm '
+        'records of the others and a pacing allowance) + supervision_period + step + step + '
+        'max_lag + sample')
 
 
-def estop_bound(g: GraphProbe) -> tuple[float, float]:
+def estop_bound(g: GraphProbe, victim: str = 'navigation') -> tuple[float, float]:
     """Sim s from a silent sub-system's last status to the executive's e-stop record: (>, <=).
 
     The executive ages a status from its send exactly as the probe does (the same /clock
     samples, agv_nodes/sent_time.py), and checks every supervision_period on the clock's steps.
+    It calls the status stale once it is older than status_timeout and stale_confirm records of
+    the others have arrived since (stale_after).
     """
     from agv_nodes.executive.settings import ExecutiveParams
     from agv_nodes.world.settings import WorldNodeSettings, WorldParams
@@ -105,7 +109,30 @@ def estop_bound(g: GraphProbe) -> tuple[float, float]:
     ex = g.settings('executive', ExecutiveParams)
     step = g.settings('world', WorldNodeSettings).clock_every / g.settings(
         'world', WorldParams).sample_rate
-    return ex.status_timeout, ex.status_timeout + ex.supervision_period + step
+    return ex.status_timeout, stale_after(g, victim) + ex.supervision_period + step
+
+
+def stale_after(g: GraphProbe, victim: str) -> float:
+    """Sim s from `victim`'s last status until the executive may call it stale, at worst.
+
+    The later of status_timeout and the arrival of stale_confirm records from the other
+    sub-systems: they report on one grid (each its record table period), so those records are
+    sent within ceil(stale_confirm / others) periods, and the last of them reaches the executive
+    up to one pacing allowance late (max_lag + the progress period + a clock step: a writer may
+    trail the world, and so the executive, by that much; agv_nodes/world/pacing.py).
+    """
+    from agv_nodes import sim_progress
+    from agv_nodes.executive.faults import SUBSYSTEM_OF
+    from agv_nodes.executive.settings import ExecutiveParams
+    from agv_nodes.world.settings import WorldNodeSettings, WorldParams
+
+    ex, node = g.settings('executive', ExecutiveParams), g.settings('world', WorldNodeSettings)
+    step = node.clock_every / g.settings('world', WorldParams).sample_rate
+    table = codec()
+    others = [table[r].period_ms / 1000 for r, sub in SUBSYSTEM_OF.items()
+              if sub != {'route_following': 'route', 'load_handling': 'load'}.get(victim, victim)]
+    confirm = math.ceil(ex.stale_confirm / len(others)) * max(others)
+    return max(ex.status_timeout, confirm + node.max_lag + sim_progress.PERIOD + step)
 
 
 CASES = [  # victim, at rest within (sim s), report on comms/report, /diagnostics row, words
@@ -175,12 +202,12 @@ def test_silent_node_ends_in_a_stop(tmp_path, victim, stop_within, report, diag_
             assert estop and estop[0] <= killed_at + cut_ms / 1000, (estop, cut_ms)
             trip = seen = 'the executive e-stops (00H), '
             if victim != 'position_sensor':  # its own status went stale
-                after, within = estop_bound(g)  # one period either way, as above
+                after, within = estop_bound(g, victim)  # one period either way, as above
                 assert after - period < estop[0] - last <= within + period + 1e-6, (
                     estop[0] - last, within)
                 trip = (f'the executive e-stops (00H) {(after - period) * 1000:.0f} < t <= '
                         f'{(within + period) * 1000:.1f} ms after its last {WATCHED[victim]} '
-                        'seen (status_timeout + supervision_period + step, one period of it '
+                        'seen (stale_after + supervision_period + step, one period of it '
                         'either way), ')
                 seen = f'e-stop {(estop[0] - last) * 1000:.1f} ms after its last, '
         g.spin_until(lambda: diag_words in g.errors.get(diag_row, ''), 30,
