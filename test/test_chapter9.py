@@ -319,7 +319,7 @@ def test_option_no_worse_where_the_bench_finds_it(config: str, kind: str, model:
     rows, not asserted (docs/chapter9.md): at the thesis's law, gains on the steps and the
     circle, per_time on the S-bends, and the cross-coupled loop alone on every row tried (on
     the 0.79 m/s step, dynamic model, it loses the tape; its test is the knock above). At the
-    curve settings (bench/results/chapter9_bench.md, commit d573354): gains on every row,
+    curve settings of commit d573354 (the bench table of commit 518f848): gains on every row,
     per_time on all but the dynamic model's steps, the inflexion on the kinematic S-bend at
     0.63 m/s, the cross-coupled loop on all but the 0.31 m/s step, the Cartesian loop on all
     but the S-bend at 0.79 m/s. The option must also hold the tape on every seed.
