@@ -368,7 +368,7 @@ class Recorder(Node):
 
         /clock first, so that every message can be placed on sim time by its send. A message
         sent after the latest /clock sample taken waits (at most `hold` s of wall time) for the
-        samples that place it: a /clock packet lost on the shared-memory transport holds back
+        samples that place it: a /clock packet lost holds back
         every later sample until reliability repairs it, and a message stamped meanwhile with
         the last sim time known would leave 0.3-0.6 s gaps in the bag (all the ADC snapshots of
         that stretch on one stamp).
