@@ -121,19 +121,18 @@ def stale_after(g: GraphProbe, victim: str) -> float:
     up to one pacing allowance late (max_lag + the progress period + a clock step: a writer may
     trail the world, and so the executive, by that much; agv_nodes/world/pacing.py).
     """
-    from agv_nodes import sim_progress
     from agv_nodes.executive.faults import SUBSYSTEM_OF
     from agv_nodes.executive.settings import ExecutiveParams
+    from agv_nodes.world.pacing import GraphPacer
     from agv_nodes.world.settings import WorldNodeSettings, WorldParams
 
     ex, node = g.settings('executive', ExecutiveParams), g.settings('world', WorldNodeSettings)
     step = node.clock_every / g.settings('world', WorldParams).sample_rate
     table = codec()
-    others = [table[r].period_ms / 1000 for r, sub in SUBSYSTEM_OF.items()
-              if sub != {'route_following': 'route', 'load_handling': 'load'}.get(victim, victim)]
+    others = [table[r].period_ms / 1000 for r in SUBSYSTEM_OF if r != WATCHED.get(victim)]
     confirm = math.ceil(ex.stale_confirm / len(others)) * max(others)
-    return max(ex.status_timeout, confirm + node.max_lag + sim_progress.PERIOD + step)
-
+    allowance = GraphPacer(node.max_lag, (), clock_step=step).allowance
+    return max(ex.status_timeout, confirm + allowance)
 
 CASES = [  # victim, at rest within (sim s), report on comms/report, /diagnostics row, words
     ('route_following', 3.0, 'FAILED: stale status (route)', 'route', 'old'),
